@@ -1,0 +1,433 @@
+"""Headless OpenGL 4.5 core contexts (EGL, or OSMesa as a fallback).
+
+One context is shared per process by default (:func:`get_context`).  The
+backend is chosen by argument or by the environment variable
+``GLVOX_BACKEND`` (``egl``, ``osmesa`` or ``auto``; auto tries EGL first, then
+OSMesa).  With EGL, a hardware device is preferred when the machine has one;
+otherwise Mesa's software device (llvmpipe) is used.  ``GLVOX_EGL_DEVICE=N``
+forces the N-th EGL device.
+
+The contexts are made through moderngl/glcontext.  glcontext has no OSMesa
+backend and does not hand its function loader to moderngl's users, so glvox
+registers its own two backend names with glcontext (``glvox-egl`` wraps
+glcontext's EGL backend, ``glvox-osmesa`` drives libOSMesa through ctypes);
+both keep the loader, which :class:`glvox.gl.RawGL` needs for ``glLogicOp``
+and stencil state on the same context.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import os
+import threading
+from dataclasses import dataclass, field
+from typing import Any
+
+import moderngl
+
+from .errors import BackendError
+from .gl import RawGL
+
+GL_VERSION_REQUIRED = 450
+BACKENDS = ("egl", "osmesa")
+
+# What to install when no backend works (Debian/Ubuntu package names).
+_PACKAGE_HINT = (
+    "install Mesa's EGL and OpenGL drivers, e.g. on Debian/Ubuntu "
+    "`apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1` "
+    "(EGL), or `apt-get install libosmesa6` (OSMesa)"
+)
+
+
+# ---------------------------------------------------------------------------
+# backends registered with glcontext
+# ---------------------------------------------------------------------------
+
+
+class _LoaderContext:
+    """The object moderngl gets from a glcontext backend, keeping the loader."""
+
+    def __init__(self, inner: Any, backend: str, device: str):
+        self._inner = inner
+        self.backend = backend
+        self.device = device
+
+    def load_opengl_function(self, name: str) -> int:
+        return self._inner.load_opengl_function(name)
+
+    def release(self) -> None:
+        self._inner.release()
+
+    def __enter__(self):
+        return self._inner.__enter__()
+
+    def __exit__(self, *args):
+        return self._inner.__exit__(*args)
+
+
+_EGL_EXTENSIONS = 0x3055
+_last_created: list[_LoaderContext] = []
+
+
+def _egl_devices() -> list[str]:
+    """Extension strings of the EGL devices, in eglQueryDevicesEXT order."""
+    name = ctypes.util.find_library("EGL")
+    if not name:
+        return []
+    egl = ctypes.CDLL(name)
+    egl.eglGetProcAddress.restype = ctypes.c_void_p
+    egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
+    addr = egl.eglGetProcAddress(b"eglQueryDevicesEXT")
+    saddr = egl.eglGetProcAddress(b"eglQueryDeviceStringEXT")
+    if not addr or not saddr:
+        return []
+    query = ctypes.CFUNCTYPE(ctypes.c_uint, ctypes.c_int, ctypes.POINTER(ctypes.c_void_p),
+                             ctypes.POINTER(ctypes.c_int))(addr)
+    qstr = ctypes.CFUNCTYPE(ctypes.c_char_p, ctypes.c_void_p, ctypes.c_int)(saddr)
+    devs = (ctypes.c_void_p * 16)()
+    n = ctypes.c_int(0)
+    if not query(16, devs, ctypes.byref(n)):
+        return []
+    return [(qstr(devs[i], _EGL_EXTENSIONS) or b"").decode() for i in range(n.value)]
+
+
+def _egl_device_index() -> int:
+    """Index of the first hardware EGL device, else of the software one."""
+    forced = os.environ.get("GLVOX_EGL_DEVICE")
+    if forced:
+        return int(forced)
+    try:
+        exts = _egl_devices()
+    except OSError:
+        return 0
+    for i, e in enumerate(exts):
+        if "EGL_MESA_device_software" not in e:
+            return i
+    return 0
+
+
+def _create_egl(**kwargs) -> _LoaderContext:
+    import glcontext
+
+    index = _egl_device_index()
+    kwargs["device_index"] = index
+    inner = glcontext.get_backend_by_name("egl")(**kwargs)
+    ctx = _LoaderContext(inner, "egl", f"EGL device {index}")
+    _last_created.append(ctx)
+    return ctx
+
+
+class _OSMesa:
+    """A tiny ctypes driver of libOSMesa: a core-profile context on a 1x1 buffer."""
+
+    _FORMAT, _DEPTH_BITS, _STENCIL_BITS, _PROFILE = 0x22, 0x30, 0x31, 0x33
+    _CORE_PROFILE, _MAJOR, _MINOR = 0x34, 0x36, 0x37
+    _RGBA, _UNSIGNED_BYTE = 0x1908, 0x1401
+
+    def __init__(self, glversion: int = GL_VERSION_REQUIRED, **_: Any):
+        name = ctypes.util.find_library("OSMesa") or "libOSMesa.so.8"
+        try:
+            lib = ctypes.CDLL(name)
+        except OSError as exc:
+            raise BackendError(f"libOSMesa not found ({exc})") from None
+        lib.OSMesaCreateContextAttribs.restype = ctypes.c_void_p
+        lib.OSMesaCreateContextAttribs.argtypes = [ctypes.POINTER(ctypes.c_int), ctypes.c_void_p]
+        lib.OSMesaMakeCurrent.restype = ctypes.c_ubyte
+        lib.OSMesaMakeCurrent.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_uint,
+                                          ctypes.c_int, ctypes.c_int]
+        lib.OSMesaGetProcAddress.restype = ctypes.c_void_p
+        lib.OSMesaGetProcAddress.argtypes = [ctypes.c_char_p]
+        lib.OSMesaDestroyContext.argtypes = [ctypes.c_void_p]
+        attribs = [self._FORMAT, self._RGBA, self._DEPTH_BITS, 24, self._STENCIL_BITS, 8,
+                   self._PROFILE, self._CORE_PROFILE,
+                   self._MAJOR, glversion // 100, self._MINOR, (glversion // 10) % 10, 0]
+        arr = (ctypes.c_int * len(attribs))(*attribs)
+        self._lib = lib
+        self._ctx = lib.OSMesaCreateContextAttribs(arr, None)
+        if not self._ctx:
+            raise BackendError(f"OSMesa could not create an OpenGL {glversion / 100:.1f} core context")
+        self._buf = ctypes.create_string_buffer(4)
+        self.make_current()
+
+    def make_current(self) -> None:
+        if not self._lib.OSMesaMakeCurrent(self._ctx, self._buf, self._UNSIGNED_BYTE, 1, 1):
+            raise BackendError("OSMesaMakeCurrent failed")
+
+    def load_opengl_function(self, name: str) -> int:
+        return self._lib.OSMesaGetProcAddress(name.encode()) or 0
+
+    def release(self) -> None:
+        if self._ctx:
+            self._lib.OSMesaDestroyContext(self._ctx)
+            self._ctx = None
+
+    def __enter__(self):
+        self.make_current()
+
+    def __exit__(self, *args):
+        return None
+
+
+def _create_osmesa(**kwargs) -> _LoaderContext:
+    ctx = _LoaderContext(_OSMesa(**kwargs), "osmesa", "OSMesa")
+    _last_created.append(ctx)
+    return ctx
+
+
+_REGISTERED = False
+
+
+def _register_backends() -> None:
+    """Teach glcontext the names 'glvox-egl' and 'glvox-osmesa' (once)."""
+    global _REGISTERED
+    if _REGISTERED:
+        return
+    import glcontext
+
+    original = glcontext.get_backend_by_name
+    ours = {"glvox-egl": _create_egl, "glvox-osmesa": _create_osmesa}
+
+    def get_backend_by_name(name: str):
+        factory = ours.get(name)
+        if factory is None:
+            return original(name)
+
+        def create(*args, **kwargs):
+            kwargs.pop("backend", None)
+            kwargs.pop("mode", None)
+            return factory(**kwargs)
+
+        return create
+
+    glcontext.get_backend_by_name = get_backend_by_name
+    _REGISTERED = True
+
+
+# ---------------------------------------------------------------------------
+# the context object
+# ---------------------------------------------------------------------------
+
+#: GL limits reported by ``glvox info`` and used by the limit checks.
+LIMIT_NAMES = (
+    "GL_MAX_TEXTURE_SIZE",
+    "GL_MAX_3D_TEXTURE_SIZE",
+    "GL_MAX_ARRAY_TEXTURE_LAYERS",
+    "GL_MAX_RENDERBUFFER_SIZE",
+    "GL_MAX_VIEWPORT_DIMS",
+    "GL_MAX_COLOR_ATTACHMENTS",
+    "GL_MAX_DRAW_BUFFERS",
+    "GL_MAX_COMPUTE_WORK_GROUP_COUNT",
+    "GL_MAX_COMPUTE_WORK_GROUP_SIZE",
+    "GL_MAX_COMPUTE_WORK_GROUP_INVOCATIONS",
+    "GL_MAX_COMPUTE_SHARED_MEMORY_SIZE",
+    "GL_MAX_SHADER_STORAGE_BLOCK_SIZE",
+    "GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS",
+)
+
+_GL_MAX_COMPUTE_SHARED_MEMORY_SIZE = 0x8262
+
+
+@dataclass
+class GLContext:
+    """A headless OpenGL context and what glvox keeps with it.
+
+    Attributes
+    ----------
+    mgl : moderngl.Context
+        The moderngl context; use it for buffers, textures, programs.
+    backend : str
+        ``'egl'`` or ``'osmesa'``.
+    device : str
+        Which EGL device (or OSMesa) was used.
+    raw : RawGL
+        Raw GL entry points on this context (logic op, stencil).
+    programs : dict
+        Program cache of :mod:`glvox.shaders` (key -> moderngl program).
+    """
+
+    mgl: moderngl.Context
+    backend: str
+    device: str
+    raw: RawGL
+    programs: dict = field(default_factory=dict)
+    compile_seconds: float = 0.0
+    _released: bool = False
+    _query: Any = None
+    _neutral_fbo: Any = None
+
+    # -- description --------------------------------------------------------
+    @property
+    def vendor(self) -> str:
+        return self.mgl.info["GL_VENDOR"]
+
+    @property
+    def renderer(self) -> str:
+        return self.mgl.info["GL_RENDERER"]
+
+    @property
+    def version(self) -> str:
+        return self.mgl.info["GL_VERSION"]
+
+    @property
+    def is_software(self) -> bool:
+        r = self.renderer.lower()
+        return any(s in r for s in ("llvmpipe", "softpipe", "swrast", "lavapipe"))
+
+    def limits(self) -> dict[str, Any]:
+        """The GL limits that matter to voxelization, by GL enum name."""
+        info = self.mgl.info
+        out: dict[str, Any] = {}
+        for name in LIMIT_NAMES:
+            if name == "GL_MAX_COMPUTE_SHARED_MEMORY_SIZE":
+                out[name] = self.raw.get_integer(_GL_MAX_COMPUTE_SHARED_MEMORY_SIZE)
+            elif name in info:
+                v = info[name]
+                out[name] = tuple(v) if isinstance(v, (list, tuple)) else v
+        return out
+
+    def limit(self, name: str) -> Any:
+        return self.limits()[name]
+
+    def describe(self) -> dict[str, Any]:
+        """Everything ``glvox info`` prints, as a JSON-friendly dict."""
+        return {
+            "backend": self.backend,
+            "device": self.device,
+            "vendor": self.vendor,
+            "renderer": self.renderer,
+            "version": self.version,
+            "software": self.is_software,
+            "limits": {k: list(v) if isinstance(v, tuple) else v for k, v in self.limits().items()},
+        }
+
+    # -- state --------------------------------------------------------------
+    def check_error(self, where: str) -> None:
+        """Raise :class:`~glvox.errors.GLError` naming ``where`` if GL has an error pending."""
+        from .errors import GLError
+
+        err = self.mgl.error
+        if err != "GL_NO_ERROR":
+            raise GLError(f"OpenGL error {err} after {where}")
+
+    def timer_query(self) -> moderngl.Query:
+        """This context's one GL_TIME_ELAPSED query (moderngl cannot release queries)."""
+        if self._query is None:
+            self._query = self.mgl.query(time=True)
+        return self._query
+
+    def release_framebuffer(self, fbo: moderngl.Framebuffer) -> None:
+        """Release a transient framebuffer without leaving a deleted one bound.
+
+        A standalone moderngl context has no default framebuffer; after
+        releasing the bound FBO, moderngl rebinds the deleted name on the next
+        framebuffer creation (GL_INVALID_OPERATION).  Binding a tiny
+        persistent FBO first avoids it.
+        """
+        if self._neutral_fbo is None:
+            self._neutral_fbo = self.mgl.framebuffer(color_attachments=[self.mgl.texture((1, 1), 4)])
+        self._neutral_fbo.use()
+        fbo.release()
+
+    def logic_op(self, op: str):
+        """Context manager enabling ``glLogicOp(op)`` ('xor', 'or', ...) around draws."""
+        return self.raw.logic_op(op)
+
+    @property
+    def released(self) -> bool:
+        return self._released
+
+    def release(self) -> None:
+        """Release every cached program and the context itself."""
+        if self._released:
+            return
+        for prog in self.programs.values():
+            prog.release()
+        self.programs.clear()
+        self.mgl.release()
+        self._released = True
+
+
+def _normalize_backend(backend: str | None) -> str:
+    name = (backend or os.environ.get("GLVOX_BACKEND") or "auto").strip().lower()
+    if name not in BACKENDS + ("auto",):
+        raise BackendError(
+            f"backend must be one of {', '.join(BACKENDS + ('auto',))}, got {name!r} "
+            "(from the argument or GLVOX_BACKEND)"
+        )
+    return name
+
+
+def create_context(backend: str | None = None, *, require: int = GL_VERSION_REQUIRED) -> GLContext:
+    """Create a new headless OpenGL context.
+
+    Parameters
+    ----------
+    backend : {'egl', 'osmesa', 'auto'}, optional
+        Which backend; default from ``GLVOX_BACKEND``, else ``'auto'`` (EGL,
+        then OSMesa).
+    require : int
+        Minimum GL version as moderngl writes it (450 = 4.5).
+
+    Raises
+    ------
+    BackendError
+        When no backend gives a context of the required version; the message
+        names every backend tried, why it failed, and what to install.
+    """
+    name = _normalize_backend(backend)
+    order = BACKENDS if name == "auto" else (name,)
+    _register_backends()
+    failures = []
+    for b in order:
+        _last_created.clear()
+        try:
+            mgl = moderngl.create_context(standalone=True, backend=f"glvox-{b}", require=require)
+        except Exception as exc:  # noqa: BLE001 - every failure is reported below
+            failures.append(f"{b}: {str(exc).strip() or type(exc).__name__}")
+            for made in _last_created:
+                try:
+                    made.release()
+                except Exception:  # noqa: BLE001
+                    pass
+            continue
+        made = _last_created[-1]
+        return GLContext(mgl=mgl, backend=b, device=made.device,
+                         raw=RawGL(made.load_opengl_function))
+    raise BackendError(
+        f"no headless OpenGL {require // 100}.{(require // 10) % 10} core context could be created "
+        f"({'; '.join(failures)}); {_PACKAGE_HINT}"
+    )
+
+
+_shared: GLContext | None = None
+_lock = threading.Lock()
+
+
+def get_context(backend: str | None = None) -> GLContext:
+    """The process-wide shared context, created on first use.
+
+    A ``backend`` different from the shared context's raises BackendError
+    rather than silently returning the other one; use :func:`create_context`
+    for a second, private context.
+    """
+    global _shared
+    with _lock:
+        if _shared is not None and not _shared.released:
+            if backend is not None and _normalize_backend(backend) not in ("auto", _shared.backend):
+                raise BackendError(
+                    f"the shared context uses backend {_shared.backend!r}, asked for {backend!r}; "
+                    "call glvox.context.close_context() first or use create_context()"
+                )
+            return _shared
+        _shared = create_context(backend)
+        return _shared
+
+
+def close_context() -> None:
+    """Release the shared context (a later :func:`get_context` makes a new one)."""
+    global _shared
+    with _lock:
+        if _shared is not None:
+            _shared.release()
+            _shared = None

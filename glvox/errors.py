@@ -1,0 +1,72 @@
+"""Exception types of glvox.
+
+Every error glvox raises on purpose derives from :class:`GlvoxError`, so a
+caller (or the CLI, which turns them into one line and a non-zero exit) can
+tell a refused input from a bug.  Messages say what was expected and what was
+got.
+"""
+
+from __future__ import annotations
+
+
+class GlvoxError(Exception):
+    """Base class of every error glvox raises deliberately."""
+
+
+class BackendError(GlvoxError, RuntimeError):
+    """No headless OpenGL backend could give the required context."""
+
+
+class ShaderError(GlvoxError, RuntimeError):
+    """A shader could not be loaded, preprocessed, compiled or linked."""
+
+
+class GLError(GlvoxError, RuntimeError):
+    """An OpenGL error was raised by a stage (checked in debug mode)."""
+
+
+class MeshError(GlvoxError, ValueError):
+    """The input mesh cannot be voxelized as given."""
+
+
+class MeshLoadError(MeshError):
+    """The mesh file is missing, unreadable or not a triangle mesh."""
+
+
+class EmptyMeshError(MeshError):
+    """The mesh has no (non-degenerate) triangles."""
+
+
+class NonFiniteVertexError(MeshError):
+    """Some vertex coordinates are NaN or infinite."""
+
+
+class FaceIndexError(MeshError):
+    """Face indices are out of range or of the wrong shape."""
+
+
+class NotWatertightError(MeshError):
+    """A solid method was asked for a mesh that is not closed."""
+
+
+class GridError(GlvoxError, ValueError):
+    """The grid specification is invalid (resolution, bounds, dims)."""
+
+
+class LimitError(GlvoxError, MemoryError):
+    """A request exceeds a GL limit or the memory available."""
+
+
+class MethodError(GlvoxError, KeyError):
+    """Unknown method name, or a method used with the wrong arguments."""
+
+    def __str__(self) -> str:  # KeyError quotes its message; we don't want that
+        return str(self.args[0]) if self.args else ""
+
+
+class CapabilityError(GlvoxError, RuntimeError):
+    """The GL context lacks something a method requires."""
+
+
+class FormatError(GlvoxError, ValueError):
+    """A result file (npz, binvox) is malformed or of an unknown format."""

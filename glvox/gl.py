@@ -1,0 +1,117 @@
+"""The few raw OpenGL calls moderngl does not expose.
+
+moderngl has no ``glLogicOp`` and no stencil state; the XOR/OR solid methods
+and Passalis' stencil counting need them.  They are called on the *same*
+context through function pointers obtained from the loader that created it
+(EGL's ``eglGetProcAddress`` or ``OSMesaGetProcAddress``), so this is the one
+place where glvox touches GL below moderngl.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+from typing import Callable, Iterator
+
+from .errors import CapabilityError
+
+GL_COLOR_LOGIC_OP = 0x0BF2
+GL_STENCIL_TEST = 0x0B90
+
+#: ``glLogicOp`` opcodes by name.
+LOGIC_OPS = {
+    "clear": 0x1500,
+    "and": 0x1501,
+    "copy": 0x1503,
+    "noop": 0x1505,
+    "xor": 0x1506,
+    "or": 0x1507,
+    "set": 0x150F,
+}
+
+GLenum = ctypes.c_uint
+GLint = ctypes.c_int
+GLuint = ctypes.c_uint
+GLboolean = ctypes.c_ubyte
+
+# name -> (restype, argtypes)
+_SIGNATURES: dict[str, tuple[object, tuple[object, ...]]] = {
+    "glEnable": (None, (GLenum,)),
+    "glDisable": (None, (GLenum,)),
+    "glIsEnabled": (GLboolean, (GLenum,)),
+    "glLogicOp": (None, (GLenum,)),
+    "glGetIntegerv": (None, (GLenum, ctypes.POINTER(GLint))),
+    "glGetError": (GLenum, ()),
+    "glStencilFunc": (None, (GLenum, GLint, GLuint)),
+    "glStencilOp": (None, (GLenum, GLenum, GLenum)),
+    "glStencilMask": (None, (GLuint,)),
+    "glClearStencil": (None, (GLint,)),
+}
+
+GL_LOGIC_OP_MODE = 0x0BF0
+
+
+class RawGL:
+    """Lazily bound raw GL entry points of one context.
+
+    Parameters
+    ----------
+    loader : callable
+        ``loader(name: str) -> int`` returning the address of a GL function
+        in the current context (0 when missing).
+    """
+
+    def __init__(self, loader: Callable[[str], int]):
+        self._loader = loader
+        self._fns: dict[str, Callable] = {}
+
+    def fn(self, name: str) -> Callable:
+        """The ctypes function ``name``; raises CapabilityError when absent."""
+        f = self._fns.get(name)
+        if f is None:
+            if name not in _SIGNATURES:
+                raise KeyError(f"no signature known for GL function {name!r}")
+            addr = self._loader(name)
+            if not addr:
+                raise CapabilityError(f"the GL context does not provide {name}")
+            restype, argtypes = _SIGNATURES[name]
+            f = ctypes.CFUNCTYPE(restype, *argtypes)(addr)
+            self._fns[name] = f
+        return f
+
+    def get_integer(self, pname: int) -> int:
+        out = GLint(0)
+        self.fn("glGetIntegerv")(pname, ctypes.byref(out))
+        return int(out.value)
+
+    def get_error(self) -> int:
+        return int(self.fn("glGetError")())
+
+    # -- logic op -----------------------------------------------------------
+    def set_logic_op(self, op: str | None) -> None:
+        """Enable COLOR_LOGIC_OP with ``op`` ('xor', 'or', ...), or disable it with None."""
+        if op is None:
+            self.fn("glDisable")(GL_COLOR_LOGIC_OP)
+            return
+        try:
+            code = LOGIC_OPS[op]
+        except KeyError:
+            raise ValueError(f"logic op must be one of {sorted(LOGIC_OPS)}, got {op!r}") from None
+        self.fn("glEnable")(GL_COLOR_LOGIC_OP)
+        self.fn("glLogicOp")(code)
+
+    def logic_op_state(self) -> tuple[bool, str | None]:
+        """(enabled, op name) as GL reports them."""
+        enabled = bool(self.fn("glIsEnabled")(GL_COLOR_LOGIC_OP))
+        code = self.get_integer(GL_LOGIC_OP_MODE)
+        name = next((k for k, v in LOGIC_OPS.items() if v == code), hex(code))
+        return enabled, name
+
+    @contextlib.contextmanager
+    def logic_op(self, op: str) -> Iterator[None]:
+        """Context manager: draws inside combine with the framebuffer by ``op``."""
+        self.set_logic_op(op)
+        try:
+            yield
+        finally:
+            self.set_logic_op(None)

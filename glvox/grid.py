@@ -1,0 +1,453 @@
+"""Grid specification (placement, fit) and the binary result type VoxelGrid.
+
+Convention (DESIGN.md, shared by every method and reference)
+-----------------------------------------------------------
+A grid has ``dims = (nx, ny, nz)``, a world ``origin`` (the minimum corner of
+voxel (0, 0, 0)) and one isotropic voxel size ``h``.  Voxel (i, j, k) is the
+closed box ``origin + [i, i+1] x [j, j+1] x [k, k+1] * h``; its center is at
+``origin + (i + 0.5, j + 0.5, k + 0.5) * h``.  Voxel space is world space
+shifted by ``origin`` and divided by ``h``: voxel (i, j, k) is the unit cube
+at (i, j, k).
+
+Worked example: a mesh whose bounding box is [0, 2] x [0, 1] x [0, 1] at
+resolution 4 gets h = 2/4 = 0.5, dims (4, 4, 4), and is centered: the grid
+spans [0, 2] in x and [-0.5, 1.5] in y and z, so origin = (0, -0.5, -0.5).
+Voxel (0, 1, 1)'s center is (0.25, 0.25, 0.25).  With ``tight=True`` the
+dims become (4, 2, 2) and origin (0, 0, 0).
+
+Bit-packed layout (shared with the GLSL side, ``shaders/common/voxel_space.glsl``)
+-------------------------------------------------------------------------------
+Adjacent x voxels are consecutive bits of 32-bit words (S&S Sec. 3.2): a row
+(j, k) holds ``words_per_row = ceil(nx / 32)`` words; voxel (i, j, k) is bit
+``i % 32`` of word ``(k * ny + j) * words_per_row + i // 32``.  Bits past nx
+in the last word of a row are zero.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Sequence
+
+import numpy as np
+
+from .errors import GridError
+
+#: Largest voxel count accepted by a grid spec (2^31 - 1 keeps indices in int32
+#: on the GPU; the bit array of such a grid is 256 MiB).
+MAX_VOXELS = 2**31 - 1
+
+#: Two placements are the same when origin and h agree within this fraction of
+#: h: text formats (binvox headers) round-trip floats to ~7 digits, far below
+#: any voxel-sized difference.
+PLACEMENT_RTOL = 1e-5
+
+
+def _as_dims(dims: Sequence[int]) -> tuple[int, int, int]:
+    try:
+        d = tuple(int(x) for x in dims)
+        ok = len(d) == 3 and all(int(x) == x for x in dims)
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise GridError(f"dims must be three integers (nx, ny, nz), got {dims!r}")
+    if min(d) < 1:
+        raise GridError(f"dims must be at least 1 along every axis, got {d}")
+    if d[0] * d[1] * d[2] > MAX_VOXELS:
+        raise GridError(
+            f"grid {d[0]}x{d[1]}x{d[2]} has {d[0] * d[1] * d[2]} voxels, more than the "
+            f"{MAX_VOXELS} glvox supports; use a smaller grid"
+        )
+    return d  # type: ignore[return-value]
+
+
+@dataclass(frozen=True)
+class GridSpec:
+    """Where the voxels are: dims, world origin and isotropic voxel size.
+
+    Parameters
+    ----------
+    dims : (3,) int
+        Voxels along x, y, z.
+    origin : (3,) float64
+        World position of voxel (0, 0, 0)'s minimum corner.
+    voxel_size : float
+        Edge length h of every voxel, world units.
+    """
+
+    dims: tuple[int, int, int]
+    origin: np.ndarray
+    voxel_size: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "dims", _as_dims(self.dims))
+        o = np.asarray(self.origin, dtype=np.float64).reshape(-1)
+        if o.shape != (3,) or not np.all(np.isfinite(o)):
+            raise GridError(f"origin must be 3 finite numbers, got {self.origin!r}")
+        o.setflags(write=False)
+        object.__setattr__(self, "origin", o)
+        h = float(self.voxel_size)
+        if not (math.isfinite(h) and h > 0):
+            raise GridError(f"voxel_size must be a finite positive number, got {self.voxel_size!r}")
+        object.__setattr__(self, "voxel_size", h)
+
+    # -- derived -------------------------------------------------------------
+    @property
+    def shape(self) -> tuple[int, int, int]:
+        return self.dims
+
+    @property
+    def n_voxels(self) -> int:
+        nx, ny, nz = self.dims
+        return nx * ny * nz
+
+    @property
+    def words_per_row(self) -> int:
+        return (self.dims[0] + 31) // 32
+
+    @property
+    def n_words(self) -> int:
+        """32-bit words of the bit-packed grid."""
+        return self.words_per_row * self.dims[1] * self.dims[2]
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """(2, 3) float64: world min and max corner of the whole grid."""
+        return np.stack([self.origin, self.origin + np.asarray(self.dims) * self.voxel_size])
+
+    def world_to_voxel(self, points: np.ndarray) -> np.ndarray:
+        """World points (..., 3) -> voxel-space points (..., 3), float64."""
+        return (np.asarray(points, dtype=np.float64) - self.origin) / self.voxel_size
+
+    def voxel_to_world(self, points: np.ndarray) -> np.ndarray:
+        """Voxel-space points (..., 3) -> world points (..., 3), float64."""
+        return np.asarray(points, dtype=np.float64) * self.voxel_size + self.origin
+
+    def centers(self, indices: np.ndarray) -> np.ndarray:
+        """World centers (M, 3) of integer voxel indices (M, 3)."""
+        return self.voxel_to_world(np.asarray(indices, dtype=np.float64) + 0.5)
+
+    def same_placement(self, other: "GridSpec", rtol: float = PLACEMENT_RTOL) -> bool:
+        """True when dims agree and origin and voxel size agree within ``rtol * h``."""
+        tol = rtol * self.voxel_size
+        return (
+            self.dims == other.dims
+            and abs(self.voxel_size - other.voxel_size) <= tol
+            and bool(np.all(np.abs(self.origin - other.origin) <= tol))
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"dims": list(self.dims), "origin": self.origin.tolist(), "voxel_size": self.voxel_size}
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, GridSpec):
+            return NotImplemented
+        return (self.dims == other.dims and self.voxel_size == other.voxel_size
+                and bool(np.array_equal(self.origin, other.origin)))
+
+    def __hash__(self) -> int:
+        return hash((self.dims, self.voxel_size, tuple(self.origin.tolist())))
+
+    def __repr__(self) -> str:
+        o = ", ".join(f"{x:.6g}" for x in self.origin)
+        return f"GridSpec(dims={self.dims}, origin=({o}), voxel_size={self.voxel_size:.6g})"
+
+
+def fit_grid(
+    bounds: np.ndarray,
+    resolution: int | None = None,
+    *,
+    dims: Sequence[int] | None = None,
+    voxel_size: float | None = None,
+    padding: int = 0,
+    tight: bool = False,
+) -> GridSpec:
+    """Fit a grid around world-space ``bounds`` (2, 3).
+
+    Default (the papers' fit): ``resolution=N`` gives h = max_extent / N and a
+    cubic N^3 grid centered on the bounding box.
+
+    Parameters
+    ----------
+    bounds : (2, 3) float
+        Min and max corner to cover (the mesh's bounding box, or explicit
+        bounds chosen by the user).
+    resolution : int, optional
+        Voxels along the longest axis (N).
+    dims : (3,) int, optional
+        Explicit, possibly non-cubic dims.  h is the smallest isotropic size
+        for which the bounds fit, and the bounds are centered in the grid.
+    voxel_size : float, optional
+        Explicit h; dims = ceil(extent / h) per axis (at least 1), centered.
+    padding : int
+        Empty voxels kept between the bounds and the grid's faces on every
+        side.  With ``resolution`` the dims stay N (the model shrinks:
+        h = max_extent / (N - 2 padding)); with ``voxel_size`` the dims grow
+        by 2 padding.
+    tight : bool
+        With ``resolution``: per-axis dims ceil(extent / h) instead of N^3.
+
+    Returns
+    -------
+    GridSpec
+    """
+    b = np.asarray(bounds, dtype=np.float64)
+    if b.shape != (2, 3) or not np.all(np.isfinite(b)):
+        raise GridError(f"bounds must be a finite (2, 3) array [min, max], got shape {b.shape}")
+    if np.any(b[1] < b[0]):
+        raise GridError(f"bounds max must be >= min on every axis, got min {b[0]} max {b[1]}")
+    padding = int(padding)
+    if padding < 0:
+        raise GridError(f"padding must be >= 0 voxels, got {padding}")
+    given = [x is not None for x in (resolution, dims, voxel_size)]
+    if sum(given) != 1:
+        raise GridError("give exactly one of resolution, dims or voxel_size")
+    extent = b[1] - b[0]
+    center = 0.5 * (b[0] + b[1])
+    max_extent = float(extent.max())
+
+    if resolution is not None:
+        n = int(resolution)
+        if n != resolution or n < 1:
+            raise GridError(f"resolution must be a positive integer, got {resolution!r}")
+        inner = n - 2 * padding
+        if inner < 1:
+            raise GridError(f"padding {padding} leaves no voxel inside a grid of resolution {n}")
+        if max_extent <= 0:
+            raise GridError("the bounds have zero extent on every axis (a single point); "
+                            "give voxel_size explicitly")
+        h = max_extent / inner
+        if tight:
+            inner_dims = np.maximum(1, np.ceil(extent / h - 1e-9)).astype(int)
+            d = tuple(int(x) + 2 * padding for x in inner_dims)
+        else:
+            d = (n, n, n)
+    elif dims is not None:
+        d = _as_dims(dims)
+        inner = np.asarray(d) - 2 * padding
+        if np.any(inner < 1):
+            raise GridError(f"padding {padding} leaves no voxel inside dims {d}")
+        with np.errstate(divide="ignore", invalid="ignore"):
+            h = float(np.max(extent / inner))
+        if not h > 0:
+            raise GridError("the bounds have zero extent on every axis; give voxel_size explicitly")
+    else:
+        h = float(voxel_size)  # type: ignore[arg-type]
+        if not (math.isfinite(h) and h > 0):
+            raise GridError(f"voxel_size must be a finite positive number, got {voxel_size!r}")
+        inner_dims = np.maximum(1, np.ceil(extent / h - 1e-9)).astype(int)
+        d = tuple(int(x) + 2 * padding for x in inner_dims)
+    origin = center - 0.5 * np.asarray(d, dtype=np.float64) * h
+    return GridSpec(dims=_as_dims(d), origin=origin, voxel_size=h)
+
+
+# ---------------------------------------------------------------------------
+# packing
+# ---------------------------------------------------------------------------
+
+
+def pack_bits(dense: np.ndarray) -> np.ndarray:
+    """Dense bool (nx, ny, nz) -> uint32 words (nz, ny, words_per_row), GPU layout."""
+    nx, ny, nz = dense.shape
+    wpr = (nx + 31) // 32
+    t = np.ascontiguousarray(np.asarray(dense, dtype=bool).transpose(2, 1, 0))
+    if wpr * 32 != nx:
+        t = np.concatenate([t, np.zeros((nz, ny, wpr * 32 - nx), dtype=bool)], axis=2)
+    packed = np.packbits(t, axis=2, bitorder="little")
+    return packed.view("<u4").reshape(nz, ny, wpr)
+
+
+def unpack_bits(words: np.ndarray, dims: Sequence[int]) -> np.ndarray:
+    """uint32 words (any shape with the right size) -> dense bool (nx, ny, nz)."""
+    nx, ny, nz = dims
+    wpr = (nx + 31) // 32
+    w = np.ascontiguousarray(np.asarray(words).reshape(-1).astype("<u4", copy=False))
+    if w.size != wpr * ny * nz:
+        raise GridError(f"expected {wpr * ny * nz} words for dims {tuple(dims)}, got {w.size}")
+    bits = np.unpackbits(w.view(np.uint8).reshape(nz, ny, wpr * 4), axis=2, bitorder="little")
+    return bits[:, :, :nx].astype(bool).transpose(2, 1, 0)
+
+
+# ---------------------------------------------------------------------------
+# the result type
+# ---------------------------------------------------------------------------
+
+
+@dataclass
+class Comparison:
+    """Differences of a grid against a reference on the same placement.
+
+    ``missing`` are voxels the reference sets and the grid does not,
+    ``extra`` the reverse; both (M, 3) int64 voxel indices.
+    """
+
+    missing: np.ndarray
+    extra: np.ndarray
+    count: int
+    reference_count: int
+    iou: float
+
+    @property
+    def n_missing(self) -> int:
+        return int(len(self.missing))
+
+    @property
+    def n_extra(self) -> int:
+        return int(len(self.extra))
+
+    @property
+    def equal(self) -> bool:
+        return self.n_missing == 0 and self.n_extra == 0
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"missing": self.n_missing, "extra": self.n_extra, "count": self.count,
+                "reference_count": self.reference_count, "iou": self.iou}
+
+
+class VoxelGrid:
+    """A binary voxel grid on a :class:`GridSpec`.
+
+    Built from a dense bool array indexed [i, j, k] (i along x) or from the
+    bit-packed words the GPU methods write; either form is made from the
+    other on demand.
+
+    Attributes
+    ----------
+    spec : GridSpec
+    run : RunInfo or None
+        Method name, kind, timings and statistics of the run that made it.
+    """
+
+    def __init__(self, occupancy: np.ndarray | None = None, spec: GridSpec | None = None, *,
+                 words: np.ndarray | None = None, run: Any = None):
+        if spec is None:
+            raise GridError("a VoxelGrid needs its GridSpec")
+        if (occupancy is None) == (words is None):
+            raise GridError("give exactly one of occupancy (dense bool) or words (bit-packed)")
+        self.spec = spec
+        self.run = run
+        self._dense: np.ndarray | None = None
+        self._words: np.ndarray | None = None
+        if occupancy is not None:
+            occ = np.asarray(occupancy)
+            if occ.shape != spec.dims:
+                raise GridError(f"occupancy must have shape {spec.dims} (nx, ny, nz), got {occ.shape}")
+            if occ.dtype != bool:
+                raise GridError(f"occupancy must be a bool array, got dtype {occ.dtype}")
+            self._dense = occ
+        else:
+            w = np.asarray(words)
+            if w.size != spec.n_words:
+                raise GridError(f"expected {spec.n_words} packed words for dims {spec.dims}, got {w.size}")
+            self._words = w.reshape(spec.dims[2], spec.dims[1], spec.words_per_row).astype("<u4", copy=False)
+
+    # -- placement ---------------------------------------------------------
+    @property
+    def dims(self) -> tuple[int, int, int]:
+        return self.spec.dims
+
+    @property
+    def shape(self) -> tuple[int, int, int]:
+        return self.spec.dims
+
+    @property
+    def origin(self) -> np.ndarray:
+        return self.spec.origin
+
+    @property
+    def voxel_size(self) -> float:
+        return self.spec.voxel_size
+
+    # -- data ---------------------------------------------------------------
+    def dense(self) -> np.ndarray:
+        """Occupancy as bool (nx, ny, nz), indexed [i, j, k]; read-only view."""
+        if self._dense is None:
+            self._dense = unpack_bits(self._words, self.spec.dims)
+        v = self._dense.view()
+        v.setflags(write=False)
+        return v
+
+    def words(self) -> np.ndarray:
+        """Bit-packed occupancy, uint32 (nz, ny, words_per_row), GPU layout."""
+        if self._words is None:
+            self._words = pack_bits(self._dense)
+        return self._words
+
+    @property
+    def count(self) -> int:
+        """Number of set voxels."""
+        if self._words is not None:
+            return int(np.bitwise_count(self._words).sum())
+        return int(np.count_nonzero(self._dense))
+
+    def __len__(self) -> int:
+        return self.count
+
+    def indices(self) -> np.ndarray:
+        """(M, 3) int64 indices of the set voxels, sorted by i, then j, then k."""
+        return np.argwhere(self.dense())
+
+    def points(self) -> np.ndarray:
+        """(M, 3) float64 world centers of the set voxels."""
+        return self.spec.centers(self.indices())
+
+    def to_trimesh(self):
+        """A ``trimesh.voxel.VoxelGrid`` with the same occupancy and placement.
+
+        trimesh's transform maps voxel indices to voxel *centers*, so it is
+        scale h and translation origin + h/2.
+        """
+        import trimesh
+
+        h = self.voxel_size
+        transform = np.eye(4)
+        transform[:3, :3] *= h
+        transform[:3, 3] = self.origin + 0.5 * h
+        return trimesh.voxel.VoxelGrid(np.array(self.dense()), transform=transform)
+
+    # -- comparison ---------------------------------------------------------
+    def _check_same(self, other: "VoxelGrid") -> None:
+        if not self.spec.same_placement(other.spec):
+            raise GridError(f"cannot compare grids on different placements: {self.spec} vs {other.spec}")
+
+    def equal(self, other: "VoxelGrid") -> bool:
+        self._check_same(other)
+        return bool(np.array_equal(self.words(), other.words()))
+
+    def compare(self, reference: "VoxelGrid") -> Comparison:
+        """Missing and extra voxels against ``reference``, and IoU."""
+        self._check_same(reference)
+        a, b = self.dense(), reference.dense()
+        inter = int(np.count_nonzero(a & b))
+        union = int(np.count_nonzero(a | b))
+        return Comparison(
+            missing=np.argwhere(b & ~a),
+            extra=np.argwhere(a & ~b),
+            count=int(np.count_nonzero(a)),
+            reference_count=int(np.count_nonzero(b)),
+            iou=1.0 if union == 0 else inter / union,
+        )
+
+    def iou(self, other: "VoxelGrid") -> float:
+        return self.compare(other).iou
+
+    def __repr__(self) -> str:
+        m = f", method={self.run.method!r}" if self.run is not None else ""
+        return f"VoxelGrid(dims={self.dims}, count={self.count}, voxel_size={self.voxel_size:.6g}{m})"
+
+
+@dataclass
+class RunInfo:
+    """How a result was made: method, kind, placement, timings, statistics."""
+
+    method: str
+    kind: str
+    spec: GridSpec
+    timings: Any
+    stats: dict[str, Any] = field(default_factory=dict)
+    options: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"method": self.method, "kind": self.kind, "grid": self.spec.to_dict(),
+                "options": dict(self.options), "stats": dict(self.stats),
+                "timings": self.timings.to_dict() if self.timings is not None else None}

@@ -1,0 +1,176 @@
+"""The one method interface: descriptions, requirements, the registry.
+
+A method is a subclass of :class:`Method` with a class attribute ``info``
+(:class:`MethodInfo`) and a ``run`` that takes a validated mesh and a grid
+spec and returns a result of its kind.  Decorating it with :func:`register`
+puts it in the registry that the CLI, the tests and the comparison iterate
+over; modules in ``glvox/methods/`` are imported automatically, so adding a
+method is adding one module (and its shader folder).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Mapping
+
+from ..errors import MethodError
+
+KINDS = ("surface", "solid", "ldi", "sparse")
+FAMILIES = ("raster", "compute", "cpu")
+
+
+@dataclass(frozen=True)
+class Option:
+    """One method option: default, help, and the values allowed (if a set)."""
+
+    default: Any
+    help: str
+    choices: tuple[Any, ...] | None = None
+
+    def coerce(self, name: str, value: Any) -> Any:
+        """Convert a CLI string (or a Python value) to the default's type and check it."""
+        target = type(self.default)
+        if isinstance(value, str) and target is not str:
+            try:
+                if target is bool:
+                    low = value.strip().lower()
+                    if low not in ("1", "0", "true", "false", "yes", "no", "on", "off"):
+                        raise ValueError(value)
+                    value = low in ("1", "true", "yes", "on")
+                else:
+                    value = target(value)
+            except ValueError:
+                raise MethodError(f"option {name} must be a {target.__name__}, got {value!r}") from None
+        if self.choices is not None and value not in self.choices:
+            raise MethodError(f"option {name} must be one of {list(self.choices)}, got {value!r}")
+        return value
+
+
+@dataclass(frozen=True)
+class Requirements:
+    """What a GL method needs of the context.
+
+    ``limits`` maps GL limit names to the minimum value needed (for array
+    limits such as work group counts, the minimum of every component).
+    """
+
+    gl_version: int = 450
+    extensions: tuple[str, ...] = ()
+    limits: Mapping[str, int] = field(default_factory=dict)
+
+    def missing(self, ctx) -> list[str]:
+        """Human-readable list of what ``ctx`` lacks (empty when all is there)."""
+        out = []
+        if ctx.mgl.version_code < self.gl_version:
+            out.append(f"OpenGL {self.gl_version / 100:.1f} (context has {ctx.mgl.version_code / 100:.1f})")
+        exts = ctx.mgl.extensions
+        out += [f"extension {e}" for e in self.extensions if e not in exts]
+        lim = ctx.limits()
+        for name, need in self.limits.items():
+            have = lim.get(name)
+            have_min = min(have) if isinstance(have, (tuple, list)) else have
+            if have_min is None or have_min < need:
+                out.append(f"{name} >= {need} (context has {have})")
+        return out
+
+
+@dataclass(frozen=True)
+class MethodInfo:
+    """Registry entry of a method.
+
+    Attributes
+    ----------
+    name : str
+        Registry key, e.g. ``'reference-solid'``.
+    kind : {'surface', 'solid', 'ldi', 'sparse'}
+    family : {'raster', 'compute', 'cpu'}
+    paper : str
+        Paper and section implemented.
+    summary : str
+        One line for ``glvox methods``.
+    reference : str or None
+        Name of the exact reference this method is compared with.
+    exact : bool
+        True when the method claims exactness against ``reference`` (up to
+        ties); False for approximate-by-design methods.
+    requires : Requirements
+    options : mapping of str to Option
+    """
+
+    name: str
+    kind: str
+    family: str
+    paper: str
+    summary: str
+    reference: str | None = None
+    exact: bool = True
+    requires: Requirements = field(default_factory=Requirements)
+    options: Mapping[str, Option] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.kind not in KINDS:
+            raise ValueError(f"kind must be one of {KINDS}, got {self.kind!r}")
+        if self.family not in FAMILIES:
+            raise ValueError(f"family must be one of {FAMILIES}, got {self.family!r}")
+
+    @property
+    def uses_gl(self) -> bool:
+        return self.family != "cpu"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "name": self.name, "kind": self.kind, "family": self.family, "paper": self.paper,
+            "summary": self.summary, "reference": self.reference, "exact": self.exact,
+            "requires": {"gl_version": self.requires.gl_version,
+                         "extensions": list(self.requires.extensions),
+                         "limits": dict(self.requires.limits)},
+            "options": {k: {"default": o.default, "help": o.help,
+                            "choices": list(o.choices) if o.choices else None}
+                        for k, o in self.options.items()},
+        }
+
+
+class Method:
+    """Base class of every method.
+
+    Subclasses set ``info`` and implement :meth:`run`.  A method object lives
+    as long as the process and may keep GPU resources keyed by context (see
+    :meth:`release`).
+    """
+
+    info: ClassVar[MethodInfo]
+
+    def run(self, mesh, spec, *, ctx, timer, **options):
+        """Voxelize ``mesh`` on ``spec``.
+
+        Parameters
+        ----------
+        mesh : glvox.mesh.Mesh
+        spec : glvox.grid.GridSpec
+        ctx : glvox.context.GLContext or None
+            The context for GL methods; None for CPU methods.
+        timer : glvox.timing.StageTimer
+            Wrap each stage in ``with timer.stage(name):``.
+        **options
+            The method's options, already validated and with defaults filled.
+
+        Returns
+        -------
+        A result of the method's kind (VoxelGrid for surface and solid).
+        """
+        raise NotImplementedError
+
+    def release(self, ctx) -> None:
+        """Free GPU resources held for ``ctx`` (no-op by default)."""
+
+
+_REGISTRY: dict[str, Method] = {}
+
+
+def register(cls: type[Method]) -> type[Method]:
+    """Class decorator: add a method to the registry (name must be new)."""
+    info = cls.info
+    if info.name in _REGISTRY and type(_REGISTRY[info.name]) is not cls:
+        raise ValueError(f"method name {info.name!r} is registered twice")
+    _REGISTRY[info.name] = cls()
+    return cls

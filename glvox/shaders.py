@@ -1,0 +1,307 @@
+"""GLSL loading: recursive ``#include``, injected defines, per-context program cache.
+
+Every GLSL source lives in the top-level ``shaders/`` folder of the checkout,
+shipped in the wheel as the package ``glvox.shaders``.  Paths are relative to
+that folder (``"common/bits.glsl"``); users can add their own folders.
+
+Preprocessing
+-------------
+* ``#include "path"`` is resolved relative to the including file, then
+  against the search folders.  Each file is included once per program (a
+  second include of the same file is dropped), and nesting deeper than
+  :data:`MAX_INCLUDE_DEPTH` is an error (it means an include cycle or a
+  design problem).
+* Defines are injected right after the top file's ``#version`` line,
+  followed by a ``#line`` directive, so the rest keeps its own line numbers.
+* ``#line`` directives encode the file: line L of the n-th file is written as
+  ``n * LINE_BASE + L``.  Drivers disagree on whether they print the
+  source-string number of ``#line L S`` (Mesa prints 0), but all print the
+  line, so errors are mapped back to ``file:line`` from the line alone.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import time
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any, Iterable, Mapping, Sequence
+
+from .errors import ShaderError
+
+MAX_INCLUDE_DEPTH = 16
+LINE_BASE = 100000
+
+_INCLUDE = re.compile(r'^\s*#\s*include\s+[<"]([^">]+)[">]\s*(//.*)?$')
+_VERSION = re.compile(r"^\s*#\s*version\b")
+_IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+# Mesa: "0:12(3): error: ...", NVIDIA: "0(12) : error C0000: ...", AMD: "ERROR: 0:12: ..."
+_LOC = re.compile(r"(\d+):(\d+)\((\d+)\)|(\d+)\((\d+)\)|\b(\d+):(\d+):")
+
+
+
+def builtin_shader_dir() -> Path:
+    """The folder holding glvox's own shaders (checkout or installed wheel)."""
+    try:
+        root = resources.files("glvox.shaders")
+        path = Path(str(root))
+        if (path / "common").is_dir():
+            return path
+    except (ModuleNotFoundError, TypeError):
+        pass
+    path = Path(__file__).resolve().parent.parent / "shaders"
+    if (path / "common").is_dir():
+        return path
+    raise ShaderError(
+        "glvox's shader folder was not found (neither the installed package glvox.shaders "
+        f"nor {path}); reinstall glvox"
+    )
+
+
+def _search_dirs(extra: Iterable[os.PathLike | str] = ()) -> tuple[Path, ...]:
+    dirs = [Path(p).resolve() for p in extra]
+    env = os.environ.get("GLVOX_SHADER_PATH")
+    if env:
+        dirs += [Path(p).resolve() for p in env.split(os.pathsep) if p]
+    dirs.append(builtin_shader_dir())
+    return tuple(dirs)
+
+
+def format_define(name: str, value: Any) -> str:
+    """``#define name value`` for a bool, int, float or string value."""
+    if not _IDENT.match(name):
+        raise ShaderError(f"define name must be a GLSL identifier, got {name!r}")
+    if isinstance(value, bool):
+        text = "1" if value else "0"
+    elif isinstance(value, int):
+        text = str(value)
+    elif isinstance(value, float):
+        text = repr(value)
+        if "e" not in text and "." not in text:
+            text += ".0"
+    elif value is None:
+        text = ""
+    else:
+        text = str(value)
+        if "\n" in text:
+            raise ShaderError(f"define {name} must be one line, got {value!r}")
+    return f"#define {name} {text}".rstrip()
+
+
+@dataclass
+class Source:
+    """A preprocessed GLSL source and the files it came from.
+
+    Attributes
+    ----------
+    text : str
+        The source handed to the compiler.
+    files : list of Path
+        Files by index, as encoded in ``#line`` (index 0 is the top file).
+    """
+
+    text: str
+    files: list[Path] = field(default_factory=list)
+    root: Path | None = None
+
+    @property
+    def name(self) -> str:
+        """The top file, as messages name it."""
+        return self._name(self.files[0])
+
+    def location(self, encoded_line: int) -> str:
+        """``file:line`` for a line number as the compiler printed it."""
+        idx, line = divmod(int(encoded_line), LINE_BASE)
+        if 0 <= idx < len(self.files):
+            return f"{self._name(self.files[idx])}:{line}"
+        return f"<generated>:{encoded_line}"
+
+    def _name(self, path: Path) -> str:
+        if self.root is not None:
+            try:
+                return "shaders/" + path.relative_to(self.root).as_posix()
+            except ValueError:
+                pass
+        return str(path)
+
+    def map_log(self, log: str) -> str:
+        """Rewrite the compiler's locations in ``log`` to ``file:line``."""
+
+        def repl(m: re.Match) -> str:
+            if m.group(2) is not None:
+                return f"{self.location(int(m.group(2)))}({m.group(3)})"
+            if m.group(5) is not None:
+                return self.location(int(m.group(5)))
+            return self.location(int(m.group(7))) + ":"
+
+        return _LOC.sub(repl, log)
+
+
+def resolve(path: str | os.PathLike, dirs: Sequence[Path], relative_to: Path | None = None) -> Path:
+    p = Path(path)
+    if p.is_absolute():
+        if p.is_file():
+            return p
+    else:
+        cands = ([relative_to / p] if relative_to is not None else []) + [d / p for d in dirs]
+        for c in cands:
+            if c.is_file():
+                return c.resolve()
+    where = ", ".join(str(d) for d in ([relative_to] if relative_to else []) + list(dirs))
+    raise ShaderError(f"shader file {str(path)!r} not found (searched {where})")
+
+
+def preprocess(path: str | os.PathLike, defines: Mapping[str, Any] | None = None,
+               search: Iterable[os.PathLike | str] = ()) -> Source:
+    """Load ``path`` with its includes and ``defines`` into one :class:`Source`."""
+    dirs = _search_dirs(search)
+    top = resolve(path, dirs)
+    files: list[Path] = []
+    seen: set[Path] = set()
+
+    def read(p: Path) -> list[str]:
+        try:
+            return p.read_text(encoding="utf-8").splitlines()
+        except OSError as exc:
+            raise ShaderError(f"cannot read shader file {p}: {exc}") from None
+
+    def expand(p: Path, depth: int, chain: tuple[str, ...]) -> list[str]:
+        if depth > MAX_INCLUDE_DEPTH:
+            raise ShaderError(
+                f"#include nested deeper than {MAX_INCLUDE_DEPTH} levels: {' -> '.join(chain)}"
+            )
+        idx = len(files)
+        files.append(p)
+        seen.add(p)
+        out = [f"#line {idx * LINE_BASE + 1}"]
+        for n, line in enumerate(read(p), start=1):
+            m = _INCLUDE.match(line)
+            if m:
+                child = resolve(m.group(1), dirs, relative_to=p.parent)
+                # include-once also makes cycles harmless: a file already in is skipped
+                if child not in seen:
+                    out.append(f"// begin include {m.group(1)}")
+                    out += expand(child, depth + 1, chain + (str(child),))
+                    out.append(f"// end include {m.group(1)}")
+                out.append(f"#line {idx * LINE_BASE + n + 1}")
+                continue
+            if _VERSION.match(line):
+                raise ShaderError(f"#version may only appear in the top file, found in {p}:{n}")
+            out.append(line)
+        return out
+
+    lines = read(top)
+    vline = next((i for i, l in enumerate(lines) if _VERSION.match(l)), None)
+    if vline is None:
+        raise ShaderError(f"{top}: the top shader file must start with a #version line")
+    if any(l.strip() and not l.strip().startswith("//") for l in lines[:vline]):
+        raise ShaderError(f"{top}:{vline + 1}: only comments may precede #version")
+    files.append(top)
+    seen.add(top)
+    out = [lines[vline]]
+    out += [format_define(k, v) for k, v in (defines or {}).items()]
+    out.append(f"#line {vline + 2}")
+    for n, line in enumerate(lines[vline + 1:], start=vline + 2):
+        m = _INCLUDE.match(line)
+        if m:
+            child = resolve(m.group(1), dirs, relative_to=top.parent)
+            if child not in seen:
+                out.append(f"// begin include {m.group(1)}")
+                out += expand(child, 1, (str(top), str(child)))
+                out.append(f"// end include {m.group(1)}")
+            out.append(f"#line {n + 1}")
+            continue
+        if _VERSION.match(line):
+            raise ShaderError(f"#version appears twice in {top} (line {n})")
+        out.append(line)
+    return Source(text="\n".join(out) + "\n", files=files, root=dirs[-1])
+
+
+# ---------------------------------------------------------------------------
+# programs
+# ---------------------------------------------------------------------------
+
+
+def _cache_key(kind: str, paths: Sequence[str], defines: Mapping[str, Any] | None,
+               extra: Any = ()) -> tuple:
+    d = tuple(sorted((k, repr(v)) for k, v in (defines or {}).items()))
+    return (kind, tuple(str(p) for p in paths), d, extra)
+
+
+def _compile_error(exc: Exception, sources: Mapping[str, Source]) -> ShaderError:
+    log = str(exc)
+    if "Linker failed" in log:
+        names = ", ".join(s.name for s in sources.values())
+        return ShaderError(f"linking {names} failed:\n{log.strip()}")
+    # which stage failed: moderngl prints "<stage>_shader" then the log
+    for stage, src in sources.items():
+        if f"{stage}_shader" in log:
+            return ShaderError(f"compiling {src.name} ({stage} shader) failed:\n{src.map_log(log).strip()}")
+    src = next(iter(sources.values()))
+    return ShaderError(f"shader compilation failed:\n{src.map_log(log).strip()}")
+
+
+def compute_program(ctx, path: str, defines: Mapping[str, Any] | None = None,
+                    search: Iterable[os.PathLike | str] = ()):
+    """A compiled ``moderngl.ComputeShader`` for ``path``, cached on ``ctx``.
+
+    Parameters
+    ----------
+    ctx : glvox.context.GLContext
+    path : str
+        Shader path relative to a search folder, e.g. ``"testing/bits.comp"``.
+    defines : mapping, optional
+        Injected after ``#version``; part of the cache key.
+    """
+    search = tuple(search)
+    key = _cache_key("compute", [path], defines, tuple(str(s) for s in search))
+    prog = ctx.programs.get(key)
+    if prog is not None:
+        return prog
+    src = preprocess(path, defines, search)
+    t0 = time.perf_counter()
+    try:
+        prog = ctx.mgl.compute_shader(src.text)
+    except Exception as exc:  # moderngl.Error
+        raise _compile_error(exc, {"compute": src}) from None
+    ctx.compile_seconds += time.perf_counter() - t0
+    ctx.programs[key] = prog
+    return prog
+
+
+def render_program(ctx, vertex: str, fragment: str | None = None, geometry: str | None = None,
+                   defines: Mapping[str, Any] | None = None, varyings: Sequence[str] = (),
+                   search: Iterable[os.PathLike | str] = ()):
+    """A linked ``moderngl.Program`` from stage files, cached on ``ctx``."""
+    search = tuple(search)
+    paths = [p for p in (vertex, fragment, geometry) if p is not None]
+    key = _cache_key("render", paths, defines, (tuple(varyings), tuple(str(s) for s in search)))
+    prog = ctx.programs.get(key)
+    if prog is not None:
+        return prog
+    srcs = {"vertex": preprocess(vertex, defines, search)}
+    if fragment is not None:
+        srcs["fragment"] = preprocess(fragment, defines, search)
+    if geometry is not None:
+        srcs["geometry"] = preprocess(geometry, defines, search)
+    t0 = time.perf_counter()
+    try:
+        prog = ctx.mgl.program(
+            vertex_shader=srcs["vertex"].text,
+            fragment_shader=srcs["fragment"].text if "fragment" in srcs else None,
+            geometry_shader=srcs["geometry"].text if "geometry" in srcs else None,
+            varyings=tuple(varyings),
+        )
+    except Exception as exc:
+        raise _compile_error(exc, srcs) from None
+    ctx.compile_seconds += time.perf_counter() - t0
+    ctx.programs[key] = prog
+    return prog
+
+
+def source_digest(path: str, defines: Mapping[str, Any] | None = None) -> str:
+    """A short hash of the preprocessed source (for provenance in results)."""
+    return hashlib.sha1(preprocess(path, defines).text.encode()).hexdigest()[:12]

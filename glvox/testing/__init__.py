@@ -1,0 +1,20 @@
+"""A harness to run and test GLSL headless (also glvox's own test fixtures).
+
+Installed with glvox as a pytest plugin (entry point ``pytest11``), it gives
+any project's tests:
+
+* ``gl_context``: one shared headless :class:`~glvox.context.GLContext` for
+  the session (skips, naming what is missing, where no backend works; with
+  ``GLVOX_REQUIRE_GL=1`` that is an error instead);
+* a check that no GL error is pending before and after every test that uses
+  ``gl_context``;
+* the marker ``@pytest.mark.requires_gl(version=450, extensions=(...),
+  limits={...})`` that skips with a reason naming the missing capability;
+* ``glvox_mesh_dir``: the shared meshes folder (``GLVOX_MESHES``, default
+  ``../shared/meshes`` beside the checkout), skipping with its path when absent;
+* the helpers :func:`run_compute` and :func:`run_fragment` below.
+"""
+
+from .harness import run_compute, run_fragment
+
+__all__ = ["run_compute", "run_fragment"]

@@ -1,0 +1,136 @@
+"""Run a compute or fragment shader on given arrays and read the results back."""
+
+from __future__ import annotations
+
+import math
+import os
+from typing import Any, Iterable, Mapping, Sequence
+
+import numpy as np
+
+from ..shaders import compute_program, render_program
+
+
+def set_uniforms(prog, uniforms: Mapping[str, Any]) -> None:
+    """Set uniforms by name; a name the program lacks raises KeyError naming it."""
+    for name, value in uniforms.items():
+        if name not in prog:
+            raise KeyError(f"program has no active uniform {name!r} (unused uniforms are optimized out)")
+        prog[name].value = tuple(value) if isinstance(value, (list, tuple, np.ndarray)) else value
+
+
+def run_compute(ctx, shader: str, groups: int | Sequence[int], *,
+                buffers: Mapping[int, np.ndarray | tuple[int, Any]],
+                read: Iterable[int] = (), uniforms: Mapping[str, Any] | None = None,
+                defines: Mapping[str, Any] | None = None,
+                search: Iterable[os.PathLike | str] = ()) -> dict[int, np.ndarray]:
+    """Dispatch a compute shader on SSBOs and read some back.
+
+    Parameters
+    ----------
+    ctx : GLContext
+    shader : str
+        Path of the ``.comp`` file relative to a search folder (glvox's
+        ``shaders/`` is always searched; add yours with ``search``).
+    groups : int or (3,) int
+        Work groups to dispatch.
+    buffers : {binding: array or (count, dtype)}
+        An array is uploaded as is; ``(count, dtype)`` makes a zero-filled
+        buffer of that many elements.
+    read : iterable of int
+        Bindings to read back after the dispatch.
+    uniforms, defines : mapping, optional
+
+    Returns
+    -------
+    {binding: array} for each binding in ``read``, with the dtype (and, for
+    uploaded arrays, the shape) it was given.
+    """
+    prog = compute_program(ctx, shader, defines, search)
+    set_uniforms(prog, uniforms or {})
+    made, meta = {}, {}
+    try:
+        for binding, spec in buffers.items():
+            if isinstance(spec, tuple):
+                count, dtype = spec
+                dtype = np.dtype(dtype)
+                buf = ctx.mgl.buffer(reserve=max(4, int(count) * dtype.itemsize))
+                buf.clear()
+                meta[binding] = (dtype, (int(count),))
+            else:
+                arr = np.ascontiguousarray(spec)
+                buf = ctx.mgl.buffer(arr.tobytes() if arr.nbytes else b"\0" * 4)
+                meta[binding] = (arr.dtype, arr.shape)
+            buf.bind_to_storage_buffer(binding)
+            made[binding] = buf
+        g = (int(groups), 1, 1) if np.isscalar(groups) else tuple(int(x) for x in groups)
+        prog.run(*g)
+        out = {}
+        for binding in read:
+            dtype, shape = meta[binding]
+            n = math.prod(shape) * dtype.itemsize
+            out[binding] = np.frombuffer(made[binding].read(size=n), dtype=dtype).reshape(shape).copy()
+        return out
+    finally:
+        for buf in made.values():
+            buf.release()
+
+
+def run_fragment(ctx, fragment: str, size: tuple[int, int], *, outputs: int = 1,
+                 dtype: str = "u4", components: int = 4, vertex: str = "testing/fullscreen.vert",
+                 vertices: int = 3, draws: int = 1, logic_op: str | None = None,
+                 uniforms: Mapping[str, Any] | None = None, defines: Mapping[str, Any] | None = None,
+                 textures: Mapping[int, Any] | None = None,
+                 search: Iterable[os.PathLike | str] = ()) -> list[np.ndarray]:
+    """Draw ``vertices`` vertices (default a full-screen triangle) into color targets.
+
+    Parameters
+    ----------
+    fragment : str
+        ``.frag`` path; writes to ``outputs`` color attachments.
+    size : (width, height)
+    outputs : int
+        Number of color attachments (up to GL_MAX_DRAW_BUFFERS).
+    dtype : {'u4', 'i4', 'f4', 'f1'}
+        Texture format of every attachment, with ``components`` channels.
+    draws : int
+        Repeat the draw (e.g. to test blending or a logic op).
+    logic_op : str, optional
+        ``'xor'``, ``'or'``... enabled around the draws (see :mod:`glvox.gl`).
+    textures : {unit: moderngl texture}, optional
+        Bound before drawing.
+
+    Returns
+    -------
+    list of arrays, one per attachment, shape (height, width, components).
+    """
+    prog = render_program(ctx, vertex, fragment, defines=defines, search=search)
+    set_uniforms(prog, uniforms or {})
+    mgl = ctx.mgl
+    targets = [mgl.texture(size, components, dtype=dtype) for _ in range(outputs)]
+    fbo = mgl.framebuffer(color_attachments=targets)
+    vao = mgl.vertex_array(prog, [])
+    try:
+        fbo.use()
+        for t in targets:
+            t.write(np.zeros((size[1], size[0], components), dtype=np.dtype(dtype)).tobytes())
+        for unit, tex in (textures or {}).items():
+            tex.use(unit)
+        if logic_op is not None:
+            with ctx.logic_op(logic_op):
+                for _ in range(draws):
+                    vao.render(mode=mgl.TRIANGLES, vertices=vertices)
+        else:
+            for _ in range(draws):
+                vao.render(mode=mgl.TRIANGLES, vertices=vertices)
+        out = []
+        np_dtype = np.dtype("u1" if dtype == "f1" else dtype)
+        for t in targets:
+            data = t.read()
+            out.append(np.frombuffer(data, dtype=np_dtype).reshape(size[1], size[0], components).copy())
+        return out
+    finally:
+        vao.release()
+        ctx.release_framebuffer(fbo)
+        for t in targets:
+            t.release()

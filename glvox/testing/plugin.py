@@ -1,0 +1,78 @@
+"""pytest plugin of glvox (registered through the ``pytest11`` entry point)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+
+def pytest_configure(config) -> None:
+    config.addinivalue_line(
+        "markers",
+        "requires_gl(version=450, extensions=(), limits={}): skip unless the GL context "
+        "has this version, these extensions and at least these limits",
+    )
+
+
+def _require_gl() -> bool:
+    return os.environ.get("GLVOX_REQUIRE_GL", "") not in ("", "0")
+
+
+@pytest.fixture(scope="session")
+def gl_context():
+    """The process's shared headless GL context (glvox.context.get_context())."""
+    from glvox.context import get_context
+    from glvox.errors import BackendError
+
+    try:
+        ctx = get_context()
+    except BackendError as exc:
+        if _require_gl():
+            pytest.fail(f"GLVOX_REQUIRE_GL is set but no GL context: {exc}", pytrace=False)
+        pytest.skip(f"no headless OpenGL context: {exc}")
+    return ctx
+
+
+@pytest.fixture(autouse=True)
+def _glvox_gl_error_check(request):
+    """No GL error pending before and after each test that uses gl_context."""
+    if "gl_context" not in request.fixturenames:
+        yield
+        return
+    ctx = request.getfixturevalue("gl_context")
+    before = ctx.mgl.error
+    assert before == "GL_NO_ERROR", f"GL error pending before the test: {before}"
+    yield
+    after = ctx.mgl.error
+    assert after == "GL_NO_ERROR", f"GL error left pending by the test: {after}"
+
+
+@pytest.fixture(autouse=True)
+def _glvox_requires_gl(request):
+    marker = request.node.get_closest_marker("requires_gl")
+    if marker is None:
+        yield
+        return
+    from glvox.methods import Requirements
+
+    ctx = request.getfixturevalue("gl_context")
+    kw = dict(marker.kwargs)
+    req = Requirements(gl_version=kw.get("version", 450),
+                       extensions=tuple(kw.get("extensions", ())),
+                       limits=dict(kw.get("limits", {})))
+    missing = req.missing(ctx)
+    if missing:
+        pytest.skip(f"GL context ({ctx.renderer}) lacks: {'; '.join(missing)}")
+    yield
+
+
+@pytest.fixture(scope="session")
+def glvox_mesh_dir(request) -> Path:
+    """The shared meshes folder: GLVOX_MESHES, else ../shared/meshes beside the checkout."""
+    env = os.environ.get("GLVOX_MESHES")
+    path = Path(env) if env else Path(request.config.rootpath).resolve().parent / "shared" / "meshes"
+    if not path.is_dir():
+        pytest.skip(f"shared meshes folder not found: {path} (set GLVOX_MESHES)")
+    return path

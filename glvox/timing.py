@@ -1,0 +1,119 @@
+"""Per-stage timings: wall clock always, GPU time from timer queries.
+
+A method wraps each stage in ``with timer.stage("name"):``.  On a GPU stage
+the timer brackets the commands with a ``GL_TIME_ELAPSED`` query and waits for
+the GPU at the end of the stage, so the wall time of the stage includes the
+GPU work it issued (stages are coarse; the one sync per stage is the price of
+honest wall times).  Stages do not nest: GL allows one time-elapsed query at a
+time.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import time
+from dataclasses import dataclass, field
+from typing import Any, Iterator
+
+
+@dataclass
+class Stage:
+    name: str
+    wall_s: float
+    gpu_s: float | None = None
+
+
+@dataclass
+class Timings:
+    """Stages of one run, in order.
+
+    Attributes
+    ----------
+    stages : list of Stage
+    cold : bool
+        True when the run compiled shaders (the first run of a method in a
+        context); ``compile_s`` is the time spent compiling.
+    """
+
+    stages: list[Stage] = field(default_factory=list)
+    cold: bool = False
+    compile_s: float = 0.0
+
+    @property
+    def wall_s(self) -> float:
+        return sum(s.wall_s for s in self.stages)
+
+    @property
+    def gpu_s(self) -> float | None:
+        vals = [s.gpu_s for s in self.stages if s.gpu_s is not None]
+        return sum(vals) if vals else None
+
+    def stage(self, name: str) -> Stage:
+        for s in self.stages:
+            if s.name == name:
+                return s
+        raise KeyError(f"no stage {name!r}; stages are {[s.name for s in self.stages]}")
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "cold": self.cold,
+            "compile_s": self.compile_s,
+            "wall_s": self.wall_s,
+            "gpu_s": self.gpu_s,
+            "stages": [{"name": s.name, "wall_s": s.wall_s, "gpu_s": s.gpu_s} for s in self.stages],
+        }
+
+    def summary(self) -> str:
+        parts = []
+        for s in self.stages:
+            g = f", gpu {s.gpu_s * 1e3:.2f} ms" if s.gpu_s is not None else ""
+            parts.append(f"{s.name} {s.wall_s * 1e3:.2f} ms{g}")
+        head = f"cold (compile {self.compile_s * 1e3:.1f} ms): " if self.cold else ""
+        return head + "; ".join(parts)
+
+
+class StageTimer:
+    """Records :class:`Stage` entries into a :class:`Timings`.
+
+    Parameters
+    ----------
+    ctx : GLContext or None
+        With a context, stages marked ``gpu=True`` are timed by a timer query.
+    debug : bool
+        Check ``glGetError`` after every stage and raise GLError naming the
+        method and the stage (``GLVOX_DEBUG=1`` turns this on).
+    method : str
+        For error messages.
+    """
+
+    def __init__(self, ctx=None, *, debug: bool = False, method: str = ""):
+        self.ctx = ctx
+        self.debug = debug
+        self.method = method
+        self.timings = Timings()
+        #: statistics a method reports beside its result (counts, case shares)
+        self.stats: dict[str, Any] = {}
+        self._compile0 = ctx.compile_seconds if ctx is not None else 0.0
+
+    @contextlib.contextmanager
+    def stage(self, name: str, gpu: bool = True) -> Iterator[None]:
+        # one query object per context, reused: moderngl cannot release queries
+        query = self.ctx.timer_query() if gpu and self.ctx is not None else None
+        t0 = time.perf_counter()
+        if query is not None:
+            with query:
+                yield
+            self.ctx.mgl.finish()
+        else:
+            yield
+        wall = time.perf_counter() - t0
+        gpu_s = query.elapsed * 1e-9 if query is not None else None
+        self.timings.stages.append(Stage(name, wall, gpu_s))
+        if self.debug and self.ctx is not None:
+            self.ctx.check_error(f"method {self.method!r}, stage {name!r}")
+
+    def finish(self) -> Timings:
+        if self.ctx is not None:
+            self.timings.compile_s = self.ctx.compile_seconds - self._compile0
+            self.timings.cold = self.timings.compile_s > 0
+        return self.timings

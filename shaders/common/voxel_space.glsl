@@ -1,0 +1,23 @@
+// Voxel space and the bit-packed grid layout, shared with glvox/grid.py.
+//
+// Voxel (i, j, k) is the unit cube [i, i+1] x [j, j+1] x [k, k+1] of voxel
+// space; world p maps to (p - origin) / h.  Vertices are uploaded relative to
+// the mesh's anchor (its bounding-box center), so u_origin is the grid origin
+// minus that anchor: float32 keeps its precision far from the world origin.
+//
+// Packed grid: a row (j, k) has words_per_row() = ceil(nx / 32) words; voxel
+// (i, j, k) is bit i % 32 of word (k * ny + j) * words_per_row() + i / 32.
+
+uniform vec3 u_origin;
+uniform float u_inv_h;
+uniform ivec3 u_dims;
+
+vec3 world_to_voxel(vec3 p) { return (p - u_origin) * u_inv_h; }
+
+uint words_per_row() { return (uint(u_dims.x) + 31u) >> 5; }
+
+uint word_index(ivec3 v) {
+    return (uint(v.z) * uint(u_dims.y) + uint(v.y)) * words_per_row() + (uint(v.x) >> 5);
+}
+
+bool in_grid(ivec3 v) { return all(greaterThanEqual(v, ivec3(0))) && all(lessThan(v, u_dims)); }

@@ -1,0 +1,34 @@
+"""Shared test helpers.  The GL fixtures (gl_context, glvox_mesh_dir, the GL
+error check and the requires_gl marker) come from glvox's own pytest plugin,
+installed with the package (entry point pytest11)."""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+#: Heavier runs (large grids, every shared mesh) are opt-in.
+SLOW = os.environ.get("GLVOX_SLOW", "") not in ("", "0")
+
+
+def pytest_collection_modifyitems(config, items):
+    if SLOW:
+        return
+    skip = pytest.mark.skip(reason="slow test: set GLVOX_SLOW=1 to run it")
+    for item in items:
+        if "slow" in item.keywords:
+            item.add_marker(skip)
+
+
+@pytest.fixture(scope="session")
+def shared_mesh(glvox_mesh_dir):
+    """shared_mesh(name) -> path of a file in the shared meshes folder (skip if absent)."""
+
+    def get(name: str):
+        path = glvox_mesh_dir / name
+        if not path.is_file():
+            pytest.skip(f"shared mesh {name} not found in {glvox_mesh_dir}")
+        return path
+
+    return get
