@@ -28,7 +28,7 @@ __version__ = "0.1.0"
 DEFAULT_METHOD = "reference-conservative"
 
 __all__ = [
-    "voxelize", "grid_for", "load_mesh", "fit_grid", "save", "load", "methods", "info",
+    "voxelize", "grid_for", "load_mesh", "fit_grid", "save", "load", "list_methods", "info",
     "GridSpec", "VoxelGrid", "Mesh", "DEFAULT_METHOD",
     "GlvoxError", "BackendError", "CapabilityError", "EmptyMeshError", "FaceIndexError",
     "FormatError", "GLError", "GridError", "LimitError", "MeshError", "MeshLoadError",
@@ -89,7 +89,7 @@ def voxelize(mesh: Any, resolution: int | None = None, method: str = DEFAULT_MET
     return run_method(method, m, grid, ctx=ctx, backend=backend, allow_open=allow_open, **options)
 
 
-def methods(kind: str | None = None, family: str | None = None):
+def list_methods(kind: str | None = None, family: str | None = None):
     """Registry entries (:class:`glvox.methods.MethodInfo`), optionally filtered."""
     from .methods import method_infos
 

@@ -1,7 +1,8 @@
 """GLSL loading: recursive ``#include``, injected defines, per-context program cache.
 
 Every GLSL source lives in the top-level ``shaders/`` folder of the checkout,
-shipped in the wheel as the package ``glvox.shaders``.  Paths are relative to
+shipped in the wheel as the data package ``glvox._shaders`` (the loader
+module keeps the name ``glvox.shaders``).  Paths are relative to
 that folder (``"common/bits.glsl"``); users can add their own folders.
 
 Preprocessing
@@ -46,7 +47,7 @@ _LOC = re.compile(r"(\d+):(\d+)\((\d+)\)|(\d+)\((\d+)\)|\b(\d+):(\d+):")
 def builtin_shader_dir() -> Path:
     """The folder holding glvox's own shaders (checkout or installed wheel)."""
     try:
-        root = resources.files("glvox.shaders")
+        root = resources.files("glvox._shaders")
         path = Path(str(root))
         if (path / "common").is_dir():
             return path
@@ -56,7 +57,7 @@ def builtin_shader_dir() -> Path:
     if (path / "common").is_dir():
         return path
     raise ShaderError(
-        "glvox's shader folder was not found (neither the installed package glvox.shaders "
+        "glvox's shader folder was not found (neither the installed package glvox._shaders "
         f"nor {path}); reinstall glvox"
     )
 

@@ -8,6 +8,11 @@ from pathlib import Path
 import pytest
 
 
+def pytest_addoption(parser) -> None:
+    parser.addini("glvox_require_gl", type="bool", default=False,
+                  help="fail (instead of skip) tests needing a GL context when none can be made")
+
+
 def pytest_configure(config) -> None:
     config.addinivalue_line(
         "markers",
@@ -16,12 +21,12 @@ def pytest_configure(config) -> None:
     )
 
 
-def _require_gl() -> bool:
-    return os.environ.get("GLVOX_REQUIRE_GL", "") not in ("", "0")
+def _require_gl(config) -> bool:
+    return bool(config.getini("glvox_require_gl")) or os.environ.get("GLVOX_REQUIRE_GL", "") not in ("", "0")
 
 
 @pytest.fixture(scope="session")
-def gl_context():
+def gl_context(request):
     """The process's shared headless GL context (glvox.context.get_context())."""
     from glvox.context import get_context
     from glvox.errors import BackendError
@@ -29,8 +34,9 @@ def gl_context():
     try:
         ctx = get_context()
     except BackendError as exc:
-        if _require_gl():
-            pytest.fail(f"GLVOX_REQUIRE_GL is set but no GL context: {exc}", pytrace=False)
+        if _require_gl(request.config):
+            pytest.fail(f"a GL context is required (glvox_require_gl / GLVOX_REQUIRE_GL) but: {exc}",
+                        pytrace=False)
         pytest.skip(f"no headless OpenGL context: {exc}")
     return ctx
 

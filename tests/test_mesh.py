@@ -1,0 +1,160 @@
+"""Mesh input: every accepted form, and one clear error per kind of bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+import glvox
+from glvox.errors import (EmptyMeshError, FaceIndexError, MeshError, MeshLoadError,
+                          NonFiniteVertexError, NotWatertightError)
+from glvox.mesh import DEGENERATE_AREA_RTOL, generated_mesh, load_mesh
+
+TET_V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)
+TET_F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+
+
+def test_arrays_trimesh_and_path_agree(tmp_path):
+    a = load_mesh((TET_V, TET_F))
+    b = load_mesh(trimesh.Trimesh(TET_V, TET_F, process=False))
+    p = tmp_path / "tet.obj"
+    trimesh.Trimesh(TET_V, TET_F, process=False).export(p)
+    c = load_mesh(p)
+    for m in (a, b, c):
+        assert m.n_triangles == 4 and m.watertight
+        np.testing.assert_allclose(m.triangles(), TET_V[TET_F])
+    assert c.name == "tet.obj"
+
+
+def test_shared_mesh_loads(shared_mesh):
+    m = load_mesh(shared_mesh("stanford_armadillo_libigl_86k.obj"))
+    assert m.n_triangles == 86482 and m.watertight
+    bunny = load_mesh(shared_mesh("stanford_bunny_bun_zipper.ply"))
+    assert not bunny.watertight  # open at the base (SOURCES.md)
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(MeshLoadError, match=r"mesh file not found: .*nothing\.stl"):
+        load_mesh(tmp_path / "nothing.stl")
+
+
+def test_directory_is_not_a_mesh(tmp_path):
+    with pytest.raises(MeshLoadError, match="mesh path is a directory"):
+        load_mesh(tmp_path)
+
+
+def test_empty_file(tmp_path):
+    p = tmp_path / "empty.obj"
+    p.write_bytes(b"")
+    with pytest.raises(EmptyMeshError, match=r"mesh file is empty \(0 bytes\)"):
+        load_mesh(p)
+
+
+def test_garbage_and_wrong_suffix(tmp_path):
+    p = tmp_path / "garbage.stl"
+    p.write_bytes(bytes(range(256)) * 3)
+    with pytest.raises(MeshError, match=r"garbage\.stl"):
+        load_mesh(p)
+    q = tmp_path / "mesh.xyz123"
+    q.write_text("v 0 0 0\n")
+    with pytest.raises(MeshLoadError, match=r"could not read mesh file .*mesh\.xyz123"):
+        load_mesh(q)
+
+
+def test_truncated_binary_stl(tmp_path, shared_mesh):
+    data = shared_mesh("cad_featuretype.stl").read_bytes()
+    p = tmp_path / "truncated.stl"
+    p.write_bytes(data[: len(data) // 3])
+    with pytest.raises(MeshError, match=r"truncated\.stl"):
+        load_mesh(p)
+
+
+def test_obj_without_faces(tmp_path):
+    p = tmp_path / "points.obj"
+    p.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
+    with pytest.raises(MeshError, match="points.obj"):
+        load_mesh(p)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_non_finite_vertices(bad):
+    v = TET_V.copy()
+    v[2, 1] = bad
+    with pytest.raises(NonFiniteVertexError, match=r"1 vertices have NaN or infinite coordinates \(first: vertex 2"):
+        load_mesh((v, TET_F))
+
+
+def test_non_finite_unreferenced_vertex_is_ignored():
+    v = np.vstack([TET_V, [[np.nan, 0, 0]]])
+    assert load_mesh((v, TET_F)).n_triangles == 4
+
+
+def test_face_index_out_of_range():
+    f = TET_F.copy()
+    f[3, 2] = 9
+    with pytest.raises(FaceIndexError, match=r"1 faces index vertices outside \[0, 3\] \(first: face 3 = \[1, 2, 9\]\)"):
+        load_mesh((TET_V, f))
+    f[3, 2] = -1
+    with pytest.raises(FaceIndexError, match="outside"):
+        load_mesh((TET_V, f))
+
+
+def test_face_shape():
+    with pytest.raises(FaceIndexError, match=r"faces must have shape \(F, 3\) \(triangles\), got \(2, 4\)"):
+        load_mesh((TET_V, np.array([[0, 1, 2, 3], [0, 1, 2, 3]])))
+    with pytest.raises(MeshError, match=r"vertices must have shape \(V, 3\), got \(4, 2\)"):
+        load_mesh((TET_V[:, :2], TET_F))
+
+
+def test_empty_mesh():
+    with pytest.raises(EmptyMeshError, match="the mesh has no triangles"):
+        load_mesh((TET_V, np.zeros((0, 3), int)))
+
+
+def test_zero_area_triangles_are_dropped_and_counted():
+    v = np.vstack([TET_V, [[0.5, 0.5, 0.0], [2, 2, 0]]])
+    f = np.vstack([TET_F, [[0, 0, 1], [0, 4, 5]]])  # repeated vertex; collinear (0,0,0),(.5,.5,0),(2,2,0)
+    m = load_mesh((v, f))
+    assert m.n_degenerate == 2 and m.n_triangles == 4
+    # a needle that is thin but not zero-area stays
+    needle = np.vstack([TET_V, [[0.5, 0.5, 1e-6]]])
+    m2 = load_mesh((needle, np.vstack([TET_F, [[0, 4, 1]]])))
+    assert m2.n_degenerate == 0
+    assert DEGENERATE_AREA_RTOL < 1e-6
+
+
+def test_all_degenerate_is_empty():
+    with pytest.raises(EmptyMeshError, match="all 1 triangles have zero area"):
+        load_mesh((TET_V, np.array([[0, 1, 1]])))
+
+
+def test_unknown_input_type():
+    with pytest.raises(MeshError, match="mesh must be a file path, a trimesh.Trimesh or a \\(vertices, faces\\) pair, got int"):
+        load_mesh(42)
+
+
+def test_generated_meshes_are_closed():
+    for name in ("torus", "sphere", "box", "bunny-like"):
+        assert generated_mesh(name).watertight, name
+    with pytest.raises(MeshLoadError, match="unknown generated mesh 'gen:cow'"):
+        load_mesh("gen:cow")
+
+
+def test_solid_methods_refuse_open_meshes_unless_allowed():
+    open_mesh = (TET_V, TET_F[:3])
+    m = load_mesh(open_mesh)
+    assert not m.watertight
+    with pytest.raises(NotWatertightError, match=r"is not watertight.*allow_open=True"):
+        glvox.voxelize(open_mesh, 8, method="reference-solid")
+    g = glvox.voxelize(open_mesh, 8, method="reference-solid", allow_open=True)
+    assert g.run.stats["watertight"] is False
+    # surface methods do not care
+    assert glvox.voxelize(open_mesh, 8, method="reference-conservative").count > 0
+
+
+def test_far_from_origin_vertices_are_kept_precise():
+    m = load_mesh((TET_V + 1e6, TET_F))
+    v32, _ = m.gpu_arrays()
+    assert v32.dtype == np.float32
+    np.testing.assert_allclose(v32 + m.anchor, m.vertices, atol=1e-6)
