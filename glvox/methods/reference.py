@@ -1,0 +1,65 @@
+"""The exact CPU references (float64 numpy), registered as methods.
+
+They are what every GPU method is checked against (DESIGN.md, "Kinds of
+result"); the geometry lives in :mod:`glvox.reference`.
+"""
+
+from __future__ import annotations
+
+from ..grid import VoxelGrid
+from ..reference import conservative_surface, six_separating_surface, solid
+from ._base import Method, MethodInfo, Option, register
+
+_SS = "Schwarz & Seidel 2010"
+
+
+@register
+class ReferenceConservative(Method):
+    info = MethodInfo(
+        name="reference-conservative", kind="surface", family="cpu",
+        paper=f"{_SS}, Sec. 3.1-3.2 (triangle/box overlap, touched voxels included)",
+        summary="exact conservative (26-separating) surface: every voxel a triangle overlaps or touches",
+        reference="reference-conservative",
+    )
+
+    def run(self, mesh, spec, *, ctx, timer):
+        with timer.stage("setup", gpu=False):
+            tris = mesh.triangles_voxel(spec)
+        with timer.stage("voxelize", gpu=False):
+            occ = conservative_surface(tris, spec.dims)
+        return VoxelGrid(occ, spec)
+
+
+@register
+class Reference6Sep(Method):
+    info = MethodInfo(
+        name="reference-6sep", kind="surface", family="cpu",
+        paper=f"{_SS}, Sec. 3.4 (6-separating criterion after Huang et al. 1998)",
+        summary="exact 6-separating (thin) surface",
+        reference="reference-6sep",
+    )
+
+    def run(self, mesh, spec, *, ctx, timer):
+        with timer.stage("setup", gpu=False):
+            tris = mesh.triangles_voxel(spec)
+        with timer.stage("voxelize", gpu=False):
+            occ = six_separating_surface(tris, spec.dims)
+        return VoxelGrid(occ, spec)
+
+
+@register
+class ReferenceSolid(Method):
+    info = MethodInfo(
+        name="reference-solid", kind="solid", family="cpu",
+        paper=f"{_SS}, Sec. 4.1 (parity of crossings at voxel centers, top-left fill rule)",
+        summary="exact solid: voxel set iff its center is inside (parity along a ray)",
+        reference="reference-solid",
+        options={"axis": Option(0, "ray direction of the parity count (0=x, 1=y, 2=z)", (0, 1, 2))},
+    )
+
+    def run(self, mesh, spec, *, ctx, timer, axis):
+        with timer.stage("setup", gpu=False):
+            tris = mesh.triangles_voxel(spec)
+        with timer.stage("voxelize", gpu=False):
+            occ = solid(tris, spec.dims, axis=axis)
+        return VoxelGrid(occ, spec)

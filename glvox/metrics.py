@@ -1,0 +1,116 @@
+"""Agreement with the exact references, proven ties, separability.
+
+What every method's tests and the comparison use: a result is checked
+against the reference its registry entry names, and each mismatch must lie
+in the tie set DESIGN.md defines (surfaces: the verdict flips with box
+half-size 0.5 +/- TIE_EPS; solids: the verdict can flip when the mesh moves by
+at most TIE_EPS voxel).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from .grid import Comparison, VoxelGrid
+from .methods import get_method, run_method
+from .reference import TIE_EPS, mismatch_is_tie, solid_ties, surface_ties
+
+_TIES = {
+    "reference-conservative": lambda t, d, e: surface_ties(t, d, "conservative", e),
+    "reference-6sep": lambda t, d, e: surface_ties(t, d, "6sep", e),
+    "reference-solid": lambda t, d, e: solid_ties(t, d, e),
+}
+
+
+@dataclass
+class ReferenceCheck:
+    """A result against its exact reference.
+
+    Attributes
+    ----------
+    comparison : Comparison
+        Missing / extra voxels and IoU against the reference.
+    ties : int
+        Size of the tie set.
+    unexplained : (M, 3) int64
+        Mismatching voxels that are *not* ties (must be empty for an exact method).
+    """
+
+    reference: str
+    comparison: Comparison
+    ties: int
+    unexplained: np.ndarray
+
+    @property
+    def ok(self) -> bool:
+        return len(self.unexplained) == 0
+
+    def describe(self) -> str:
+        c = self.comparison
+        return (f"against {self.reference}: {c.n_missing} missing, {c.n_extra} extra, IoU {c.iou:.6f}; "
+                f"{self.ties} tie voxels; {len(self.unexplained)} mismatches are not ties"
+                + (f" (first: {self.unexplained[:5].tolist()})" if len(self.unexplained) else ""))
+
+
+def tie_set(reference: str, mesh, spec, eps: float = TIE_EPS) -> np.ndarray:
+    """Dense (nx, ny, nz) bool tie set of ``reference`` for ``mesh`` on ``spec``."""
+    try:
+        f = _TIES[reference]
+    except KeyError:
+        raise ValueError(f"no tie set is defined for {reference!r}; known: {sorted(_TIES)}") from None
+    return f(mesh.triangles_voxel(spec), spec.dims, eps)
+
+
+def check_against_reference(result: VoxelGrid, mesh, reference: str | None = None,
+                            reference_grid: VoxelGrid | None = None) -> ReferenceCheck:
+    """Compare ``result`` with the exact reference and prove mismatches are ties.
+
+    Parameters
+    ----------
+    result : VoxelGrid
+        A method's result (``result.run`` names the method).
+    mesh : glvox.mesh.Mesh
+    reference : str, optional
+        Reference method name; default the one the method's registry entry names.
+    reference_grid : VoxelGrid, optional
+        A precomputed reference result on the same grid.
+    """
+    if reference is None:
+        reference = get_method(result.run.method).info.reference
+    spec = result.spec
+    if reference_grid is None:
+        reference_grid = run_method(reference, mesh, spec, allow_open=True)
+    ties = tie_set(reference, mesh, spec)
+    ok, unexplained = mismatch_is_tie(result.dense(), reference_grid.dense(), ties)
+    return ReferenceCheck(reference, result.compare(reference_grid), int(ties.sum()), unexplained)
+
+
+_STRUCT = {6: ndimage.generate_binary_structure(3, 1), 26: ndimage.generate_binary_structure(3, 3)}
+
+
+def leaks(surface: np.ndarray, inside: np.ndarray, connectivity: int) -> int:
+    """Inside voxels reachable from the grid border through unset surface voxels.
+
+    A surface voxelization of a closed mesh is N-separating when no N-path
+    of voxels not in ``surface`` joins the outside to the inside: label the
+    complement of ``surface`` with N-connectivity (in a grid padded by one
+    empty layer, so the border is one outside component) and count the
+    ``inside`` voxels (typically the reference solid) in the outside component.
+
+    Parameters
+    ----------
+    surface, inside : (nx, ny, nz) bool
+    connectivity : {6, 26}
+
+    Returns
+    -------
+    int
+        0 when the surface separates.
+    """
+    free = np.pad(~np.asarray(surface, bool), 1, constant_values=True)
+    labels, _ = ndimage.label(free, structure=_STRUCT[connectivity])
+    outside = labels == labels[0, 0, 0]
+    return int(np.count_nonzero(outside[1:-1, 1:-1, 1:-1] & np.asarray(inside, bool) & ~surface))

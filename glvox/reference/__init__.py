@@ -1,0 +1,34 @@
+"""Exact CPU references (float64, voxel space) that every GPU method is tested against.
+
+All functions take ``tris``, a (T, 3, 3) float64 array of triangle vertices
+already transformed into voxel space (voxel ``(i, j, k)`` is the closed box
+``[i, i+1] x [j, j+1] x [k, k+1]``, its center ``(i+.5, j+.5, k+.5)``), and
+``dims = (nx, ny, nz)``, and return a dense (nx, ny, nz) bool array indexed
+``[i, j, k]``.  Geometry outside the grid is clipped, never an error.
+
+Surfaces (:mod:`.surface`)
+    :func:`conservative_surface` (Schwarz & Seidel triangle/box test),
+    :func:`conservative_surface_sat` (separating axes, independent check),
+    :func:`six_separating_surface` (S&S Sec. 3.4).
+Solids (:mod:`.solid`)
+    :func:`solid` (parity of crossings along an axis, top-left fill rule).
+Ties (:mod:`.ties`)
+    :func:`surface_ties`, :func:`solid_ties`, :func:`mismatch_is_tie` and
+    the tolerance :data:`TIE_EPS`.
+"""
+
+from .solid import solid
+from .surface import conservative_surface, conservative_surface_sat, six_separating_surface
+from .ties import TIE_EPS, mismatch_is_tie, point_triangle_distance, solid_ties, surface_ties
+
+__all__ = [
+    "TIE_EPS",
+    "conservative_surface",
+    "conservative_surface_sat",
+    "mismatch_is_tie",
+    "point_triangle_distance",
+    "six_separating_surface",
+    "solid",
+    "solid_ties",
+    "surface_ties",
+]

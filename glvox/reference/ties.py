@@ -1,0 +1,190 @@
+"""Tie sets: voxels whose exact verdict sits on a knife edge, and the check that uses them.
+
+GPU methods work in float32 on vertices transformed to voxel space, the
+references in float64.  A mismatch between them is acceptable only where it
+is proven to be a tie (DESIGN.md, "Ties"):
+
+- surfaces: the voxel's verdict changes when the tested box half-size goes
+  from ``0.5 - TIE_EPS`` to ``0.5 + TIE_EPS``;
+- solids: the voxel's verdict can change when the mesh moves by at most
+  ``TIE_EPS``.
+"""
+
+from __future__ import annotations
+
+from typing import Literal, Sequence
+
+import numpy as np
+
+from ._candidates import check_dims, check_tris, pruned_candidates, scatter
+from .surface import conservative_surface, six_separating_surface
+
+#: Tie tolerance in voxels.  float32 has a 2**-24 (6e-8) relative precision,
+#: so vertex coordinates in voxel space up to a few thousand voxels carry
+#: rounding errors below ~1e-4 voxel after the world->voxel transform and a
+#: few operations; anything beyond that is a real disagreement, not rounding.
+TIE_EPS = 1e-4
+
+
+def surface_ties(tris: np.ndarray, dims: Sequence[int],
+                 criterion: Literal["conservative", "6sep"] = "conservative",
+                 eps: float = TIE_EPS) -> np.ndarray:
+    """Voxels whose surface verdict differs between box half-sizes ``0.5 - eps`` and ``0.5 + eps``.
+
+    Both criteria are monotone in the half-size (a larger box or cross only
+    meets more), so this is the set accepted at ``0.5 + eps`` but not at
+    ``0.5 - eps``: voxels that a triangle touches or misses by at most about
+    ``eps`` voxel.  A float32 result that differs from the float64 reference
+    only on these voxels is correct up to rounding.
+
+    Parameters
+    ----------
+    tris : (T, 3, 3) float64
+        Triangle vertices in voxel space.
+    dims : (3,) int
+        Grid size ``(nx, ny, nz)``.
+    criterion : {'conservative', '6sep'}
+        :func:`conservative_surface` or :func:`six_separating_surface`.
+    eps : float
+        Half-size perturbation, in voxels; 0 < eps < 0.5.
+
+    Returns
+    -------
+    (nx, ny, nz) bool
+    """
+    funcs = {"conservative": conservative_surface, "6sep": six_separating_surface}
+    if criterion not in funcs:
+        raise ValueError(f"criterion must be 'conservative' or '6sep', got {criterion!r}")
+    if not 0.0 < eps < 0.5:
+        raise ValueError(f"eps must be in (0, 0.5) voxel, got {eps!r}")
+    f = funcs[criterion]
+    return f(tris, dims, 0.5 + eps) ^ f(tris, dims, 0.5 - eps)
+
+
+def point_triangle_distance(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Euclidean distance from points to triangles, pairwise.
+
+    Parameters
+    ----------
+    p : (M, 3) float64
+        Points.
+    tri : (M, 3, 3) float64
+        One triangle per point.
+
+    Returns
+    -------
+    (M,) float64
+        Distance from ``p[m]`` to the closed triangle ``tri[m]``.  Zero-area
+        triangles are measured as the segments (or point) they are.
+    """
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    n = np.cross(b - a, c - a)
+    nn = np.einsum("ij,ij->i", n, n)
+    # Projection inside the triangle iff p is on the inner side of all three
+    # edge planes (each containing the edge and n).
+    inside = nn > 0.0
+    for s, t in ((a, b), (b, c), (c, a)):
+        inside &= np.einsum("ij,ij->i", np.cross(t - s, p - s), n) >= 0.0
+    d = np.full(len(p), np.inf)
+    for s, t in ((a, b), (b, c), (c, a)):
+        st = t - s
+        ll = np.einsum("ij,ij->i", st, st)
+        w = np.einsum("ij,ij->i", p - s, st) / np.where(ll > 0.0, ll, 1.0)
+        w = np.clip(w, 0.0, 1.0)
+        d = np.minimum(d, np.linalg.norm(p - (s + w[:, None] * st), axis=1))
+    plane = np.abs(np.einsum("ij,ij->i", p - a, n)) / np.sqrt(np.where(inside, nn, 1.0))
+    return np.where(inside, np.minimum(plane, d), d)
+
+
+def solid_ties(tris: np.ndarray, dims: Sequence[int], eps: float = TIE_EPS) -> np.ndarray:
+    """Voxels whose solid verdict can change when the mesh moves by at most ``eps``.
+
+    These are exactly the voxels whose center lies within Euclidean distance
+    ``eps`` of the surface (some triangle):
+
+    - if ``dist(center, surface) <= eps``, translating the mesh by the vector
+      from the nearest surface point to the center (length <= eps) puts the
+      center on the surface, and a slightly different translation of length
+      <= eps (towards the other side, when dist < eps) flips it;
+    - if ``dist > eps``, moving every vertex by at most ``eps`` moves every
+      surface point by at most ``eps`` (convex combinations), so along the
+      straight-line motion the surface never passes through the center and
+      its crossing parity cannot change.
+
+    Centers exactly on a shared edge or vertex, where the fill rule decides,
+    have distance 0 and are ties too.
+
+    Only centers inside a triangle's bounding box grown by ``eps`` can be
+    that close to it, and along the triangle's dominant axis only those near
+    its plane; the point/triangle distances are computed for those candidate
+    pairs only, a plane-distance test first.
+
+    Parameters
+    ----------
+    tris : (T, 3, 3) float64
+        Triangle vertices in voxel space.
+    dims : (3,) int
+        Grid size ``(nx, ny, nz)``.
+    eps : float
+        Largest motion of the mesh, in voxels; 0 < eps < 0.5.
+
+    Returns
+    -------
+    (nx, ny, nz) bool
+    """
+    tris = check_tris(tris)
+    dims = check_dims(dims)
+    if not 0.0 < eps < 0.5:
+        raise ValueError(f"eps must be in (0, 0.5) voxel, got {eps!r}")
+    n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    nlen = np.linalg.norm(n, axis=1)
+    out = np.zeros(dims, dtype=bool)
+    # A center within eps of a triangle lies in its bounding box grown by
+    # eps, i.e. the cube of half-size eps around the center meets the
+    # bounding box: the candidates of pad = eps.
+    for tri, ijk in pruned_candidates(tris, dims, eps):
+        c = ijk + 0.5
+        plane = np.abs(np.einsum("ij,ij->i", c - tris[tri, 0], n[tri]))
+        near = plane <= eps * nlen[tri]
+        tri, ijk, c = tri[near], ijk[near], c[near]
+        close = point_triangle_distance(c, tris[tri]) <= eps
+        scatter(out, ijk[close])
+    return out
+
+
+def mismatch_is_tie(result: np.ndarray, reference: np.ndarray,
+                    ties: np.ndarray) -> tuple[bool, np.ndarray]:
+    """Check that a voxelization differs from its exact reference only on ties.
+
+    Parameters
+    ----------
+    result : (nx, ny, nz) bool
+        The voxelization under test (e.g. a GPU method's dense result).
+    reference : (nx, ny, nz) bool
+        The exact float64 reference of the same kind on the same grid.
+    ties : (nx, ny, nz) bool
+        The tie set for that kind: :func:`surface_ties` (with the matching
+        criterion) for surfaces, :func:`solid_ties` for solids.
+
+    Returns
+    -------
+    ok : bool
+        True iff every voxel where ``result != reference`` lies in ``ties``
+        (in particular when they are equal).
+    unexplained : (M, 3) int64
+        Voxel indices ``(i, j, k)`` of the mismatches outside ``ties``, in
+        C order; empty, shape (0, 3), when ``ok``.
+
+    Examples
+    --------
+    >>> ok, bad = mismatch_is_tie(gpu, ref, surface_ties(tris, dims))
+    >>> assert ok, f"{len(bad)} mismatches are not ties, first {bad[:5].tolist()}"
+    """
+    result = np.asarray(result, dtype=bool)
+    reference = np.asarray(reference, dtype=bool)
+    ties = np.asarray(ties, dtype=bool)
+    if result.ndim != 3 or result.shape != reference.shape or ties.shape != reference.shape:
+        raise ValueError("result, reference and ties must be 3D arrays of one shape, got "
+                         f"{result.shape}, {reference.shape} and {ties.shape}")
+    unexplained = np.argwhere((result != reference) & ~ties).astype(np.int64)
+    return len(unexplained) == 0, unexplained

@@ -1,0 +1,112 @@
+"""The one method interface: every registered method honours the contract.
+
+Tests iterate over the registry, so a method added later is covered here
+without edits; method-specific correctness lives in each method's tests
+(which use glvox.metrics.check_against_reference).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import glvox
+from glvox.errors import MethodError
+from glvox.grid import GridSpec, VoxelGrid
+from glvox.mesh import load_mesh
+from glvox.methods import (FAMILIES, KINDS, Method, MethodInfo, get_method, method_infos,
+                           method_names, register, run_method)
+from glvox.metrics import check_against_reference, leaks, tie_set
+
+VOXEL_KINDS = ("surface", "solid")
+
+
+def test_registry_holds_the_references():
+    assert {"reference-conservative", "reference-6sep", "reference-solid"} <= set(method_names())
+    assert method_names(kind="solid", family="cpu") == ["reference-solid"]
+
+
+@pytest.mark.parametrize("name", method_names())
+def test_registry_entry_is_complete(name):
+    info = get_method(name).info
+    assert info.kind in KINDS and info.family in FAMILIES
+    assert info.paper and info.summary
+    assert info.reference in method_names()
+    # a method is checked against a reference of its own kind (sparse solids against the solid one)
+    assert get_method(info.reference).info.kind in (info.kind, "solid")
+    assert name in [i.name for i in glvox.list_methods(kind=info.kind)]
+
+
+@pytest.mark.parametrize("name", [i.name for i in method_infos() if i.kind in VOXEL_KINDS])
+def test_method_contract_on_a_small_mesh(name, gl_context):
+    mesh = load_mesh("gen:torus")
+    spec = glvox.grid_for(mesh, 12, tight=True)
+    g = run_method(name, mesh, spec)
+    assert isinstance(g, VoxelGrid) and g.spec == spec
+    run = g.run
+    assert run.method == name and run.kind == g.run.kind
+    assert run.stats["voxels"] == g.count > 0
+    assert run.stats["triangles"] == mesh.n_triangles
+    assert len(run.timings.stages) >= 1 and run.timings.wall_s > 0
+    if get_method(name).info.uses_gl:
+        assert run.timings.gpu_s is not None
+    # same input, same voxels
+    assert run_method(name, mesh, spec).equal(g)
+
+
+def test_unknown_method_and_options():
+    mesh = load_mesh("gen:box")
+    spec = glvox.grid_for(mesh, 4)
+    with pytest.raises(MethodError, match=r"unknown method 'ss-magic'; known methods: .*reference-solid"):
+        run_method("ss-magic", mesh, spec)
+    with pytest.raises(MethodError, match=r"method 'reference-conservative' has no option axis; its options: none"):
+        run_method("reference-conservative", mesh, spec, axis=1)
+    with pytest.raises(MethodError, match=r"option axis must be a int, got 'x'"):
+        run_method("reference-solid", mesh, spec, axis="x")
+
+
+def test_registering_a_name_twice_is_refused():
+    class Dup(Method):
+        info = MethodInfo(name="reference-solid", kind="solid", family="cpu", paper="-", summary="-")
+
+    with pytest.raises(ValueError, match="registered twice"):
+        register(Dup)
+
+
+def test_reference_check_accepts_ties_and_catches_real_errors():
+    """The tie proof: a result differing only on ties passes; one wrong voxel fails."""
+    mesh = load_mesh((np.array([[0, 0, 1.0], [4, 0, 1.0], [0, 4, 1.0]]), np.array([[0, 1, 2]])))
+    spec = GridSpec((4, 4, 3), (0, 0, 0), 1.0)  # the triangle lies exactly on the plane z = 1
+    ref = run_method("reference-conservative", mesh, spec)
+    ties = tie_set("reference-conservative", mesh, spec)
+    assert ties.any()
+    # drop every tie voxel: still correct up to ties
+    on_ties = VoxelGrid(ref.dense() & ~ties, spec)
+    on_ties.run = ref.run
+    assert check_against_reference(on_ties, mesh).ok
+    # a voxel far from the triangle is a real error
+    wrong = np.array(ref.dense())
+    wrong[3, 3, 2] = not wrong[3, 3, 2]
+    bad = VoxelGrid(wrong, spec)
+    bad.run = ref.run
+    check = check_against_reference(bad, mesh)
+    assert not check.ok and check.unexplained.tolist() == [[3, 3, 2]]
+    assert "1 mismatches are not ties" in check.describe()
+
+
+def test_separability_helper_on_a_hand_made_shell():
+    inside = np.zeros((7, 7, 7), bool)
+    inside[2:5, 2:5, 2:5] = True
+    shell = np.zeros_like(inside)
+    shell[1:6, 1:6, 1:6] = True
+    shell[2:5, 2:5, 2:5] = False
+    assert leaks(shell, inside, 26) == 0
+    holed = shell.copy()
+    holed[1, 3, 3] = False  # a face hole: a 6-path gets in
+    assert leaks(holed, inside, 6) > 0
+    # an edge voxel missing: (1, 1, 3) touches the inside voxel (2, 2, 3) only
+    # along an edge, so a 26-path gets in and a 6-path does not
+    edge = shell.copy()
+    edge[1, 1, 3] = False
+    assert leaks(edge, inside, 26) > 0
+    assert leaks(edge, inside, 6) == 0
