@@ -91,7 +91,7 @@ def check_against_reference(result: VoxelGrid, mesh, reference: str | None = Non
 _STRUCT = {6: ndimage.generate_binary_structure(3, 1), 26: ndimage.generate_binary_structure(3, 3)}
 
 
-def leaks(surface: np.ndarray, inside: np.ndarray, connectivity: int) -> int:
+def separation_leaks(surface: np.ndarray, inside: np.ndarray, connectivity: int) -> np.ndarray:
     """Inside voxels reachable from the grid border through unset surface voxels.
 
     A surface voxelization of a closed mesh is N-separating when no N-path
@@ -107,10 +107,14 @@ def leaks(surface: np.ndarray, inside: np.ndarray, connectivity: int) -> int:
 
     Returns
     -------
-    int
-        0 when the surface separates.
+    (M, 3) int64
+        Indices of the inside voxels reached from outside; empty when the
+        surface separates.
     """
-    free = np.pad(~np.asarray(surface, bool), 1, constant_values=True)
+    if connectivity not in _STRUCT:
+        raise ValueError(f"connectivity must be 6 or 26, got {connectivity!r}")
+    surface = np.asarray(surface, bool)
+    free = np.pad(~surface, 1, constant_values=True)
     labels, _ = ndimage.label(free, structure=_STRUCT[connectivity])
     outside = labels == labels[0, 0, 0]
-    return int(np.count_nonzero(outside[1:-1, 1:-1, 1:-1] & np.asarray(inside, bool) & ~surface))
+    return np.argwhere(outside[1:-1, 1:-1, 1:-1] & np.asarray(inside, bool) & ~surface)

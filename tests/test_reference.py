@@ -17,9 +17,9 @@ import pytest
 import trimesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from scipy import ndimage
 from scipy.spatial import ConvexHull
 
+from glvox.metrics import separation_leaks
 from glvox.reference import (TIE_EPS, conservative_surface, conservative_surface_sat,
                              mismatch_is_tie, point_triangle_distance,
                              six_separating_surface, solid, solid_ties, surface_ties)
@@ -72,25 +72,6 @@ def octahedron_tris(center, r: float) -> np.ndarray:
 
 def voxel_set(mask: np.ndarray) -> set:
     return set(map(tuple, np.argwhere(mask).tolist()))
-
-
-def separates(surface: np.ndarray, inside: np.ndarray, connectivity: int) -> np.ndarray:
-    """Voxels proving that ``surface`` is NOT ``connectivity``-separating (empty if it is).
-
-    ``surface`` is N-separating when no N-path of unset voxels joins a voxel
-    whose center is inside to the outside.  The grids are padded with one
-    layer of unset, outside voxels, the unset voxels are labelled with
-    N-connectivity, and the inside voxels in a component that reaches the
-    padding are returned as (M, 3) indices in the unpadded grid.
-    """
-    structure = ndimage.generate_binary_structure(3, {6: 1, 18: 2, 26: 3}[connectivity])
-    free = np.pad(~surface, 1, constant_values=True)
-    labels, _ = ndimage.label(free, structure)
-    border = np.unique(np.concatenate([labels[0].ravel(), labels[-1].ravel(),
-                                       labels[:, 0].ravel(), labels[:, -1].ravel(),
-                                       labels[:, :, 0].ravel(), labels[:, :, -1].ravel()]))
-    leaking = np.isin(labels, border[border > 0])[1:-1, 1:-1, 1:-1] & inside & ~surface
-    return np.argwhere(leaking)
 
 
 def winding_number(points: np.ndarray, tris: np.ndarray, chunk: int = 1 << 20) -> np.ndarray:
@@ -463,11 +444,11 @@ def test_separability_on_closed_meshes(which, request):
     assert inside.sum() > 0
     thick = conservative_surface(tris, dims)
     thin = six_separating_surface(tris, dims)
-    assert len(separates(thick, inside, 26)) == 0
-    assert len(separates(thin, inside, 6)) == 0
+    assert len(separation_leaks(thick, inside, 26)) == 0
+    assert len(separation_leaks(thin, inside, 6)) == 0
     # The check has teeth: the 6-separating surface is thin enough for
     # diagonal (26-connected) paths to slip through it.
-    assert len(separates(thin, inside, 26)) > 0
+    assert len(separation_leaks(thin, inside, 26)) > 0
 
 
 # ----------------------------------------------------------------------------

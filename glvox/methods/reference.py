@@ -13,42 +13,45 @@ from ._base import Method, MethodInfo, Option, register
 _SS = "Schwarz & Seidel 2010"
 
 
+class _CpuReference(Method):
+    """Voxel-space triangles in float64, then one reference function."""
+
+    @staticmethod
+    def compute(tris, dims, **options):
+        raise NotImplementedError
+
+    def run(self, mesh, spec, *, ctx, timer, **options):
+        with timer.stage("setup", gpu=False):
+            tris = mesh.triangles_voxel(spec)
+        with timer.stage("voxelize", gpu=False):
+            occ = self.compute(tris, spec.dims, **options)
+        return VoxelGrid(occ, spec)
+
+
 @register
-class ReferenceConservative(Method):
+class ReferenceConservative(_CpuReference):
     info = MethodInfo(
         name="reference-conservative", kind="surface", family="cpu",
         paper=f"{_SS}, Sec. 3.1-3.2 (triangle/box overlap, touched voxels included)",
         summary="exact conservative (26-separating) surface: every voxel a triangle overlaps or touches",
         reference="reference-conservative",
     )
-
-    def run(self, mesh, spec, *, ctx, timer):
-        with timer.stage("setup", gpu=False):
-            tris = mesh.triangles_voxel(spec)
-        with timer.stage("voxelize", gpu=False):
-            occ = conservative_surface(tris, spec.dims)
-        return VoxelGrid(occ, spec)
+    compute = staticmethod(conservative_surface)
 
 
 @register
-class Reference6Sep(Method):
+class Reference6Sep(_CpuReference):
     info = MethodInfo(
         name="reference-6sep", kind="surface", family="cpu",
         paper=f"{_SS}, Sec. 3.4 (6-separating criterion after Huang et al. 1998)",
         summary="exact 6-separating (thin) surface",
         reference="reference-6sep",
     )
-
-    def run(self, mesh, spec, *, ctx, timer):
-        with timer.stage("setup", gpu=False):
-            tris = mesh.triangles_voxel(spec)
-        with timer.stage("voxelize", gpu=False):
-            occ = six_separating_surface(tris, spec.dims)
-        return VoxelGrid(occ, spec)
+    compute = staticmethod(six_separating_surface)
 
 
 @register
-class ReferenceSolid(Method):
+class ReferenceSolid(_CpuReference):
     info = MethodInfo(
         name="reference-solid", kind="solid", family="cpu",
         paper=f"{_SS}, Sec. 4.1 (parity of crossings at voxel centers, top-left fill rule)",
@@ -56,10 +59,4 @@ class ReferenceSolid(Method):
         reference="reference-solid",
         options={"axis": Option(0, "ray direction of the parity count (0=x, 1=y, 2=z)", (0, 1, 2))},
     )
-
-    def run(self, mesh, spec, *, ctx, timer, axis):
-        with timer.stage("setup", gpu=False):
-            tris = mesh.triangles_voxel(spec)
-        with timer.stage("voxelize", gpu=False):
-            occ = solid(tris, spec.dims, axis=axis)
-        return VoxelGrid(occ, spec)
+    compute = staticmethod(solid)
