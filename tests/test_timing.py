@@ -1,0 +1,65 @@
+"""Per-stage timings: GPU timer queries, cold vs warm, debug-mode GL error checks."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from glvox.errors import GLError
+from glvox.shaders import compute_program
+from glvox.timing import StageTimer
+
+
+def _dispatch(ctx, defines):
+    prog = compute_program(ctx, "testing/bits.comp", defines)
+    lo = ctx.mgl.buffer(np.arange(64, dtype=np.uint32).tobytes())
+    out = ctx.mgl.buffer(reserve=64 * 16)
+    lo.bind_to_storage_buffer(0)
+    lo.bind_to_storage_buffer(1)
+    out.bind_to_storage_buffer(2)
+    prog["u_count"].value = 64
+    prog.run(1)
+    lo.release()
+    out.release()
+
+
+def test_gpu_stage_has_timer_query_time_and_cold_then_warm(gl_context):
+    defines = {"TIMING_TEST_VARIANT": 1}  # a program no other test compiled: the first run is cold
+    t1 = StageTimer(gl_context, method="demo")
+    with t1.stage("compile+dispatch"):
+        _dispatch(gl_context, defines)
+    with t1.stage("host", gpu=False):
+        sum(range(1000))
+    first = t1.finish()
+    assert first.cold and first.compile_s > 0
+    assert first.stage("compile+dispatch").gpu_s is not None and first.stage("compile+dispatch").gpu_s >= 0
+    assert first.stage("host").gpu_s is None and first.stage("host").wall_s > 0
+    assert first.gpu_s == first.stage("compile+dispatch").gpu_s
+    assert [s["name"] for s in first.to_dict()["stages"]] == ["compile+dispatch", "host"]
+    t2 = StageTimer(gl_context, method="demo")
+    with t2.stage("dispatch"):
+        _dispatch(gl_context, defines)
+    warm = t2.finish()
+    assert not warm.cold and warm.compile_s == 0
+    assert "cold" not in warm.summary() and "dispatch" in warm.summary()
+
+
+def test_debug_mode_names_method_and_stage_on_gl_error(gl_context):
+    timer = StageTimer(gl_context, debug=True, method="ss-demo")
+    with pytest.raises(GLError, match=r"OpenGL error GL_INVALID_ENUM after method 'ss-demo', stage 'broken'"):
+        with timer.stage("broken"):
+            gl_context.raw.fn("glEnable")(0xFFFF)  # not a capability: GL_INVALID_ENUM
+    assert gl_context.mgl.error == "GL_NO_ERROR"  # reading it cleared it
+
+
+def test_without_debug_errors_are_left_to_the_caller(gl_context):
+    timer = StageTimer(gl_context, debug=False, method="x")
+    with timer.stage("quiet"):
+        gl_context.raw.fn("glEnable")(0xFFFF)
+    assert gl_context.mgl.error == "GL_INVALID_ENUM"
+
+
+def test_unknown_stage_name():
+    t = StageTimer(None).finish()
+    with pytest.raises(KeyError, match=r"no stage 'x'; stages are \[\]"):
+        t.stage("x")
