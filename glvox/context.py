@@ -252,8 +252,11 @@ class GLContext:
     raw: RawGL
     programs: dict = field(default_factory=dict)
     compile_seconds: float = 0.0
+    #: callbacks run (before the GL context goes) by :meth:`release`
+    on_release: list = field(default_factory=list)
     _released: bool = False
     _query: Any = None
+    _limits: Any = None
     _neutral_fbo: Any = None
 
     # -- description --------------------------------------------------------
@@ -275,7 +278,9 @@ class GLContext:
         return any(s in r for s in ("llvmpipe", "softpipe", "swrast", "lavapipe"))
 
     def limits(self) -> dict[str, Any]:
-        """The GL limits that matter to voxelization, by GL enum name."""
+        """The GL limits that matter to voxelization, by GL enum name (read once)."""
+        if self._limits is not None:
+            return self._limits
         info = self.mgl.info
         out: dict[str, Any] = {}
         for name in LIMIT_NAMES:
@@ -284,6 +289,7 @@ class GLContext:
             elif name in info:
                 v = info[name]
                 out[name] = tuple(v) if isinstance(v, (list, tuple)) else v
+        self._limits = out
         return out
 
     def limit(self, name: str) -> Any:
@@ -341,6 +347,9 @@ class GLContext:
         """Release every cached program and the context itself."""
         if self._released:
             return
+        for callback in self.on_release:
+            callback()
+        self.on_release.clear()
         for prog in self.programs.values():
             prog.release()
         self.programs.clear()

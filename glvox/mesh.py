@@ -12,8 +12,7 @@ unless asked to go ahead (see :func:`glvox.voxelize`).
 from __future__ import annotations
 
 import os
-import weakref
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Union
 
@@ -56,7 +55,6 @@ class Mesh:
     n_degenerate: int = 0
     watertight: bool = False
     name: str = "<arrays>"
-    _gpu: Any = field(default_factory=weakref.WeakKeyDictionary, repr=False)
 
     @property
     def n_triangles(self) -> int:

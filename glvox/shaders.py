@@ -22,7 +22,6 @@ Preprocessing
 
 from __future__ import annotations
 
-import hashlib
 import os
 import re
 import time
@@ -301,8 +300,3 @@ def render_program(ctx, vertex: str, fragment: str | None = None, geometry: str 
     ctx.compile_seconds += time.perf_counter() - t0
     ctx.programs[key] = prog
     return prog
-
-
-def source_digest(path: str, defines: Mapping[str, Any] | None = None) -> str:
-    """A short hash of the preprocessed source (for provenance in results)."""
-    return hashlib.sha1(preprocess(path, defines).text.encode()).hexdigest()[:12]

@@ -1,0 +1,172 @@
+"""GPU plumbing shared by the compute and raster methods.
+
+* :func:`mesh_buffers`: a mesh is uploaded once per context (vertices as
+  float32 relative to the mesh's anchor, faces as uint32) and reused by every
+  method and run; the buffers are released when the mesh is garbage collected
+  or the context is released.
+* :class:`BufferPool`: named scratch buffers per context, grown when needed
+  and reused across runs (no allocation per run once warm).
+* :func:`check_buffer_size`: refuse a buffer over GL_MAX_SHADER_STORAGE_BLOCK_SIZE
+  before allocating, naming the size, the limit and what to do instead.
+* :func:`grid_uniforms`: the voxel-space uniforms of ``common/voxel_space.glsl``.
+"""
+
+from __future__ import annotations
+
+import weakref
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..errors import LimitError
+
+
+@dataclass(eq=False)
+class MeshBuffers:
+    """A mesh on the GPU.
+
+    Attributes
+    ----------
+    vertices : moderngl.Buffer
+        float32 x, y, z per vertex (tightly packed, read as ``float v[]``),
+        relative to ``anchor``.
+    faces : moderngl.Buffer
+        uint32 vertex indices, 3 per triangle.
+    anchor : (3,) float64
+        World position subtracted from the vertices before the float32 cast.
+    n_triangles, n_vertices : int
+    """
+
+    vertices: Any
+    faces: Any
+    anchor: np.ndarray
+    n_triangles: int
+    n_vertices: int
+
+    def release(self) -> None:
+        self.vertices.release()
+        self.faces.release()
+
+
+def _caches(ctx) -> dict:
+    caches = getattr(ctx, "_glvox_caches", None)
+    if caches is None:
+        caches = {"meshes": {}, "pools": {}}
+        ctx._glvox_caches = caches
+        ctx.on_release.append(lambda: _release_all(caches))
+    return caches
+
+
+def _release_all(caches: dict) -> None:
+    for bufs in list(caches["meshes"].values()):
+        bufs.release()
+    caches["meshes"].clear()
+    for pool in caches["pools"].values():
+        pool.release()
+    caches["pools"].clear()
+
+
+def mesh_buffers(ctx, mesh) -> MeshBuffers:
+    """The GPU copy of ``mesh`` in ``ctx``, uploaded on first use."""
+    meshes = _caches(ctx)["meshes"]
+    key = id(mesh)
+    bufs = meshes.get(key)
+    if bufs is not None:
+        return bufs
+    v, f = mesh.gpu_arrays()
+    check_buffer_size(ctx, v.nbytes, "mesh vertices")
+    check_buffer_size(ctx, f.nbytes, "mesh faces")
+    bufs = MeshBuffers(ctx.mgl.buffer(v.tobytes()), ctx.mgl.buffer(f.tobytes()), mesh.anchor,
+                       len(f), len(v))
+    meshes[key] = bufs
+
+    def drop(meshes=meshes, key=key):
+        b = meshes.pop(key, None)
+        if b is not None and not ctx.released:
+            b.release()
+
+    weakref.finalize(mesh, drop)
+    return bufs
+
+
+class BufferPool:
+    """Named GPU buffers of one context, reused and grown on demand."""
+
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self._bufs: dict[str, Any] = {}
+
+    def get(self, name: str, nbytes: int, *, what: str | None = None, clear: bool = True):
+        """A buffer of at least ``nbytes`` bytes (zero-filled when ``clear``)."""
+        nbytes = max(4, int(nbytes))
+        check_buffer_size(self.ctx, nbytes, what or name)
+        buf = self._bufs.get(name)
+        if buf is None or buf.size < nbytes:
+            if buf is not None:
+                buf.release()
+            buf = self.ctx.mgl.buffer(reserve=nbytes)
+            self._bufs[name] = buf
+        if clear:
+            buf.clear(size=nbytes)
+        return buf
+
+    def release(self) -> None:
+        for b in self._bufs.values():
+            b.release()
+        self._bufs.clear()
+
+
+def buffer_pool(ctx, owner: str) -> BufferPool:
+    """The pool of ``owner`` (a method name) in ``ctx``."""
+    pools = _caches(ctx)["pools"]
+    pool = pools.get(owner)
+    if pool is None:
+        pool = pools[owner] = BufferPool(ctx)
+    return pool
+
+
+def check_buffer_size(ctx, nbytes: int, what: str) -> None:
+    """LimitError when one SSBO of ``nbytes`` exceeds what the context allows."""
+    limit = int(ctx.limits()["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"])
+    if nbytes > limit:
+        raise LimitError(
+            f"{what} needs a {nbytes / 2**20:.1f} MiB shader storage buffer, over this context's "
+            f"GL_MAX_SHADER_STORAGE_BLOCK_SIZE of {limit / 2**20:.1f} MiB ({ctx.renderer}); "
+            "use a smaller grid, a sparse method (ss-octree), or tile the grid"
+        )
+
+
+def grid_uniforms(spec, anchor: np.ndarray) -> dict[str, Any]:
+    """Uniforms of ``common/voxel_space.glsl`` for ``spec``, vertices relative to ``anchor``."""
+    return {
+        "u_origin": tuple(float(x) for x in (spec.origin - anchor)),
+        "u_inv_h": 1.0 / spec.voxel_size,
+        "u_dims": tuple(int(d) for d in spec.dims),
+    }
+
+
+def set_uniforms(prog, values: dict[str, Any]) -> None:
+    """Set the uniforms the program uses; ones optimized out of it are skipped."""
+    for name, value in values.items():
+        if name in prog:
+            prog[name].value = value
+
+
+def dispatch_1d(ctx, prog, n: int, local_size: int) -> None:
+    """Run ``prog`` over ``n`` invocations in groups of ``local_size``, split along y
+    when the x group count would exceed GL_MAX_COMPUTE_WORK_GROUP_COUNT."""
+    groups = (int(n) + local_size - 1) // local_size
+    if groups == 0:
+        return
+    max_x = int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])
+    if groups <= max_x:
+        prog.run(groups, 1, 1)
+    else:
+        prog.run(max_x, (groups + max_x - 1) // max_x, 1)
+
+
+def read_grid_words(buf, spec) -> np.ndarray:
+    """The packed grid words of ``spec`` from ``buf`` (uint32, (nz, ny, words_per_row))."""
+    data = buf.read(size=spec.n_words * 4)
+    return np.frombuffer(data, dtype="<u4").reshape(spec.dims[2], spec.dims[1], spec.words_per_row)
