@@ -29,13 +29,26 @@ class _Progress:
             print(f"[{time.perf_counter() - self.t0:7.2f} s] {msg}", file=sys.stderr, flush=True)
 
 
-def _parse_options(pairs: Sequence[str]) -> dict[str, str]:
+def _parse_options(pairs: Sequence[str], extra: Sequence[str] = ()) -> dict[str, str]:
+    """Method options from ``-O KEY=VALUE`` and from ``--KEY VALUE`` / ``--KEY=VALUE``."""
     out = {}
     for p in pairs:
         if "=" not in p:
             raise GlvoxError(f"method options are KEY=VALUE, got {p!r}")
         k, v = p.split("=", 1)
         out[k.strip().replace("-", "_")] = v.strip()
+    rest = list(extra)
+    while rest:
+        tok = rest.pop(0)
+        if not tok.startswith("--") or len(tok) < 3:
+            raise GlvoxError(f"unexpected argument {tok!r}")
+        if "=" in tok:
+            k, v = tok[2:].split("=", 1)
+        elif rest and not rest[0].startswith("--"):
+            k, v = tok[2:], rest.pop(0)
+        else:
+            raise GlvoxError(f"method option {tok} needs a value")
+        out[k.replace("-", "_")] = v
     return out
 
 
@@ -85,7 +98,7 @@ def cmd_voxelize(args) -> int:
     if out is not None:
         io._suffix(out)  # refuse an unknown suffix before the work
     method = get_method(args.method)
-    options = _parse_options(args.option)
+    options = _parse_options(args.option, args.extra)
     say(f"loading {args.mesh}")
     mesh = load_mesh(args.mesh)
     say(f"{mesh.n_triangles} triangles ({mesh.n_degenerate} zero-area dropped), "
@@ -142,7 +155,7 @@ def build_parser() -> argparse.ArgumentParser:
     pv.add_argument("-m", "--method", default=None, help="registry name (see `glvox methods`)")
     pv.add_argument("-o", "--output", help="output file, .npz or .binvox")
     pv.add_argument("-O", "--option", action="append", default=[], metavar="KEY=VALUE",
-                    help="method option (repeatable)")
+                    help="method option (repeatable); `--KEY VALUE` works too, e.g. --axis 2")
     pv.add_argument("--dims", type=int, nargs=3, metavar=("NX", "NY", "NZ"), help="explicit dims")
     pv.add_argument("--voxel-size", type=float, help="explicit voxel size (world units)")
     pv.add_argument("--bounds", type=float, nargs=6, metavar=("XMIN", "YMIN", "ZMIN", "XMAX", "YMAX", "ZMAX"),
@@ -160,7 +173,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    if extra and args.command != "voxelize":
+        parser.error(f"unrecognized arguments: {' '.join(extra)}")
+    args.extra = extra
     if getattr(args, "method", "x") is None:
         from . import DEFAULT_METHOD
 

@@ -79,6 +79,11 @@ def test_voxelize_grid_options(tmp_path):
     assert not g.dense()[0].any() and not g.dense()[-1].any()
     p = glvox("voxelize", "gen:box", "--dims", 5, 4, 3, "-m", "reference-solid", "-o", out, "-q")
     assert p.returncode == 0 and io.load(out).dims == (5, 4, 3)
+    # method options as --KEY VALUE: the parity axis changes nothing on a closed mesh
+    p = glvox("voxelize", "gen:box", "--dims", 5, 4, 3, "-m", "reference-solid", "--axis", 2,
+              "--json", "-q")
+    assert p.returncode == 0, p.stderr
+    assert json.loads(p.stdout)["options"] == {"axis": 2}
 
 
 @pytest.mark.parametrize("args, msg", [
@@ -89,6 +94,9 @@ def test_voxelize_grid_options(tmp_path):
     (["voxelize", "gen:torus", "-r", "8", "-m", "reference-solid", "-O", "speed=9"],
      "method 'reference-solid' has no option speed; its options: axis"),
     (["voxelize", "gen:torus", "-r", "8", "-o", "x.vox"], "unknown voxel file suffix '.vox'"),
+    (["voxelize", "gen:torus", "-r", "8", "-m", "reference-solid", "--axis"], "method option --axis needs a value"),
+    (["voxelize", "gen:torus", "-r", "8", "-m", "reference-solid", "--axis", "3"],
+     "option axis must be one of [0, 1, 2], got 3"),
     (["voxelize", "gen:torus", "-r", "0"], "resolution must be a positive integer, got 0"),
     (["voxelize", "gen:torus"], "give -r/--resolution N, --dims NX NY NZ or --voxel-size H"),
 ])
