@@ -316,10 +316,16 @@ class GLContext:
         if err != "GL_NO_ERROR":
             raise GLError(f"OpenGL error {err} after {where}")
 
-    def timer_query(self) -> moderngl.Query:
-        """This context's one GL_TIME_ELAPSED query (moderngl cannot release queries)."""
+    def timestamp_queries(self) -> tuple[int, int]:
+        """Two GL_TIMESTAMP query names of this context, reused by every stage timer.
+
+        Timestamps rather than moderngl's GL_TIME_ELAPSED query: moderngl reads
+        query results as 32 bits (wrapping past 4.3 s) and Mesa's llvmpipe
+        reports a meaningless elapsed time for compute dispatches, while its
+        64-bit timestamps are right.
+        """
         if self._query is None:
-            self._query = self.mgl.query(time=True)
+            self._query = tuple(self.raw.gen_queries(2))
         return self._query
 
     def release_framebuffer(self, fbo: moderngl.Framebuffer) -> None:
@@ -350,6 +356,9 @@ class GLContext:
         for callback in self.on_release:
             callback()
         self.on_release.clear()
+        if self._query is not None:
+            self.raw.delete_queries(list(self._query))
+            self._query = None
         for prog in self.programs.values():
             prog.release()
         self.programs.clear()

@@ -46,7 +46,14 @@ _SIGNATURES: dict[str, tuple[object, tuple[object, ...]]] = {
     "glStencilOp": (None, (GLenum, GLenum, GLenum)),
     "glStencilMask": (None, (GLuint,)),
     "glClearStencil": (None, (GLint,)),
+    "glGenQueries": (None, (ctypes.c_int, ctypes.POINTER(GLuint))),
+    "glDeleteQueries": (None, (ctypes.c_int, ctypes.POINTER(GLuint))),
+    "glQueryCounter": (None, (GLuint, GLenum)),
+    "glGetQueryObjectui64v": (None, (GLuint, GLenum, ctypes.POINTER(ctypes.c_uint64))),
 }
+
+GL_TIMESTAMP = 0x8E28
+GL_QUERY_RESULT = 0x8866
 
 GL_LOGIC_OP_MODE = 0x0BF0
 
@@ -86,6 +93,26 @@ class RawGL:
 
     def get_error(self) -> int:
         return int(self.fn("glGetError")())
+
+    # -- timestamps ---------------------------------------------------------
+    def gen_queries(self, n: int) -> list[int]:
+        ids = (GLuint * n)()
+        self.fn("glGenQueries")(n, ids)
+        return list(ids)
+
+    def delete_queries(self, ids: list[int]) -> None:
+        arr = (GLuint * len(ids))(*ids)
+        self.fn("glDeleteQueries")(len(ids), arr)
+
+    def timestamp(self, query: int) -> None:
+        """Record the GPU time when the commands before it complete (glQueryCounter)."""
+        self.fn("glQueryCounter")(query, GL_TIMESTAMP)
+
+    def query_result_ns(self, query: int) -> int:
+        """The 64-bit result of a query, waiting for it (nanoseconds for timestamps)."""
+        out = ctypes.c_uint64(0)
+        self.fn("glGetQueryObjectui64v")(query, GL_QUERY_RESULT, ctypes.byref(out))
+        return int(out.value)
 
     # -- logic op -----------------------------------------------------------
     def set_logic_op(self, op: str | None) -> None:

@@ -1,11 +1,10 @@
 """Per-stage timings: wall clock always, GPU time from timer queries.
 
 A method wraps each stage in ``with timer.stage("name"):``.  On a GPU stage
-the timer brackets the commands with a ``GL_TIME_ELAPSED`` query and waits for
-the GPU at the end of the stage, so the wall time of the stage includes the
-GPU work it issued (stages are coarse; the one sync per stage is the price of
-honest wall times).  Stages do not nest: GL allows one time-elapsed query at a
-time.
+the timer brackets the commands with two ``GL_TIMESTAMP`` queries and waits
+for the GPU at the end of the stage, so the wall time of the stage includes
+the GPU work it issued (stages are coarse; the one sync per stage is the price
+of honest wall times).  Stages do not nest.
 """
 
 from __future__ import annotations
@@ -97,17 +96,19 @@ class StageTimer:
 
     @contextlib.contextmanager
     def stage(self, name: str, gpu: bool = True) -> Iterator[None]:
-        # one query object per context, reused: moderngl cannot release queries
-        query = self.ctx.timer_query() if gpu and self.ctx is not None else None
+        queries = self.ctx.timestamp_queries() if gpu and self.ctx is not None else None
         t0 = time.perf_counter()
-        if query is not None:
-            with query:
-                yield
+        if queries is not None:
+            raw = self.ctx.raw
+            raw.timestamp(queries[0])
+            yield
+            raw.timestamp(queries[1])
             self.ctx.mgl.finish()
+            gpu_s = (raw.query_result_ns(queries[1]) - raw.query_result_ns(queries[0])) * 1e-9
         else:
             yield
+            gpu_s = None
         wall = time.perf_counter() - t0
-        gpu_s = query.elapsed * 1e-9 if query is not None else None
         self.timings.stages.append(Stage(name, wall, gpu_s))
         if self.debug and self.ctx is not None:
             self.ctx.check_error(f"method {self.method!r}, stage {name!r}")

@@ -63,3 +63,18 @@ def test_unknown_stage_name():
     t = StageTimer(None).finish()
     with pytest.raises(KeyError, match=r"no stage 'x'; stages are \[\]"):
         t.stage("x")
+
+
+def test_gpu_time_of_a_long_dispatch_is_measured(gl_context):
+    """A dispatch of ~0.1 s: the timestamps give a GPU time that is positive and
+    not longer than the stage's wall time (it includes the wait for the GPU)."""
+    prog = compute_program(gl_context, "testing/busy.comp")
+    out = gl_context.mgl.buffer(reserve=64 * 64 * 4)
+    out.bind_to_storage_buffer(0)
+    prog["u_iterations"].value = 4000
+    timer = StageTimer(gl_context)
+    with timer.stage("busy"):
+        prog.run(64)
+    out.release()
+    s = timer.finish().stage("busy")
+    assert 0 < s.gpu_s <= s.wall_s

@@ -170,3 +170,12 @@ def read_grid_words(buf, spec) -> np.ndarray:
     """The packed grid words of ``spec`` from ``buf`` (uint32, (nz, ny, words_per_row))."""
     data = buf.read(size=spec.n_words * 4)
     return np.frombuffer(data, dtype="<u4").reshape(spec.dims[2], spec.dims[1], spec.words_per_row)
+
+
+def barrier(ctx) -> None:
+    """Make SSBO writes of earlier dispatches visible to later dispatches,
+    indirect-dispatch argument reads and buffer reads."""
+    import moderngl
+
+    ctx.mgl.memory_barrier(moderngl.SHADER_STORAGE_BARRIER_BIT | moderngl.COMMAND_BARRIER_BIT
+                           | moderngl.BUFFER_UPDATE_BARRIER_BIT)

@@ -8,19 +8,25 @@ vec2 edge_normal(vec2 vi, vec2 vj, float orient) {
     return vec2(-e.y, e.x) * orient;
 }
 
-// Conservative offset (Eq. 2): the edge function evaluated at a box's minimum
-// corner p as dot(n, p) + d is the value at the box corner most interior to
+// The edge functions are evaluated relative to the edge's start vertex,
+// dot(n, p - vi) + offset, rather than with the paper's precomputed
+// d = -dot(n, vi) + offset: the same value in exact arithmetic, but without
+// the cancellation that loses exact touches once |vi| is large.
+
+// Conservative corner term (Eq. 2): added to dot(n, p - vi) at a box's
+// minimum corner p, it gives the value at the box corner most interior to
 // the edge, for a box of extent dp.
-float edge_offset_conservative(vec2 n, vec2 vi, vec2 dp) {
-    return -dot(n, vi) + max(0.0, dp.x * n.x) + max(0.0, dp.y * n.y);
+float edge_box_term_conservative(vec2 n, vec2 dp) {
+    return max(0.0, dp.x * n.x) + max(0.0, dp.y * n.y);
 }
 
-// 6-separating offset (Sec. 3.4, Huang et al.'s 4-separating line criterion):
-// the value at the box center plus half the extent along the dominant axis.
-float edge_offset_6sep(vec2 n, vec2 vi, vec2 dp) {
+// 6-separating term (Sec. 3.4, Huang et al.'s 4-separating line criterion):
+// the value at the box center plus half the extent along the dominant axis
+// of the edge normal.
+float edge_box_term_6sep(vec2 n, vec2 dp) {
     vec2 a = abs(n);
     float half_dominant = a.x >= a.y ? 0.5 * dp.x * a.x : 0.5 * dp.y * a.y;
-    return dot(n, 0.5 * dp - vi) + half_dominant;
+    return dot(n, 0.5 * dp) + half_dominant;
 }
 
 // Top-left fill rule (Sec. 4.1): an edge owns the points exactly on it only
