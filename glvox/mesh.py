@@ -104,13 +104,38 @@ def _load_file(path: Path):
     if path.stat().st_size == 0:
         raise EmptyMeshError(f"mesh file is empty (0 bytes): {path}")
     try:
-        loaded = trimesh.load(str(path), force="mesh", process=False)
+        # materials and textures are irrelevant to voxels (and would need Pillow)
+        loaded = trimesh.load(str(path), process=False, skip_materials=True)
     except Exception as exc:  # noqa: BLE001 - trimesh raises many types; one clear error
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise MeshLoadError(f"could not read mesh file {path}: {msg}") from None
+    if isinstance(loaded, trimesh.Scene):
+        return _scene_triangles(loaded, path)
     if not hasattr(loaded, "faces") or not hasattr(loaded, "vertices"):
         raise MeshLoadError(f"{path} holds no triangle mesh (got {type(loaded).__name__})")
-    return loaded
+    return loaded.vertices, loaded.faces
+
+
+def _scene_triangles(scene, path: Path):
+    """Vertices and faces of every mesh in a scene, placed by the scene graph.
+
+    Done here rather than by trimesh's scene concatenation, which copies the
+    visuals (and needs Pillow for textured files) only to throw them away.
+    """
+    import trimesh
+
+    verts, faces, offset = [], [], 0
+    for node in scene.graph.nodes_geometry:
+        transform, name = scene.graph[node]
+        geom = scene.geometry.get(name)
+        if geom is None or not hasattr(geom, "faces") or len(geom.faces) == 0:
+            continue
+        verts.append(trimesh.transform_points(np.asarray(geom.vertices, dtype=np.float64), transform))
+        faces.append(np.asarray(geom.faces, dtype=np.int64) + offset)
+        offset += len(geom.vertices)
+    if not faces:
+        raise EmptyMeshError(f"{path} holds no triangles")
+    return np.concatenate(verts), np.concatenate(faces)
 
 
 def load_mesh(mesh: MeshLike, *, name: str | None = None) -> Mesh:
@@ -137,8 +162,8 @@ def load_mesh(mesh: MeshLike, *, name: str | None = None) -> Mesh:
         return generated_mesh(mesh[4:])
     if isinstance(mesh, (str, os.PathLike)):
         path = Path(mesh)
-        loaded = _load_file(path)
-        vertices, faces, label = loaded.vertices, loaded.faces, path.name
+        vertices, faces = _load_file(path)
+        label = path.name
     elif isinstance(mesh, tuple) and len(mesh) == 2:
         vertices, faces, label = mesh[0], mesh[1], "<arrays>"
     elif hasattr(mesh, "vertices") and hasattr(mesh, "faces"):
