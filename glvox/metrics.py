@@ -65,7 +65,8 @@ def tie_set(reference: str, mesh, spec, eps: float = TIE_EPS) -> np.ndarray:
 
 
 def check_against_reference(result: VoxelGrid, mesh, reference: str | None = None,
-                            reference_grid: VoxelGrid | None = None) -> ReferenceCheck:
+                            reference_grid: VoxelGrid | None = None,
+                            ties: np.ndarray | None = None) -> ReferenceCheck:
     """Compare ``result`` with the exact reference and prove mismatches are ties.
 
     Parameters
@@ -77,13 +78,16 @@ def check_against_reference(result: VoxelGrid, mesh, reference: str | None = Non
         Reference method name; default the one the method's registry entry names.
     reference_grid : VoxelGrid, optional
         A precomputed reference result on the same grid.
+    ties : (nx, ny, nz) bool, optional
+        A precomputed :func:`tie_set` of the same reference, mesh and grid.
     """
     if reference is None:
         reference = get_method(result.run.method).info.reference
     spec = result.spec
     if reference_grid is None:
         reference_grid = run_method(reference, mesh, spec, allow_open=True)
-    ties = tie_set(reference, mesh, spec)
+    if ties is None:
+        ties = tie_set(reference, mesh, spec)
     ok, unexplained = mismatch_is_tie(result.dense(), reference_grid.dense(), ties)
     return ReferenceCheck(reference, result.compare(reference_grid), int(ties.sum()), unexplained)
 

@@ -12,7 +12,7 @@ import pytest
 
 from glvox.context import close_context, create_context, get_context
 from glvox.errors import BackendError
-from glvox.testing import run_fragment
+from glvox.testing import run_compute, run_fragment
 
 
 def test_shared_context_is_one_per_process(gl_context):
@@ -132,3 +132,18 @@ def test_close_context_then_get_context_makes_a_new_one():
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == "abcd"
+
+
+def test_loop_budget_of_the_driver_is_known(gl_context):
+    """Mesa's llvmpipe ends an invocation's loops after about 65535 iterations in
+    total, silently; glvox's shaders split their work to stay below
+    LOOP_BUDGET.  This measures the driver so a change in Mesa is noticed."""
+    from glvox.methods._gpu import LOOP_BUDGET
+
+    out = run_compute(gl_context, "testing/loop_count.comp", 1, buffers={0: (1, np.uint32)}, read=[0],
+                      uniforms={"u_n": 100})[0]
+    done = int(out[0])
+    if gl_context.is_software:
+        assert LOOP_BUDGET - 2000 < done < 100**3, done  # cut near the budget
+    else:
+        assert done == 100**3

@@ -158,3 +158,23 @@ def test_far_from_origin_vertices_are_kept_precise():
     v32, _ = m.gpu_arrays()
     assert v32.dtype == np.float32
     np.testing.assert_allclose(v32 + m.anchor, m.vertices, atol=1e-6)
+
+
+def test_multi_part_file_is_placed_by_the_scene_graph(tmp_path):
+    a = trimesh.creation.box(extents=(1, 1, 1))
+    b = trimesh.creation.icosphere(1)
+    scene = trimesh.Scene()
+    scene.add_geometry(a, node_name="a")
+    shift = np.eye(4)
+    shift[:3, 3] = [10.0, 0.0, 0.0]
+    scene.add_geometry(b, node_name="b", transform=shift)
+    p = tmp_path / "parts.glb"
+    scene.export(p)
+    m = load_mesh(p)
+    assert m.n_triangles == len(a.faces) + len(b.faces)
+    np.testing.assert_allclose(m.bounds, [[-0.5, -1.0, -1.0], [11.0, 1.0, 1.0]], atol=1e-6)
+
+
+def test_textured_obj_loads_without_pillow(shared_mesh):
+    m = load_mesh(shared_mesh("messy_wallhole.obj"))  # mtllib and texture coordinates
+    assert m.n_triangles + m.n_degenerate == 66 and m.n_degenerate == 11  # SOURCES.md: 11 zero-area faces

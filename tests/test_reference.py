@@ -21,7 +21,7 @@ from scipy.spatial import ConvexHull
 
 from glvox.metrics import separation_leaks
 from glvox.reference import (TIE_EPS, conservative_surface, conservative_surface_sat,
-                             mismatch_is_tie, point_triangle_distance,
+                             mismatch_is_tie, orientation_ambiguous, point_triangle_distance,
                              six_separating_surface, solid, solid_ties, surface_ties)
 
 MESHES = Path(os.environ.get("GLVOX_MESHES",
@@ -664,3 +664,27 @@ def test_solid_ties_cover_every_flip_under_small_motions(sphere):
         assert mismatch_is_tie(moved, ref, ties)[0]
         flipped |= moved != ref
     assert flipped.any()
+
+
+# ----------------------------------------------------------------------------
+# orientation ties (nearly edge-on projections)
+
+def test_orientation_ambiguity_is_flagged_only_for_edge_on_projections():
+    wall = np.array([[[1.2, 1.3, 0.5], [1.2, 1.3, 5.5], [1.9, 3.4, 5.5]]])  # vertical: xy projection is a segment
+    tilted = np.array([[[1.2, 1.3, 0.5], [4.2, 1.9, 2.5], [1.9, 3.4, 5.5]]])
+    amb = orientation_ambiguous(np.concatenate([wall, tilted]), TIE_EPS)
+    assert amb.tolist() == [[False, False, True], [False, False, False]]  # planes yz, zx, xy
+
+
+def test_orientation_ties_cover_a_flip_of_a_sliver():
+    """A sliver seen edge-on in xy whose short edge decides a voxel: the verdict
+    with the projection flipped differs, and exactly those voxels are ties."""
+    sliver = np.array([[[1.9722, 3.0474, 2.5], [1.7049, 2.9698, 0.98], [1.97221, 3.0474, 0.98]]])
+    flip = np.zeros((1, 3), bool)
+    flip[0, 2] = True
+    for f, crit in ((six_separating_surface, "6sep"), (conservative_surface, "conservative")):
+        base = f(sliver, (5, 5, 5))
+        flipped = f(sliver, (5, 5, 5), flip=flip)
+        ties = surface_ties(sliver, (5, 5, 5), crit)
+        assert not ((base ^ flipped) & ~ties).any()
+    assert (six_separating_surface(sliver, (5, 5, 5)) ^ six_separating_surface(sliver, (5, 5, 5), flip=flip)).any()

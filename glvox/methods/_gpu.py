@@ -21,6 +21,14 @@ import numpy as np
 
 from ..errors import LimitError
 
+#: Loop iterations one shader invocation may run, all loops together, on the
+#: software renderer.  Mesa's llvmpipe (gallivm's loop limiter,
+#: LP_MAX_TGSI_LOOP_ITERATIONS) silently ends an invocation's loops after
+#: 65535 iterations in total, which would drop work without any error; every
+#: glvox shader splits its work so that one invocation stays well below this
+#: (tests/test_context.py measures it).
+LOOP_BUDGET = 65535
+
 
 @dataclass(eq=False)
 class MeshBuffers:

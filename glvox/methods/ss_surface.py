@@ -15,22 +15,33 @@ columns.  All variants write the bit-packed grid of ``common/voxel_space.glsl``
 with ``atomicOr`` through a small register buffer of words.
 
 Pipeline (all on the GPU; only the grid and three case counters are read back):
-``transform`` (vertices to voxel space), then ``voxelize`` (or ``classify``,
-``sort``, ``ranges``, ``voxelize``), then ``readback``.
+``transform`` (vertices to voxel space), ``classify`` (case and work of each
+triangle), [``sort``, ``ranges`` for the sorted variant], ``voxelize``
+(indirect dispatches sized on the GPU), ``readback``.  A triangle's work is
+split into chunks of :data:`CHUNK` voxels or columns, one invocation each, so
+no invocation exceeds the loop budget of Mesa's llvmpipe (see
+:data:`glvox.methods._gpu.LOOP_BUDGET`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from ..errors import LimitError
 from ..grid import VoxelGrid
 from ..shaders import compute_program
 from ._base import Method, MethodInfo, Option, Requirements, register
-from ._gpu import (barrier, buffer_pool, dispatch_1d, grid_uniforms, mesh_buffers, read_grid_words,
-                   set_uniforms)
+from ._gpu import (LOOP_BUDGET, barrier, buffer_pool, dispatch_1d, grid_uniforms, mesh_buffers,
+                   read_grid_words, set_uniforms)
 
 _PAPER = "Schwarz & Seidel 2010"
 _LOCAL = 64  # local_size_x of ss/surface.comp and ss/classify.comp
+
+#: Work units (voxels or columns) per invocation.  A column costs at most six
+#: loop iterations (itself and up to five voxels), so an invocation stays far
+#: below LOOP_BUDGET; nearly every triangle is one chunk.
+CHUNK = 4096
+assert 6 * CHUNK < LOOP_BUDGET
 _VARIANTS = {"simple": 0, "specialized": 1, "sorted": 2}
 _REQUIRES = Requirements(gl_version=430, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 7,
                                                  "GL_MAX_COMPUTE_WORK_GROUP_SIZE": 256})
@@ -54,7 +65,89 @@ class _SSSurface(Method):
             barrier(ctx)
         return bufs, vox
 
-    def _finish(self, ctx, spec, timer, grid, stats):
+    def _run(self, ctx, mesh, spec, timer, variant: str):
+        n = mesh.n_triangles
+        max_groups = int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])
+        if variant == "sorted" and n > max_groups * _LOCAL:
+            raise LimitError(
+                f"the sorted variant dispatches each bounding-box type at once, at most "
+                f"{max_groups * _LOCAL} triangles (GL_MAX_COMPUTE_WORK_GROUP_COUNT {max_groups} x "
+                f"{_LOCAL}); this mesh has {n}: use variant 'specialized'"
+            )
+        pool = buffer_pool(ctx, self.info.name)
+        # the grid first: a grid over the SSBO limit is refused before any other work
+        grid = pool.get("grid", spec.n_words * 4, what=f"the {spec.dims} bit grid")
+        bufs, vox = self._transform(ctx, mesh, spec, timer, pool)
+        stats = pool.get("stats", 8 * 4)
+        per_tri = pool.get("per_triangle", n * 4, what="per-triangle work", clear=False)
+        args = pool.get("args", 9 * 4, clear=False)
+        defines = {"SS_CRITERION": self.criterion, "SS_VARIANT": _VARIANTS[variant], "SS_CHUNK": CHUNK}
+        common = {**grid_uniforms(spec, bufs.anchor), "u_triangles": n, "u_tri_offset": 0,
+                  "u_local_size": _LOCAL, "u_max_groups": max_groups}
+        vox.bind_to_storage_buffer(1)
+        bufs.faces.bind_to_storage_buffer(2)
+        grid.bind_to_storage_buffer(3)
+        stats.bind_to_storage_buffer(4)
+        per_tri.bind_to_storage_buffer(5)
+        args.bind_to_storage_buffer(8)
+        keys = None
+        if variant == "sorted":
+            keys = pool.get("keys", n * 4, what="sort keys", clear=False)
+            keys.bind_to_storage_buffer(7)
+        classify = compute_program(ctx, "ss/classify.comp", defines)
+        set_uniforms(classify, common)
+        with timer.stage("classify"):
+            dispatch_1d(ctx, classify, n, _LOCAL)
+            barrier(ctx)
+        dargs = compute_program(ctx, "ss/dispatch_args.comp")
+        if variant != "sorted":
+            prog = compute_program(ctx, "ss/surface.comp", defines)
+            set_uniforms(prog, common)
+            batch = max_groups * _LOCAL  # triangles per dispatch along x
+            with timer.stage("voxelize"):
+                for offset in range(0, n, batch):
+                    count = min(batch, n - offset)
+                    set_uniforms(dargs, {"u_sorted": False, "u_groups_x": -(-count // _LOCAL),
+                                         "u_max_groups": max_groups, "u_local_size": _LOCAL})
+                    dargs.run(1, 1, 1)
+                    barrier(ctx)
+                    set_uniforms(prog, {"u_tri_offset": offset})
+                    prog.run_indirect(args)
+                    barrier(ctx)
+            return self._finish(spec, timer, grid, stats)
+        from ..gpu_sort import sort_pairs
+
+        ranges = pool.get("ranges", 8 * 4)
+        ranges.bind_to_storage_buffer(6)
+        with timer.stage("sort"):
+            sort_pairs(ctx, keys, per_tri, n, key_bits=30)
+            barrier(ctx)
+        rng = compute_program(ctx, "ss/ranges.comp")
+        set_uniforms(rng, {"u_count": n})
+        set_uniforms(dargs, {"u_sorted": True, "u_local_size": _LOCAL, "u_max_groups": max_groups})
+        with timer.stage("ranges"):
+            # the sort may have bound its own buffers: bind ours again
+            keys.bind_to_storage_buffer(7)
+            ranges.bind_to_storage_buffer(6)
+            stats.bind_to_storage_buffer(4)
+            args.bind_to_storage_buffer(8)
+            dispatch_1d(ctx, rng, n, 256)
+            barrier(ctx)
+            dargs.run(1, 1, 1)
+            barrier(ctx)
+        with timer.stage("voxelize"):
+            vox.bind_to_storage_buffer(1)
+            bufs.faces.bind_to_storage_buffer(2)
+            grid.bind_to_storage_buffer(3)
+            per_tri.bind_to_storage_buffer(5)
+            for bbox_type in range(3):
+                prog = compute_program(ctx, "ss/surface.comp", {**defines, "SS_BBOX_TYPE": bbox_type})
+                set_uniforms(prog, common)
+                prog.run_indirect(args, offset=12 * bbox_type)
+            barrier(ctx)
+        return self._finish(spec, timer, grid, stats)
+
+    def _finish(self, spec, timer, grid, stats):
         with timer.stage("readback", gpu=False):
             words = read_grid_words(grid, spec)
             cases = np.frombuffer(stats.read(size=12), dtype="<u4")
@@ -64,76 +157,6 @@ class _SSSurface(Method):
             timer.stats["case_percent_1d_2d_3d"] = [round(100.0 * int(c) / total, 1) if total else 0.0
                                                     for c in cases]
         return VoxelGrid(words=words, spec=spec)
-
-    def _run(self, ctx, mesh, spec, timer, variant: str):
-        pool = buffer_pool(ctx, self.info.name)
-        # the grid first: a grid over the SSBO limit is refused before any other work
-        grid = pool.get("grid", spec.n_words * 4, what=f"the {spec.dims} bit grid")
-        bufs, vox = self._transform(ctx, mesh, spec, timer, pool)
-        stats = pool.get("stats", 16)
-        n = bufs.n_triangles
-        common = {**grid_uniforms(spec, bufs.anchor), "u_triangles": n}
-        defines = {"SS_CRITERION": self.criterion, "SS_VARIANT": _VARIANTS[variant]}
-        if variant != "sorted":
-            prog = compute_program(ctx, "ss/surface.comp", defines)
-            set_uniforms(prog, common)
-            with timer.stage("voxelize"):
-                vox.bind_to_storage_buffer(1)
-                bufs.faces.bind_to_storage_buffer(2)
-                grid.bind_to_storage_buffer(3)
-                stats.bind_to_storage_buffer(4)
-                dispatch_1d(ctx, prog, n, _LOCAL)
-                barrier(ctx)
-            return self._finish(ctx, spec, timer, grid, stats)
-        return self._run_sorted(ctx, spec, timer, pool, bufs, vox, grid, stats, common)
-
-    def _run_sorted(self, ctx, spec, timer, pool, bufs, vox, grid, stats, common):
-        from ..gpu_sort import sort_pairs
-
-        n = bufs.n_triangles
-        keys = pool.get("keys", n * 4, what="sort keys", clear=False)
-        values = pool.get("values", n * 4, what="sort values", clear=False)
-        ranges = pool.get("ranges", 8 * 4)
-        args = pool.get("args", 9 * 4, clear=False)
-        classify = compute_program(ctx, "ss/classify.comp")
-        set_uniforms(classify, common)
-        with timer.stage("classify"):
-            vox.bind_to_storage_buffer(1)
-            bufs.faces.bind_to_storage_buffer(2)
-            keys.bind_to_storage_buffer(3)
-            stats.bind_to_storage_buffer(4)
-            values.bind_to_storage_buffer(5)
-            dispatch_1d(ctx, classify, n, _LOCAL)
-            barrier(ctx)
-        with timer.stage("sort"):
-            sort_pairs(ctx, keys, values, n, key_bits=30)
-            barrier(ctx)
-        rng = compute_program(ctx, "ss/ranges.comp")
-        set_uniforms(rng, {"u_count": n})
-        dargs = compute_program(ctx, "ss/dispatch_args.comp")
-        set_uniforms(dargs, {"u_local_size": _LOCAL,
-                             "u_max_groups": int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])})
-        with timer.stage("ranges"):
-            keys.bind_to_storage_buffer(0)
-            ranges.bind_to_storage_buffer(1)
-            dispatch_1d(ctx, rng, n, 256)
-            barrier(ctx)
-            args.bind_to_storage_buffer(2)
-            dargs.run(1, 1, 1)
-            barrier(ctx)
-        with timer.stage("voxelize"):
-            vox.bind_to_storage_buffer(1)
-            bufs.faces.bind_to_storage_buffer(2)
-            grid.bind_to_storage_buffer(3)
-            values.bind_to_storage_buffer(5)
-            ranges.bind_to_storage_buffer(6)
-            for bbox_type in range(3):
-                prog = compute_program(ctx, "ss/surface.comp",
-                                       {"SS_CRITERION": 0, "SS_VARIANT": 2, "SS_BBOX_TYPE": bbox_type})
-                set_uniforms(prog, common)
-                prog.run_indirect(args, offset=12 * bbox_type)
-            barrier(ctx)
-        return self._finish(ctx, spec, timer, grid, stats)
 
     def release(self, ctx) -> None:
         buffer_pool(ctx, self.info.name).release()

@@ -13,19 +13,21 @@ Surfaces (:mod:`.surface`)
 Solids (:mod:`.solid`)
     :func:`solid` (parity of crossings along an axis, top-left fill rule).
 Ties (:mod:`.ties`)
-    :func:`surface_ties`, :func:`solid_ties`, :func:`mismatch_is_tie` and
-    the tolerance :data:`TIE_EPS`.
+    :func:`surface_ties`, :func:`solid_ties`, :func:`mismatch_is_tie`,
+    :func:`orientation_ambiguous` and the tolerance :data:`TIE_EPS`.
 """
 
 from .solid import solid
 from .surface import conservative_surface, conservative_surface_sat, six_separating_surface
-from .ties import TIE_EPS, mismatch_is_tie, point_triangle_distance, solid_ties, surface_ties
+from .ties import (TIE_EPS, mismatch_is_tie, orientation_ambiguous, point_triangle_distance,
+                   solid_ties, surface_ties)
 
 __all__ = [
     "TIE_EPS",
     "conservative_surface",
     "conservative_surface_sat",
     "mismatch_is_tie",
+    "orientation_ambiguous",
     "point_triangle_distance",
     "six_separating_surface",
     "solid",

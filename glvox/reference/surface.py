@@ -39,19 +39,27 @@ _PLANES = ((1, 2, 0), (2, 0, 1), (0, 1, 2))
 Test = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
-def _edge_normals(tris: np.ndarray, n: np.ndarray) -> np.ndarray:
-    """Inward 2D edge normals of the three projections, (T, 3 planes, 3 edges, 2) float64 (S&S Eq. 2)."""
+def _edge_normals(tris: np.ndarray, n: np.ndarray, flip: np.ndarray | None = None) -> np.ndarray:
+    """Inward 2D edge normals of the three projections, (T, 3 planes, 3 edges, 2) float64 (S&S Eq. 2).
+
+    ``flip`` (T, 3) bool inverts the orientation of the marked projections
+    (planes in ``_PLANES`` order); the orientation tie sets use it.
+    """
     e = np.roll(tris, -1, axis=1) - tris  # e_i = v_{i+1 mod 3} - v_i
     out = np.empty((len(tris), 3, 3, 2))
     for p, (a, b, w) in enumerate(_PLANES):
-        sgn = np.where(n[:, w] >= 0.0, 1.0, -1.0)[:, None]
+        sgn = np.where(n[:, w] >= 0.0, 1.0, -1.0)
+        if flip is not None:
+            sgn = np.where(flip[:, p], -sgn, sgn)
+        sgn = sgn[:, None]
         out[:, p, :, 0] = -e[:, :, b] * sgn
         out[:, p, :, 1] = e[:, :, a] * sgn
     return out
 
 
 def _planar_test(tris: np.ndarray, n: np.ndarray, o1: np.ndarray, o2: np.ndarray,
-                 ne: np.ndarray, oe: np.ndarray, shift: float) -> Test:
+                 ne: np.ndarray, oe: np.ndarray, shift: float,
+                 no_plane: np.ndarray | None = None) -> Test:
     """Per-pair test shared by both S&S criteria.
 
     With ``x = ijk + shift`` (the box's minimum corner for the conservative
@@ -75,6 +83,8 @@ def _planar_test(tris: np.ndarray, n: np.ndarray, o1: np.ndarray, o2: np.ndarray
         # Sign test instead of the product of Eq. 1: same verdict, no underflow.
         ok = np.minimum(lo, hi) <= 0.0
         ok &= np.maximum(lo, hi) >= 0.0
+        if no_plane is not None:
+            ok |= no_plane[t]
         keep, x, t = keep[ok], x[ok], t[ok]
         for q, (a, b, _) in enumerate(_PLANES):
             ra = x[:, a][:, None] - tris[t, :, a]
@@ -97,7 +107,9 @@ def _run(tris: np.ndarray, dims: tuple[int, int, int],
     return out
 
 
-def conservative_surface(tris: np.ndarray, dims: Sequence[int], half: float = 0.5) -> np.ndarray:
+def conservative_surface(tris: np.ndarray, dims: Sequence[int], half: float = 0.5, *,
+                         flip: np.ndarray | None = None,
+                         no_plane: np.ndarray | None = None) -> np.ndarray:
     """Conservative (26-separating) surface voxelization by the Schwarz & Seidel test.
 
     A voxel is set iff some triangle overlaps or touches its box: the
@@ -123,6 +135,13 @@ def conservative_surface(tris: np.ndarray, dims: Sequence[int], half: float = 0.
     half : float
         Half-size of the box tested for each voxel, in voxels.  0.5 is the
         voxel itself; ``0.5 +/- TIE_EPS`` gives the tie sets.
+    flip : (T, 3) bool, optional
+        Invert the orientation of the marked projections (yz, zx, xy) of the
+        marked triangles; only the tie sets use it (see
+        :func:`glvox.reference.ties.orientation_ambiguous`).
+    no_plane : (T,) bool, optional
+        Skip the plane test for the marked triangles (their plane is
+        undefined up to rounding); only the tie sets use it.
 
     Returns
     -------
@@ -137,14 +156,16 @@ def conservative_surface(tris: np.ndarray, dims: Sequence[int], half: float = 0.
     # <n, c> and <n, dp - c> for the critical point c of Eq. 1.
     o1 = dp * np.maximum(n, 0.0).sum(axis=1)
     o2 = dp * np.minimum(n, 0.0).sum(axis=1)
-    ne = _edge_normals(tris, n)
+    ne = _edge_normals(tris, n, flip)
     # Eq. 2 without the -<n_e, v_i> term: the most interior box corner.
     oe = np.maximum(0.0, dp * ne[..., 0]) + np.maximum(0.0, dp * ne[..., 1])
-    test = _planar_test(tris, n, o1, o2, ne, oe, 0.5 - half)
+    test = _planar_test(tris, n, o1, o2, ne, oe, 0.5 - half, no_plane)
     return _run(tris, dims, pruned_candidates(tris, dims, half), test)
 
 
-def six_separating_surface(tris: np.ndarray, dims: Sequence[int], half: float = 0.5) -> np.ndarray:
+def six_separating_surface(tris: np.ndarray, dims: Sequence[int], half: float = 0.5, *,
+                           flip: np.ndarray | None = None,
+                           no_plane: np.ndarray | None = None) -> np.ndarray:
     """6-separating surface voxelization by the criterion of S&S Sec. 3.4.
 
     The plane test keeps voxels whose center is within
@@ -168,6 +189,8 @@ def six_separating_surface(tris: np.ndarray, dims: Sequence[int], half: float = 
         Grid size ``(nx, ny, nz)``.
     half : float
         Half the voxel extent ``Delta p / 2`` used by the criterion, in voxels.
+    flip, no_plane : optional
+        As in :func:`conservative_surface` (tie sets only).
 
     Returns
     -------
@@ -180,9 +203,9 @@ def six_separating_surface(tris: np.ndarray, dims: Sequence[int], half: float = 
     # Offsets of Sec. 3.4 relative to the box center: +/- half |n_dom| for the
     # plane, half * max(|n_e,a|, |n_e,b|) for the edges.
     t = half * np.abs(n).max(axis=1)
-    ne = _edge_normals(tris, n)
+    ne = _edge_normals(tris, n, flip)
     oe = half * np.abs(ne).max(axis=-1)
-    test = _planar_test(tris, n, t, -t, ne, oe, 0.5)
+    test = _planar_test(tris, n, t, -t, ne, oe, 0.5, no_plane)
     return _run(tris, dims, pruned_candidates(tris, dims, half), test)
 
 

@@ -29,13 +29,20 @@ TIE_EPS = 1e-4
 def surface_ties(tris: np.ndarray, dims: Sequence[int],
                  criterion: Literal["conservative", "6sep"] = "conservative",
                  eps: float = TIE_EPS) -> np.ndarray:
-    """Voxels whose surface verdict differs between box half-sizes ``0.5 - eps`` and ``0.5 + eps``.
+    """Voxels whose surface verdict differs between box half-sizes ``0.5 - eps`` and ``0.5 + eps``,
+    or with the orientation of a nearly edge-on projection.
 
     Both criteria are monotone in the half-size (a larger box or cross only
-    meets more), so this is the set accepted at ``0.5 + eps`` but not at
-    ``0.5 - eps``: voxels that a triangle touches or misses by at most about
-    ``eps`` voxel.  A float32 result that differs from the float64 reference
-    only on these voxels is correct up to rounding.
+    meets more), so the first part is the set accepted at ``0.5 + eps`` but
+    not at ``0.5 - eps``: voxels that a triangle touches or misses by at most
+    about ``eps`` voxel (DESIGN.md's definition).  The second part extends it
+    to what the float32 copy of the mesh on the GPU can legitimately change:
+    for a projection whose orientation is ambiguous under an ``eps`` motion of
+    the vertices (:func:`orientation_ambiguous`), the voxels whose verdict
+    differs when that orientation is flipped; for a sliver whose whole normal
+    is within rounding of zero, every voxel it could set with no plane test
+    and any orientation.  A float32 result that differs from the float64
+    reference only on these voxels is correct up to rounding.
 
     Parameters
     ----------
@@ -58,7 +65,64 @@ def surface_ties(tris: np.ndarray, dims: Sequence[int],
     if not 0.0 < eps < 0.5:
         raise ValueError(f"eps must be in (0, 0.5) voxel, got {eps!r}")
     f = funcs[criterion]
-    return f(tris, dims, 0.5 + eps) ^ f(tris, dims, 0.5 - eps)
+    ties = f(tris, dims, 0.5 + eps) ^ f(tris, dims, 0.5 - eps)
+    # Orientation ties: where a projection's orientation is ambiguous under an
+    # eps motion of the vertices, every voxel whose verdict depends on it.
+    tris = check_tris(tris)
+    amb = orientation_ambiguous(tris, eps)
+    some = amb.any(axis=1)
+    if some.any():
+        sub, amb = tris[some], amb[some]
+        base = f(sub, dims, 0.5)
+        flips = [amb]
+        if (amb.sum(axis=1) > 1).any():  # also each ambiguous plane alone
+            flips += [amb & (np.arange(3) == p) for p in range(3)]
+        for flip in flips:
+            ties |= base ^ f(sub, dims, 0.5, flip=flip)
+        # Slivers whose whole normal is within rounding of zero: their plane is
+        # undefined, so every voxel they could set under any orientation is a tie.
+        free = amb.all(axis=1)
+        if free.any():
+            sliver = sub[free]
+            no_plane = np.ones(len(sliver), dtype=bool)
+            for bits in range(8):
+                flip = np.array([(bits >> p) & 1 for p in range(3)], dtype=bool)[None, :].repeat(len(sliver), 0)
+                ties |= f(sliver, dims, 0.5, flip=flip, no_plane=no_plane)
+    return ties
+
+
+def orientation_ambiguous(tris: np.ndarray, eps: float = TIE_EPS) -> np.ndarray:
+    """Projections whose orientation can flip when the vertices move by at most ``eps``.
+
+    The S&S edge normals of the projection onto a coordinate plane are
+    oriented by the sign of the normal's component ``n_w`` across that plane
+    (Eq. 2).  For a triangle seen nearly edge-on, ``n_w`` is close to zero and
+    its sign, hence the side that a short edge keeps, can flip under a motion
+    far below a voxel; a float32 copy of the mesh (what the GPU sees) may then
+    orient it the other way.  With edges ``e0, e1`` and vertex motions of at
+    most ``eps`` per coordinate, ``n_w = e0_a e1_b - e0_b e1_a`` moves by at most
+    ``2 eps (|e0_a| + |e0_b| + |e1_a| + |e1_b|) + 8 eps^2``.
+
+    Parameters
+    ----------
+    tris : (T, 3, 3) float64
+        Voxel space.
+    eps : float
+        Vertex motion, voxels.
+
+    Returns
+    -------
+    (T, 3) bool
+        For the planes yz, zx, xy (``_PLANES`` order of :mod:`.surface`).
+    """
+    e0 = tris[:, 1] - tris[:, 0]
+    e1 = tris[:, 2] - tris[:, 0]
+    out = np.empty((len(tris), 3), dtype=bool)
+    for p, (a, b, w) in enumerate(((1, 2, 0), (2, 0, 1), (0, 1, 2))):
+        nw = e0[:, a] * e1[:, b] - e0[:, b] * e1[:, a]
+        bound = 2.0 * eps * (np.abs(e0[:, a]) + np.abs(e0[:, b]) + np.abs(e1[:, a]) + np.abs(e1[:, b]))
+        out[:, p] = np.abs(nw) <= bound + 8.0 * eps * eps
+    return out
 
 
 def point_triangle_distance(p: np.ndarray, tri: np.ndarray) -> np.ndarray:

@@ -1,21 +1,34 @@
 #version 450
-// Sorted variant: turn (start, end) per type into (start, count) and write the
-// indirect dispatch arguments of the three per-type passes (x split along y
-// beyond the work group count limit, as dispatch_1d does).
+// Indirect dispatch arguments of the voxelization passes: x covers the
+// triangles (u_groups_x for the direct variants; the count of each type for
+// the sorted one, which also turns (start, end) into (start, count)), y and z
+// the chunks of the triangle with the most (chunk = y + z * u_max_groups).
 layout(local_size_x = 1) in;
-layout(std430, binding = 1) buffer Ranges { uint ranges[]; };
-layout(std430, binding = 2) writeonly buffer Args { uint args[]; };  // 3 x (x, y, z)
+layout(std430, binding = 4) readonly buffer Stats { uint stats[]; };
+layout(std430, binding = 6) buffer Ranges { uint ranges[]; };
+layout(std430, binding = 8) writeonly buffer Args { uint args[]; };
+uniform uint u_groups_x;    // direct variants
 uniform uint u_local_size;
 uniform uint u_max_groups;
+uniform bool u_sorted;
+
+void chunk_dims(uint chunks, uint at) {
+    uint y = min(chunks, u_max_groups);
+    args[at + 1u] = y;
+    args[at + 2u] = y == 0u ? 0u : (chunks + y - 1u) / y;
+}
+
 void main() {
+    if (!u_sorted) {
+        args[0] = u_groups_x;
+        chunk_dims(stats[3], 0u);
+        return;
+    }
     for (uint type = 0u; type < 3u; ++type) {
         uint start = ranges[2u * type], end = ranges[2u * type + 1u];
         uint count = end > start ? end - start : 0u;
         ranges[2u * type + 1u] = count;
-        uint groups = (count + u_local_size - 1u) / u_local_size;
-        uint gx = min(groups, u_max_groups);
-        args[3u * type] = gx;
-        args[3u * type + 1u] = gx == 0u ? 1u : (groups + gx - 1u) / gx;
-        args[3u * type + 2u] = 1u;
+        args[3u * type] = (count + u_local_size - 1u) / u_local_size;
+        chunk_dims(count == 0u ? 0u : stats[4u + type], 3u * type);
     }
 }

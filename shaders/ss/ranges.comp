@@ -3,8 +3,8 @@
 // ends in the sorted key list (ends[type] = one past its last element).
 layout(local_size_x = 256) in;
 #include "common/dispatch.glsl"
-layout(std430, binding = 0) readonly buffer Keys { uint keys[]; };
-layout(std430, binding = 1) buffer Ranges { uint ranges[]; };  // (start, end) per type 0..3
+layout(std430, binding = 7) readonly buffer Keys { uint keys[]; };
+layout(std430, binding = 6) buffer Ranges { uint ranges[]; };  // (start, end) per type 0..3
 uniform uint u_count;
 void main() {
     uint i = global_index_1d();
