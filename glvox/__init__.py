@@ -25,7 +25,7 @@ from .mesh import Mesh, load_mesh
 __version__ = "0.1.0"
 
 #: The method ``voxelize`` uses when none is named.
-DEFAULT_METHOD = "reference-conservative"
+DEFAULT_METHOD = "ss-conservative"
 
 __all__ = [
     "voxelize", "grid_for", "load_mesh", "fit_grid", "save", "load", "list_methods", "info",
