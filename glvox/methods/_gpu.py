@@ -147,9 +147,12 @@ def check_buffer_size(ctx, nbytes: int, what: str) -> None:
 
 def grid_uniforms(spec, anchor: np.ndarray) -> dict[str, Any]:
     """Uniforms of ``common/voxel_space.glsl`` for ``spec``, vertices relative to ``anchor``."""
+    origin = tuple(float(x) for x in (spec.origin - anchor))
     return {
-        "u_origin": tuple(float(x) for x in (spec.origin - anchor)),
+        "u_origin": origin,
         "u_inv_h": 1.0 / spec.voxel_size,
+        "u_origin_d": origin,  # the same in double, for transforms done in double
+        "u_inv_h_d": 1.0 / spec.voxel_size,
         "u_dims": tuple(int(d) for d in spec.dims),
     }
 

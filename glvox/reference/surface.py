@@ -59,7 +59,7 @@ def _edge_normals(tris: np.ndarray, n: np.ndarray, flip: np.ndarray | None = Non
 
 def _planar_test(tris: np.ndarray, n: np.ndarray, o1: np.ndarray, o2: np.ndarray,
                  ne: np.ndarray, oe: np.ndarray, shift: float,
-                 no_plane: np.ndarray | None = None) -> Test:
+                 no_plane: np.ndarray | None = None, no_proj: np.ndarray | None = None) -> Test:
     """Per-pair test shared by both S&S criteria.
 
     With ``x = ijk + shift`` (the box's minimum corner for the conservative
@@ -92,6 +92,8 @@ def _planar_test(tris: np.ndarray, n: np.ndarray, o1: np.ndarray, o2: np.ndarray
             nq = ne[t, q]
             val = nq[..., 0] * ra + nq[..., 1] * rb + oe[t, q]
             ok = (val >= 0.0).all(axis=1)
+            if no_proj is not None:
+                ok |= no_proj[t, q]
             keep, x, t = keep[ok], x[ok], t[ok]
         mask = np.zeros(len(tri), dtype=bool)
         mask[keep] = True
@@ -109,7 +111,8 @@ def _run(tris: np.ndarray, dims: tuple[int, int, int],
 
 def conservative_surface(tris: np.ndarray, dims: Sequence[int], half: float = 0.5, *,
                          flip: np.ndarray | None = None,
-                         no_plane: np.ndarray | None = None) -> np.ndarray:
+                         no_plane: np.ndarray | None = None,
+                         no_proj: np.ndarray | None = None) -> np.ndarray:
     """Conservative (26-separating) surface voxelization by the Schwarz & Seidel test.
 
     A voxel is set iff some triangle overlaps or touches its box: the
@@ -142,6 +145,9 @@ def conservative_surface(tris: np.ndarray, dims: Sequence[int], half: float = 0.
     no_plane : (T,) bool, optional
         Skip the plane test for the marked triangles (their plane is
         undefined up to rounding); only the tie sets use it.
+    no_proj : (T, 3) bool, optional
+        Skip the marked projection tests (yz, zx, xy); only the tie sets use
+        it (edges too short for rounding to keep their direction).
 
     Returns
     -------
@@ -159,13 +165,14 @@ def conservative_surface(tris: np.ndarray, dims: Sequence[int], half: float = 0.
     ne = _edge_normals(tris, n, flip)
     # Eq. 2 without the -<n_e, v_i> term: the most interior box corner.
     oe = np.maximum(0.0, dp * ne[..., 0]) + np.maximum(0.0, dp * ne[..., 1])
-    test = _planar_test(tris, n, o1, o2, ne, oe, 0.5 - half, no_plane)
+    test = _planar_test(tris, n, o1, o2, ne, oe, 0.5 - half, no_plane, no_proj)
     return _run(tris, dims, pruned_candidates(tris, dims, half), test)
 
 
 def six_separating_surface(tris: np.ndarray, dims: Sequence[int], half: float = 0.5, *,
                            flip: np.ndarray | None = None,
-                           no_plane: np.ndarray | None = None) -> np.ndarray:
+                           no_plane: np.ndarray | None = None,
+                         no_proj: np.ndarray | None = None) -> np.ndarray:
     """6-separating surface voxelization by the criterion of S&S Sec. 3.4.
 
     The plane test keeps voxels whose center is within
@@ -189,7 +196,7 @@ def six_separating_surface(tris: np.ndarray, dims: Sequence[int], half: float = 
         Grid size ``(nx, ny, nz)``.
     half : float
         Half the voxel extent ``Delta p / 2`` used by the criterion, in voxels.
-    flip, no_plane : optional
+    flip, no_plane, no_proj : optional
         As in :func:`conservative_surface` (tie sets only).
 
     Returns
@@ -205,7 +212,7 @@ def six_separating_surface(tris: np.ndarray, dims: Sequence[int], half: float = 
     t = half * np.abs(n).max(axis=1)
     ne = _edge_normals(tris, n, flip)
     oe = half * np.abs(ne).max(axis=-1)
-    test = _planar_test(tris, n, t, -t, ne, oe, 0.5, no_plane)
+    test = _planar_test(tris, n, t, -t, ne, oe, 0.5, no_plane, no_proj)
     return _run(tris, dims, pruned_candidates(tris, dims, half), test)
 
 

@@ -5,8 +5,13 @@
 layout(std430, binding = 1) readonly buffer VoxVerts { float vox[]; };
 layout(std430, binding = 2) readonly buffer Faces { uint faces[]; };
 
+// The vertices are kept relative to an integer base point near the triangle
+// (floor of v0): the tests then subtract small numbers, so float32 keeps
+// about 1e-7 voxel of precision whatever the grid size, instead of the
+// ~1e-4 voxel that absolute coordinates near 1024 would leave.
 struct Tri {
-    vec3 v0, v1, v2;
+    vec3 v0, v1, v2;  // relative to base
+    ivec3 base;
     vec3 n;        // cross(v1 - v0, v2 - v0), not normalized
     ivec3 lo, hi;  // touched voxels (closed boxes, Fig. 5a), clipped; lo > hi: outside the grid
     ivec3 ext;     // unclipped touched extent per axis, in voxels
@@ -16,20 +21,25 @@ vec3 vox_vertex(uint i) { return vec3(vox[3u * i], vox[3u * i + 1u], vox[3u * i 
 
 Tri setup_triangle(uint t) {
     Tri T;
-    T.v0 = vox_vertex(faces[3u * t]);
-    T.v1 = vox_vertex(faces[3u * t + 1u]);
-    T.v2 = vox_vertex(faces[3u * t + 2u]);
-    T.n = cross(T.v1 - T.v0, T.v2 - T.v0);
-    // clamp before the int conversion so far-away triangles cannot overflow it
+    vec3 a0 = vox_vertex(faces[3u * t]);
+    vec3 a1 = vox_vertex(faces[3u * t + 1u]);
+    vec3 a2 = vox_vertex(faces[3u * t + 2u]);
+    // clamp before the int conversions so far-away triangles cannot overflow them
     vec3 lim = vec3(u_dims) + 2.0;
-    vec3 mn = clamp(min(min(T.v0, T.v1), T.v2), vec3(-2.0), lim);
-    vec3 mx = clamp(max(max(T.v0, T.v1), T.v2), vec3(-2.0), lim);
+    T.base = ivec3(floor(clamp(a0, vec3(-2.0), lim)));
+    vec3 b = vec3(T.base);  // subtracting an integer is exact here
+    T.v0 = a0 - b;
+    T.v1 = a1 - b;
+    T.v2 = a2 - b;
+    T.n = cross(T.v1 - T.v0, T.v2 - T.v0);
+    vec3 mn = clamp(min(min(a0, a1), a2), vec3(-2.0), lim);
+    vec3 mx = clamp(max(max(a0, a1), a2), vec3(-2.0), lim);
     // voxel i touches [mn, mx] iff i <= mx and i + 1 >= mn
-    ivec3 a = ivec3(ceil(mn)) - 1;
-    ivec3 b = ivec3(floor(mx));
-    T.ext = b - a + 1;
-    T.lo = max(a, ivec3(0));
-    T.hi = min(b, u_dims - 1);
+    ivec3 first = ivec3(ceil(mn)) - 1;
+    ivec3 last = ivec3(floor(mx));
+    T.ext = last - first + 1;
+    T.lo = max(first, ivec3(0));
+    T.hi = min(last, u_dims - 1);
     return T;
 }
 
@@ -49,7 +59,7 @@ int dominant_axis(vec3 n) {
 // The projection onto the coordinate plane (A, B) perpendicular to C, where
 // (A, B, C) is a cyclic permutation of (x, y, z): the edge normals point into
 // the projected triangle when oriented by the sign of n_C (Eq. 2).
-struct Proj { vec2 n0, n1, n2; vec2 p0, p1, p2; float o0, o1, o2; };
+struct Proj { vec2 n0, n1, n2; vec2 p0, p1, p2; float o0, o1, o2; ivec2 base; };
 
 float edge_term(vec2 n) {
 #if SS_CRITERION == 1
@@ -62,6 +72,7 @@ float edge_term(vec2 n) {
 Proj make_proj(Tri T, int A, int B, int C) {
     Proj P;
     float s = T.n[C] >= 0.0 ? 1.0 : -1.0;
+    P.base = ivec2(T.base[A], T.base[B]);
     P.p0 = vec2(T.v0[A], T.v0[B]);
     P.p1 = vec2(T.v1[A], T.v1[B]);
     P.p2 = vec2(T.v2[A], T.v2[B]);
@@ -74,15 +85,18 @@ Proj make_proj(Tri T, int A, int B, int C) {
     return P;
 }
 
-// Eq. 3 for the box whose projection has minimum corner q.
-bool proj_test(Proj P, vec2 q) {
-    return dot(P.n0, q - P.p0) + P.o0 >= 0.0
-        && dot(P.n1, q - P.p1) + P.o1 >= 0.0
-        && dot(P.n2, q - P.p2) + P.o2 >= 0.0;
+// Eq. 3 for the box whose projection has minimum corner q (absolute voxel indices).
+bool proj_test(Proj P, ivec2 q) {
+    vec2 r = vec2(q - P.base);
+    return dot(P.n0, r - P.p0) + P.o0 >= 0.0
+        && dot(P.n1, r - P.p1) + P.o1 >= 0.0
+        && dot(P.n2, r - P.p2) + P.o2 >= 0.0;
 }
 
-// Plane overlap (Eq. 1, or Sec. 3.4's 6-separating offsets) for the box with minimum corner p.
-bool plane_test(Tri T, vec3 p) {
+// Plane overlap (Eq. 1, or Sec. 3.4's 6-separating offsets) for the box with
+// minimum corner p (absolute voxel indices).
+bool plane_test(Tri T, ivec3 voxel) {
+    vec3 p = vec3(voxel - T.base);
 #if SS_CRITERION == 1
     float s = dot(T.n, p + 0.5 - T.v0);
     vec3 a = abs(T.n);

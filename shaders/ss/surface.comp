@@ -39,8 +39,8 @@ void voxelize_voxels(Tri T, uint q0, uint q1, bool full_test) {
     uint sx = uint(T.hi.x - T.lo.x + 1), sy = uint(T.hi.y - T.lo.y + 1);
     int i = T.lo.x + int(q0 % sx), j = T.lo.y + int((q0 / sx) % sy), k = T.lo.z + int(q0 / (sx * sy));
     for (uint q = q0; q < q1; ++q) {
-        if (!full_test || (plane_test(T, vec3(i, j, k)) && proj_test(Pz, vec2(i, j)) &&
-                           proj_test(Px, vec2(j, k)) && proj_test(Py, vec2(k, i))))
+        if (!full_test || (plane_test(T, ivec3(i, j, k)) && proj_test(Pz, ivec2(i, j)) &&
+                           proj_test(Px, ivec2(j, k)) && proj_test(Py, ivec2(k, i))))
             set_voxel(ivec3(i, j, k));
         if (++i > T.hi.x) { i = T.lo.x; if (++j > T.hi.y) { j = T.lo.y; ++k; } }
     }
@@ -54,7 +54,7 @@ void voxelize_2d(Tri T, uint q0, uint q1) {
     uint sa = uint(T.hi[a] - T.lo[a] + 1);
     int ia = T.lo[a] + int(q0 % sa), ib = T.lo[b] + int(q0 / sa);
     for (uint q = q0; q < q1; ++q) {
-        if (proj_test(P, vec2(ia, ib))) set_voxel(compose(a, b, c, ia, ib, T.lo[c]));
+        if (proj_test(P, ivec2(ia, ib))) set_voxel(compose(a, b, c, ia, ib, T.lo[c]));
         if (++ia > T.hi[a]) { ia = T.lo[a]; ++ib; }
     }
 }
@@ -71,21 +71,23 @@ void voxelize_columns(Tri T, uint q0, uint q1) {
     uint su = uint(T.hi[u] - T.lo[u] + 1);
     int iu = T.lo[u] + int(q0 % su), iv = T.lo[v] + int(q0 / su);
     for (uint q = q0; q < q1; ++q) {
-        if (proj_test(Pw, vec2(iu, iv))) {
+        if (proj_test(Pw, ivec2(iu, iv))) {
+            // in the triangle's local frame (relative to T.base)
+            float lu = float(iu - T.base[u]), lv = float(iv - T.base[v]);
 #if SS_CRITERION == 1
-            float wc = T.v0[w] + du * (float(iu) + 0.5 - T.v0[u]) + dv * (float(iv) + 0.5 - T.v0[v]);
+            float wc = T.v0[w] + du * (lu + 0.5 - T.v0[u]) + dv * (lv + 0.5 - T.v0[v]);
             float f = floor(wc);
-            int k1 = int(f), k0 = wc == f ? k1 - 1 : k1;
+            int k1 = int(f) + T.base[w], k0 = wc == f ? k1 - 1 : k1;
             bool single = false;
 #else
             // the plane's w range over the closed column cell [iu, iu+1] x [iv, iv+1]
-            float base = T.v0[w] + du * (float(iu) - T.v0[u]) + dv * (float(iv) - T.v0[v]);
-            int k0 = int(ceil(base + min(du, 0.0) + min(dv, 0.0))) - 1;
-            int k1 = int(floor(base + max(du, 0.0) + max(dv, 0.0)));
+            float wb = T.v0[w] + du * (lu - T.v0[u]) + dv * (lv - T.v0[v]);
+            int k0 = int(ceil(wb + min(du, 0.0) + min(dv, 0.0))) - 1 + T.base[w];
+            int k1 = int(floor(wb + max(du, 0.0) + max(dv, 0.0))) + T.base[w];
             bool single = k0 == k1;  // unclipped: the one voxel is surely overlapped
 #endif
             for (int k = max(k0, T.lo[w]); k <= min(k1, T.hi[w]); ++k) {
-                if (single || (proj_test(Pu, vec2(iv, k)) && proj_test(Pv, vec2(k, iu))))
+                if (single || (proj_test(Pu, ivec2(iv, k)) && proj_test(Pv, ivec2(k, iu))))
                     set_voxel(compose(u, v, w, iu, iv, k));
             }
         }
