@@ -1,0 +1,277 @@
+// Line voxelizations of Zhang et al. 2018, Sec. 4.1, step for step as in
+// glvox/reference/scanline.py (rlv_line, slv_line, ilv_line, drop_corners).
+// Voxel space: voxel v is the unit cube at v; a point lies in voxel floor(p).
+// Needs mark(), job() and tick() (budget.glsl).  No loop here other than the
+// one stepping loop of each draw function: every loop must be charged (see
+// budget.glsl), and a per-axis loop the compiler did not unroll would not
+// be, so per-axis work is written out.
+
+const float T_NONE = 3.0e38;
+
+// Lexicographic order of integer points (the canonical direction of an edge).
+bool lex_less(ivec3 p, ivec3 q) {
+    return p.x < q.x || (p.x == q.x && (p.y < q.y || (p.y == q.y && p.z < q.z)));
+}
+
+bool lex_less(vec3 p, vec3 q) {
+    return p.x < q.x || (p.x == q.x && (p.y < q.y || (p.y == q.y && p.z < q.z)));
+}
+
+// ---------------------------------------------------------------------------
+// Float lines (RLV, SLV)
+
+// One axis of clip_segment: narrow [t0, t1] to where p + t d lies in [lo, hi].
+void clip_axis(float p, float d, float lo, float hi, inout float t0, inout float t1, inout bool ok) {
+    if (d == 0.0) {
+        if (p < lo || p > hi) ok = false;
+    } else {
+        float ta = (lo - p) / d;
+        float tb = (hi - p) / d;
+        t0 = max(t0, min(ta, tb));
+        t1 = min(t1, max(ta, tb));
+    }
+}
+
+// The part of segment p-q inside the closed box [lo, hi]; false if none.
+bool clip_segment(vec3 p, vec3 q, vec3 lo, vec3 hi, out vec3 cp, out vec3 cq) {
+    float t0 = 0.0, t1 = 1.0;
+    bool ok = true;
+    vec3 d = q - p;
+    clip_axis(p.x, d.x, lo.x, hi.x, t0, t1, ok);
+    clip_axis(p.y, d.y, lo.y, hi.y, t0, t1, ok);
+    clip_axis(p.z, d.z, lo.z, hi.z, t0, t1, ok);
+    cp = t0 == 0.0 ? p : p + t0 * d;
+    cq = t1 == 1.0 ? q : p + t1 * d;
+    return ok && t0 <= t1;
+}
+
+// Voxels on both sides of a coordinate lying on a face plane, else the one containing it.
+ivec2 incident(float c) {
+    float f = floor(c);
+    int i = int(f);
+    return c == f ? ivec2(i - 1, i) : ivec2(i, i);
+}
+
+// Every voxel of the box [lo, hi] (at most 2 x 2 x 2), written out.
+void mark_box(ivec3 lo, ivec3 hi) {
+    mark(lo);
+    if (hi.x != lo.x) mark(ivec3(hi.x, lo.y, lo.z));
+    if (hi.y != lo.y) mark(ivec3(lo.x, hi.y, lo.z));
+    if (hi.z != lo.z) mark(ivec3(lo.x, lo.y, hi.z));
+    if (hi.x != lo.x && hi.y != lo.y) mark(ivec3(hi.x, hi.y, lo.z));
+    if (hi.x != lo.x && hi.z != lo.z) mark(ivec3(hi.x, lo.y, hi.z));
+    if (hi.y != lo.y && hi.z != lo.z) mark(ivec3(lo.x, hi.y, hi.z));
+    if (hi.x != lo.x && hi.y != lo.y && hi.z != lo.z) mark(hi);
+}
+
+void mark_incident(vec3 p) {
+    ivec2 x = incident(p.x), y = incident(p.y), z = incident(p.z);
+    mark_box(ivec3(x.x, y.x, z.x), ivec3(x.y, y.y, z.y));
+}
+
+// Stepping state of a float line.  RLV: from floor(p), `left` steps per axis
+// to floor(q).  SLV: `plane` is the next face plane crossed per axis, `left`
+// the planes strictly between p and q, `cur` the voxel of the open stretch.
+struct FLine {
+    vec3 p;
+    vec3 v;
+    ivec3 cur;
+    ivec3 stp;
+    ivec3 left;
+    ivec3 plane;
+};
+
+// One axis of the SLV set-up: the voxel of the first open stretch, the first
+// face plane crossed, the planes strictly between p and q, the step.
+void slv_axis(float p, float q, out int cur, out int plane, out int left, out int stp) {
+    if (q > p) {
+        cur = int(floor(p));
+        plane = cur + 1;
+        left = max(0, int(ceil(q)) - 1 - plane + 1);
+        stp = 1;
+    } else if (q < p) {
+        cur = int(ceil(p)) - 1;
+        plane = cur;
+        left = max(0, plane - (int(floor(q)) + 1) + 1);
+        stp = -1;
+    } else {
+        cur = int(floor(p));
+        plane = 0;
+        left = 0;
+        stp = 0;
+    }
+}
+
+// RLV's voxel index of coordinate x on an axis of n voxels: floor, except that
+// x within RLV_BOUNDARY_SNAP outside the grid belongs to the boundary voxel (cell()).
+int cell1(float x, int n) {
+    if (x >= float(n) && x <= float(n) + RLV_BOUNDARY_SNAP) return n - 1;
+    if (x < 0.0 && x >= -RLV_BOUNDARY_SNAP) return 0;
+    return int(floor(x));
+}
+
+ivec3 cell(vec3 x) { return ivec3(cell1(x.x, u_dims.x), cell1(x.y, u_dims.y), cell1(x.z, u_dims.z)); }
+
+FLine fline_begin(vec3 p, vec3 q, bool super_cover) {
+    FLine l;
+    l.p = p;
+    l.v = q - p;
+    if (!super_cover) {
+        l.cur = cell(p);
+        ivec3 e = cell(q) - l.cur;
+        l.left = abs(e);
+        l.stp = ivec3(sign(e));
+        l.plane = l.cur + max(l.stp, ivec3(0));  // face ahead: cur + 1 going up, cur going down
+        return l;
+    }
+    slv_axis(p.x, q.x, l.cur.x, l.plane.x, l.left.x, l.stp.x);
+    slv_axis(p.y, q.y, l.cur.y, l.plane.y, l.left.y, l.stp.y);
+    slv_axis(p.z, q.z, l.cur.z, l.plane.z, l.left.z, l.stp.z);
+    return l;
+}
+
+// Parameters at which the line reaches its next face plane, T_NONE where it has none left.
+vec3 fline_t(FLine l) {
+    vec3 t = vec3(T_NONE);
+    if (l.left.x > 0) t.x = (float(l.plane.x) - l.p.x) / l.v.x;
+    if (l.left.y > 0) t.y = (float(l.plane.y) - l.p.y) / l.v.y;
+    if (l.left.z > 0) t.z = (float(l.plane.z) - l.p.z) / l.v.z;
+    return t;
+}
+
+// Voxel range of one axis at an SLV event: both sides of the plane on an axis
+// the line lies in or crosses now, else the voxel of the current stretch.
+ivec2 slv_range(float p, int cur, int stp, bool crossing) {
+    if (stp == 0) return incident(p);
+    if (crossing) return ivec2(min(cur, cur + stp), max(cur, cur + stp));
+    return ivec2(cur, cur);
+}
+
+// Voxelize segment p-q.  super_cover: SLV; else RLV, and with `reduce` the
+// tunnel=18 base edge: a voxel is dropped when the path arrives by a step of
+// negative value and leaves by one of positive value, a step along axis a
+// (b) with sign s being worth pa * s (pb * s); the end voxels stay.
+void draw_float(vec3 p, vec3 q, bool super_cover, bool reduce, int a, int b, float pa, float pb) {
+    FLine l = fline_begin(p, q, super_cover);
+    int n = l.left.x + l.left.y + l.left.z;
+    if (!job(uint(n) + 1u)) return;
+    if (super_cover) {
+        mark_incident(p);
+        mark_incident(q);
+    } else {
+        mark(l.cur);
+    }
+    float arr = 0.0;  // value of the step that reached l.cur (RLV with reduce)
+    for (int s = 0; s < n; ++s) {
+        vec3 t = fline_t(l);
+        float tmin = min(t.x, min(t.y, t.z));
+        if (tmin == T_NONE) break;
+        if (super_cover) {
+            bvec3 x = bvec3(t.x == tmin, t.y == tmin, t.z == tmin);
+            ivec2 rx = slv_range(l.p.x, l.cur.x, l.stp.x, x.x);
+            ivec2 ry = slv_range(l.p.y, l.cur.y, l.stp.y, x.y);
+            ivec2 rz = slv_range(l.p.z, l.cur.z, l.stp.z, x.z);
+            ivec3 lo = ivec3(rx.x, ry.x, rz.x), hi = ivec3(rx.y, ry.y, rz.y);
+            mark_box(lo, hi);
+            ivec3 xs = ivec3(x);
+            l.cur += xs * l.stp;
+            l.plane += xs * l.stp;
+            l.left -= xs;
+        } else {
+            int ax = t.x == tmin ? 0 : (t.y == tmin ? 1 : 2);
+            ivec3 prev = l.cur;
+            l.cur[ax] += l.stp[ax];
+            l.plane[ax] += l.stp[ax];
+            l.left[ax] -= 1;
+            if (reduce) {
+                float dep = (ax == a ? pa : (ax == b ? pb : 0.0)) * float(l.stp[ax]);
+                // prev was reached by a step worth `arr` (none for the first voxel)
+                if (s > 0 && !(arr < 0.0 && dep > 0.0)) mark(prev);
+                arr = dep;
+                if (l.left.x + l.left.y + l.left.z == 0) mark(l.cur);
+            } else {
+                mark(l.cur);
+            }
+        }
+    }
+}
+
+// Loop iterations draw_float will take, its end test included (the job cost).
+uint float_cost(vec3 p, vec3 q, bool super_cover) {
+    FLine l = fline_begin(p, q, super_cover);
+    return uint(l.left.x + l.left.y + l.left.z) + 1u;
+}
+
+// ---------------------------------------------------------------------------
+// Integer line (ILV, Eq. 3-4 and Alg. 1 MarkLineILV)
+
+// M over the non-zero deltas only; L is the scaled distance to the next face
+// per axis.  `high`: ties step the highest axis first, which makes the line
+// q -> p the exact reverse of p -> q (see ilv_line in the CPU reference).
+struct Ilv {
+    ivec3 p;
+    ivec3 stp;
+    ivec3 m2;
+    ivec3 L;
+    ivec3 left;
+    bool high;
+};
+
+Ilv ilv_begin(ivec3 p, ivec3 q, bool high) {
+    Ilv it;
+    ivec3 d = q - p;
+    it.p = p;
+    it.left = abs(d);
+    it.stp = ivec3(sign(d));
+    ivec3 f = max(it.left, ivec3(1));
+    ivec3 m = ivec3(f.y * f.z, f.x * f.z, f.x * f.y) * ivec3(greaterThan(it.left, ivec3(0)));
+    it.L = m;
+    it.m2 = 2 * m;
+    it.high = high;
+    return it;
+}
+
+// The axis of the next step, -1 at the end.
+int ilv_axis(Ilv it) {
+    int best = -1;
+    int bl = 0;
+    if (!it.high) {
+        if (it.left.x > 0) { best = 0; bl = it.L.x; }
+        if (it.left.y > 0 && (best < 0 || it.L.y < bl)) { best = 1; bl = it.L.y; }
+        if (it.left.z > 0 && (best < 0 || it.L.z < bl)) { best = 2; bl = it.L.z; }
+    } else {
+        if (it.left.z > 0) { best = 2; bl = it.L.z; }
+        if (it.left.y > 0 && (best < 0 || it.L.y < bl)) { best = 1; bl = it.L.y; }
+        if (it.left.x > 0 && (best < 0 || it.L.x < bl)) { best = 0; bl = it.L.x; }
+    }
+    return best;
+}
+
+void ilv_step(inout Ilv it, int ax) {
+    int lm = it.L[ax];
+    it.L -= ivec3(greaterThan(it.m2, ivec3(0))) * lm;
+    it.L[ax] = it.m2[ax];
+    it.p[ax] += it.stp[ax];
+    it.left[ax] -= 1;
+}
+
+// The ILV voxels from p to q, the same set whichever end comes first (_path).
+Ilv ilv_path(ivec3 p, ivec3 q) { return ilv_begin(p, q, lex_less(q, p)); }
+
+// Draw the path p -> q, every voxel, or (keep != 0) only the voxels
+// keep_copy() keeps of a base-edge copy: keep = 1 the copy in layer K,
+// keep = 2 the copy in layer K - 1 (keep_copy is defined by the includer).
+bool keep_copy(ivec3 c, int K, bool bottom);
+
+void draw_ilv(ivec3 p, ivec3 q, int keep, int K) {
+    Ilv it = ilv_path(p, q);
+    int n = it.left.x + it.left.y + it.left.z;
+    if (!job(uint(n) + 1u)) return;
+    if (keep == 0 || keep_copy(p, K, keep == 1)) mark(p);
+    for (int s = 0; s < n; ++s) {
+        int ax = ilv_axis(it);
+        if (ax < 0) break;
+        ilv_step(it, ax);
+        if (keep == 0 || keep_copy(it.p, K, keep == 1)) mark(it.p);
+    }
+}

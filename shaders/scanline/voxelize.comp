@@ -1,0 +1,456 @@
+#version 450
+// Projected optimal scanline surface voxelization (Zhang et al. 2018, Sec. 4
+// and Alg. 1): one invocation per triangle, atomicOr into the packed grid.
+// The same algorithm, step for step, as glvox/reference/scanline.py; its
+// docstring explains the conventions (the paper's lattice vs voxel space),
+// the float and integer paths and the tunnel variants.
+//
+// Defines (set by glvox/methods/scanline.py):
+//   LINE_MODE   0 RLV, 1 SLV (float path), 2 ILV (integer path)
+//   TUNNEL      26, 18 or 6
+//   PASS        0 all triangles, 1 measure, 2 draw parts (budget.glsl); in PASS 0
+//               out_words[1] counts ILV triangles refused for ILV_COORD_LIMIT
+//   LOCAL_SIZE  work group size
+//   SCANLINE_SLACK, ILV_COORD_LIMIT, ILV_BOUNDARY_SNAP, RLV_BOUNDARY_SNAP
+//               (constants of the CPU module)
+#include "common/bits.glsl"
+#include "common/voxel_space.glsl"
+
+layout(local_size_x = LOCAL_SIZE) in;
+
+layout(std430, binding = 0) readonly buffer Vertices { float verts[]; };
+layout(std430, binding = 1) readonly buffer Faces { uint faces[]; };
+layout(std430, binding = 2) buffer Grid { uint grid[]; };
+layout(std430, binding = 3) buffer Out { uint out_words[]; };
+layout(std430, binding = 4) readonly buffer Items { uvec4 items[]; };  // PASS 1, 2: (triangle, lo, hi, -)
+
+uniform uint u_count;   // triangles (PASS 0) or items (PASS 1, 2)
+uniform uint u_budget;  // loop iterations this invocation may charge (budget.glsl)
+
+#include "scanline/budget.glsl"
+#include "scanline/lines.glsl"
+
+// Vertex i in voxel space.  `precise`: no contraction, so the CPU can repeat
+// this float32 arithmetic exactly (glvox.methods.scanline.gpu_voxel_coords).
+vec3 vertex(uint i) {
+    vec3 p = vec3(verts[3u * i], verts[3u * i + 1u], verts[3u * i + 2u]);
+    precise vec3 v = (p - u_origin) * u_inv_h;
+    return v;
+}
+
+// Largest |n| component; ties prefer z, then y, then x.
+int dominant(vec3 n) {
+    vec3 m = abs(n);
+    if (m.z >= m.x && m.z >= m.y) return 2;
+    return m.y >= m.x ? 1 : 0;
+}
+
+int dominant(dvec3 n) {
+    dvec3 m = abs(n);
+    if (m.z >= m.x && m.z >= m.y) return 2;
+    return m.y >= m.x ? 1 : 0;
+}
+
+int dominant(ivec3 n) {
+    ivec3 m = abs(n);
+    if (m.z >= m.x && m.z >= m.y) return 2;
+    return m.y >= m.x ? 1 : 0;
+}
+
+// ---------------------------------------------------------------------------
+// Float path (RLV, SLV)
+
+// A line of the float path, clipped to the grid grown by one voxel.
+void float_line(vec3 p, vec3 q, bool reduce, int a, int b, float pa, float pb) {
+    vec3 cp, cq;
+    if (!clip_segment(p, q, vec3(-1.0), vec3(u_dims) + 1.0, cp, cq)) return;
+    draw_float(cp, cq, LINE_MODE == 1 && !reduce, reduce, a, b, pa, pb);
+}
+
+// Edges go from their lexicographically smaller end.
+void float_edge(vec3 p, vec3 q) {
+    if (lex_less(q, p)) float_line(q, p, false, 0, 1, 0.0, 0.0);
+    else float_line(p, q, false, 0, 1, 0.0, 0.0);
+}
+
+bool key_less(float sa, int ia, float sb, int ib) { return sa < sb || (sa == sb && ia < ib); }
+
+void float_triangle(vec3 P0, vec3 P1, vec3 P2) {
+    vec3 lo = min(P0, min(P1, P2));
+    vec3 hi = max(P0, max(P1, P2));
+    if (any(lessThan(hi, vec3(0.0))) || any(greaterThan(lo, vec3(u_dims)))) return;
+    float_edge(P0, P1);
+    float_edge(P1, P2);
+    float_edge(P2, P0);
+    // The normal in double: in float32 its error is ulp * |e|^2, which for a thin
+    // triangle tilts the iso-w lines enough to draw scanlines in the wrong layer;
+    // in double from the float32 vertices it is the CPU's float64 normal.
+    precise dvec3 e1 = dvec3(P1) - dvec3(P0);
+    precise dvec3 e2 = dvec3(P2) - dvec3(P0);
+    precise dvec3 nd = dvec3(e1.y * e2.z - e1.z * e2.y, e1.z * e2.x - e1.x * e2.z, e1.x * e2.y - e1.y * e2.x);
+    if (all(equal(nd, dvec3(0.0lf)))) return;
+    int w = dominant(nd);
+    int a = (w + 1) % 3, b = (w + 2) % 3;
+    float ga = float(nd[a]), gb = float(nd[b]), nw = float(nd[w]);
+    bool level_plane = nd[a] == 0.0lf && nd[b] == 0.0lf;  // parallel to the slicing plane: scan along a
+    if (level_plane) ga = 1.0;
+    // sweep coordinate s = g . (p - P0) of the projection; sort the vertices on (s, index)
+    vec3 P[3] = vec3[3](P0, P1, P2);
+    float S[3] = float[3](0.0, ga * (P1[a] - P0[a]) + gb * (P1[b] - P0[b]),
+                          ga * (P2[a] - P0[a]) + gb * (P2[b] - P0[b]));
+    int o0 = 0, o1 = 1, o2 = 2, t;
+    if (key_less(S[o1], o1, S[o0], o0)) { t = o0; o0 = o1; o1 = t; }
+    if (key_less(S[o2], o2, S[o1], o1)) { t = o1; o1 = o2; o2 = t; }
+    if (key_less(S[o1], o1, S[o0], o0)) { t = o0; o0 = o1; o1 = t; }
+    vec3 q0 = P[o0], q1 = P[o1], q2 = P[o2];
+    float s0 = S[o0], s1 = S[o1], s2 = S[o2];
+    if (s2 <= s0) return;  // projection degenerate in float: the edges are all there is
+    // layers: RLV floor(w_min) .. floor(w_max); SLV also the one a vertex on a plane w = k touches
+    float kmax = float(u_dims[w]) + 1.0;
+    float wlo = clamp(lo[w], -2.0, kmax), whi = clamp(hi[w], -2.0, kmax);
+    int kfirst = LINE_MODE == 1 ? int(ceil(wlo)) - 1 : cell1(wlo, u_dims[w]);
+    int klast = LINE_MODE == 1 ? int(floor(whi)) : cell1(whi, u_dims[w]);
+    int k0 = max(kfirst, 0), k1 = min(klast, u_dims[w] - 1);
+    float ds_max = (abs(ga) + abs(gb)) * SCANLINE_SLACK;  // Theorem 4.1 in s units
+    float w0 = P0[w];
+    vec2 h = level_plane ? vec2(1.0, 0.0) : (nw > 0.0 ? vec2(-ga, -gb) : vec2(ga, gb));  // towards w + 1
+    // s-range of the grid rectangle grown by one voxel: other levels draw nothing
+    float ra0 = -1.0 - P0[a], ra1 = float(u_dims[a]) + 1.0 - P0[a];
+    float rb0 = -1.0 - P0[b], rb1 = float(u_dims[b]) + 1.0 - P0[b];
+    float r_lo = min(ga * ra0, ga * ra1) + min(gb * rb0, gb * rb1);
+    float r_hi = max(ga * ra0, ga * ra1) + max(gb * rb0, gb * rb1);
+    float s_prev = level_plane ? s0 : clamp(-nw * (float(k0) - w0), s0, s2);
+    for (int k = k0; k <= k1; ++k) {
+        if (!tick(3u)) break;  // 1 + the level and draw loops inside
+        float s_start = level_plane ? s0 : s_prev;
+        float s_end = level_plane ? s2 : clamp(-nw * (float(k + 1) - w0), s0, s2);
+        s_prev = s_end;
+        float span = s_end - s_start;
+        float N = span == 0.0 ? 0.0 : ceil(abs(span) / ds_max);
+        float m_lo = 0.0, m_hi = N;
+        if (N > 0.0) {
+            float u0 = (r_lo - s_start) / span * N, u1 = (r_hi - s_start) / span * N;
+            m_lo = clamp(floor(min(u0, u1)) - 1.0, 0.0, N);
+            m_hi = clamp(ceil(max(u0, u1)) + 1.0, 0.0, N);
+        }
+        float wk = float(k) + 0.5;
+        bool below = k > kfirst && !level_plane;
+        int count = int(m_hi - m_lo);
+        for (int i = 0; i <= count; ++i) {
+            if (!tick(2u)) break;  // 1 + the draw loop inside
+            float m = m_lo + float(i);
+            bool base = m == 0.0 && below;  // the bottom copy of the base edge shared with layer k - 1
+            if (base && TUNNEL == 6) continue;
+            float s = m == 0.0 ? s_start : (m == N ? s_end : s_start + span * m / N);
+            float ta = clamp((s - s0) / (s2 - s0), 0.0, 1.0);
+            vec2 A = vec2(q0[a] + ta * (q2[a] - q0[a]), q0[b] + ta * (q2[b] - q0[b]));
+            vec2 B;
+            if (s < s1) {
+                float tb = clamp((s - s0) / (s1 - s0), 0.0, 1.0);
+                B = vec2(q0[a] + tb * (q1[a] - q0[a]), q0[b] + tb * (q1[b] - q0[b]));
+            } else {
+                float tb = s2 == s1 ? 0.0 : clamp((s - s1) / (s2 - s1), 0.0, 1.0);
+                B = vec2(q1[a] + tb * (q2[a] - q1[a]), q1[b] + tb * (q2[b] - q1[b]));
+            }
+            vec3 p, q;
+            p[a] = A.x; p[b] = A.y; p[w] = wk;
+            q[a] = B.x; q[b] = B.y; q[w] = wk;
+            bool reduce = base && TUNNEL == 18;
+            vec2 side = vec2(0.0);
+            if (reduce) {
+                side = vec2(-(B.y - A.y), B.x - A.x);
+                if (dot(side, h) < 0.0) side = -side;
+            }
+            float_line(p, q, reduce, a, b, side.x, side.y);
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Integer path (ILV)
+
+// Alg. 1 GetVoxel for one coordinate: floor, with a coordinate just outside
+// the grid snapped to its boundary voxel (lattice_points in the CPU module).
+int lattice1(float x, int n) {
+    if (x >= float(n) && x <= float(n) + ILV_BOUNDARY_SNAP) return n - 1;
+    if (x < 0.0 && x >= -ILV_BOUNDARY_SNAP) return 0;
+    return int(floor(clamp(x, -1.0e9, 1.0e9)));
+}
+
+ivec3 lattice(vec3 x) {
+    return ivec3(lattice1(x.x, u_dims.x), lattice1(x.y, u_dims.y), lattice1(x.z, u_dims.z));
+}
+
+ivec3 icross(ivec3 u, ivec3 v) {
+    return ivec3(u.y * v.z - u.z * v.y, u.z * v.x - u.x * v.z, u.x * v.y - u.y * v.x);
+}
+
+// A side-edge voxel chain: the ILV path p -> m, then m -> q.
+struct Chain {
+    Ilv s0;
+    Ilv s1;
+    bool on1;
+};
+
+Chain chain_begin(ivec3 p, ivec3 m, ivec3 q) {
+    Chain c;
+    c.s0 = ilv_path(p, m);
+    c.s1 = ilv_path(m, q);
+    c.on1 = false;
+    return c;
+}
+
+ivec3 chain_pos(Chain c) { return c.on1 ? c.s1.p : c.s0.p; }
+
+bool chain_next(inout Chain c) {
+    if (!c.on1) {
+        int ax = ilv_axis(c.s0);
+        if (ax >= 0) {
+            ilv_step(c.s0, ax);
+            return true;
+        }
+        c.on1 = true;
+    }
+    int ax = ilv_axis(c.s1);
+    if (ax < 0) return false;
+    ilv_step(c.s1, ax);
+    return true;
+}
+
+// One side of a slice's scan: its chain within layer Z, or, once the chain
+// ran out first, the slice's top base edge towards the other chain's end.
+struct Side {
+    Chain c;
+    Ilv e;
+    bool ext;
+};
+
+ivec3 side_pos(Side s) { return s.ext ? s.e.p : chain_pos(s.c); }
+
+bool side_advance(inout Side s, int w, int Z) {
+    if (s.ext) {
+        int ax = ilv_axis(s.e);
+        if (ax < 0) return false;
+        ilv_step(s.e, ax);
+        return true;
+    }
+    Chain t = s.c;
+    if (!chain_next(t) || chain_pos(t)[w] != Z) return false;
+    s.c = t;
+    return true;
+}
+
+bool side_has_next(Side s, int w, int Z) { return side_advance(s, w, Z); }
+
+// Eq. 8-9: the farthest next entry strictly within d^ of the scanline through
+// A and B, the first entry always taken; a chain may stop at its bend P1
+// (the end of its first edge) but not pass it (see the CPU module docstring).
+void side_select(inout Side s, int w, int Z, int a, int b, int dX, int dY, int c0, int tol) {
+    bool before_bend = !s.ext && !s.c.on1 && ilv_axis(s.c.s0) >= 0;
+    bool first = true;
+    for (;;) {
+        if (!tick(1u)) break;
+        Side t = s;
+        if (!side_advance(t, w, Z)) break;
+        if (before_bend && !t.ext && t.c.on1) break;
+        ivec3 c = side_pos(t);
+        if (!first && abs(dY * c[a] - dX * c[b] - c0) >= tol) break;
+        s = t;
+        first = false;
+    }
+}
+
+// The lattice triangle's plane (through the voxel centres): a vertex and the normal.
+ivec3 g_Q0, g_n;
+int g_w, g_a, g_b;
+
+// The lattice plane lies at w >= K at the centre of c's column: twice the plane
+// equation, exact in double (the products reach ~1e14).
+bool plane_above(ivec3 c, int K) {
+    double nw = double(g_n[g_w]);
+    double e = 2.0lf * double(g_Q0[g_w] - K) * nw + nw
+             - 2.0lf * (double(g_n[g_a]) * double(c[g_a] - g_Q0[g_a]) + double(g_n[g_b]) * double(c[g_b] - g_Q0[g_b]));
+    return nw > 0.0lf ? e >= 0.0lf : e <= 0.0lf;
+}
+
+// ILV tunnel 18 / 6: keep this copy of a base-edge voxel (bottom: the copy in
+// layer K of the edge between layers K - 1 and K)?  Where the plane lies in
+// its layer at the centre of its column; for 18 also at a 4-neighbouring one
+// (_keep_copy in the CPU module).
+bool keep_copy(ivec3 c, int K, bool bottom) {
+    if (plane_above(c, K) == bottom) return true;
+    if (TUNNEL != 18) return false;
+    ivec3 ea = ivec3(0), eb = ivec3(0);
+    ea[g_a] = 1;
+    eb[g_b] = 1;
+    return plane_above(c - ea, K) == bottom || plane_above(c + ea, K) == bottom
+        || plane_above(c - eb, K) == bottom || plane_above(c + eb, K) == bottom;
+}
+
+// One ILV scanline in layer Z, skipped when it lies outside the grid's (a, b) rectangle.
+void scan_draw(ivec3 L0, ivec3 L1, int keep, int K, int a, int b) {
+    if (max(L0[a], L1[a]) < 0 || min(L0[a], L1[a]) >= u_dims[a]
+            || max(L0[b], L1[b]) < 0 || min(L0[b], L1[b]) >= u_dims[b]) return;
+    draw_ilv(L0, L1, keep, K);
+}
+
+// Scan one slice (layer Z): bottom base edge, Eq. 8-9 scanlines, top base edge.
+// One loop with a single draw call (each draw call is a loop to charge).
+void ilv_slice(Chain ca, Chain cb, ivec3 A_last, ivec3 B_last, bool below, bool above, int w, int Z,
+               int a, int b) {
+    Side sa, sb;
+    sa.c = ca; sa.ext = false; sa.e = ilv_path(A_last, A_last);
+    sb.c = cb; sb.ext = false; sb.e = sa.e;
+    ivec3 lastA = chain_pos(ca), lastB = chain_pos(cb);  // the last scanline drawn
+    int phase = 0;  // 0 bottom base, 1 scanning, 2 top base drawn: done
+    for (;;) {
+        if (!tick(4u)) break;  // 1 + the two selection loops and the draw loop inside
+        ivec3 L0 = lastA, L1 = lastB;
+        bool draw = true;
+        int keep = 0, K = Z;  // keep: 1 bottom base edge copy, 2 top one (tunnel 18 / 6)
+        if (phase == 0) {
+            keep = below && TUNNEL != 26 ? 1 : 0;
+            phase = 1;
+        } else {
+            bool a_done = !side_has_next(sa, w, Z);
+            bool b_done = !side_has_next(sb, w, Z);
+            bool stop = false;
+            if (a_done || b_done) {
+                ivec3 ea = sa.ext ? B_last : A_last;
+                ivec3 eb = sb.ext ? A_last : B_last;
+                // boundary treatment: the top base edge becomes the exhausted side;
+                // where both sides end in the same voxel, the exhausted side stays (a fan)
+                if (a_done && b_done) {
+                    stop = true;
+                } else if (a_done && ea != eb) {
+                    sa.ext = true;
+                    sa.e = ilv_path(A_last, B_last);
+                } else if (b_done && ea != eb) {
+                    sb.ext = true;
+                    sb.e = ilv_path(B_last, A_last);
+                }
+            }
+            if (stop) {
+                L0 = A_last;
+                L1 = B_last;
+                draw = !(lastA == A_last && lastB == B_last);
+                phase = 2;
+                keep = above && TUNNEL != 26 ? 2 : 0;
+                K = Z + 1;
+            } else {
+                ivec3 A = side_pos(sa), B = side_pos(sb);
+                if (A == B) {  // Eq. 6 is 0/0: one entry each
+                    Side t = sa;
+                    if (side_advance(t, w, Z)) sa = t;
+                    t = sb;
+                    if (side_advance(t, w, Z)) sb = t;
+                } else {
+                    int dX = A[a] - B[a], dY = A[b] - B[b];
+                    int c0 = dY * A[a] - dX * A[b];
+                    int tol = abs(dX) + abs(dY);
+                    side_select(sa, w, Z, a, b, dX, dY, c0, tol);
+                    side_select(sb, w, Z, a, b, dX, dY, c0, tol);
+                }
+                L0 = side_pos(sa);
+                L1 = side_pos(sb);
+                lastA = L0;
+                lastB = L1;
+                if (L0 == A_last && L1 == B_last && above && TUNNEL != 26) {  // the top base edge
+                    keep = 2;
+                    K = Z + 1;
+                }
+            }
+        }
+        if (draw) scan_draw(L0, L1, keep, K, a, b);
+        if (phase == 2 || g_abort) break;
+    }
+}
+
+void ilv_triangle(vec3 X0, vec3 X1, vec3 X2) {
+    ivec3 P0 = lattice(X0), P1 = lattice(X1), P2 = lattice(X2);
+    ivec3 lo = min(P0, min(P1, P2)), hi = max(P0, max(P1, P2));
+    if (any(lessThan(hi, ivec3(0))) || any(greaterThanEqual(lo, u_dims))) return;
+    ivec3 big = max(abs(lo), abs(hi));
+    if (max(big.x, max(big.y, big.z)) > ILV_COORD_LIMIT) {  // int32 would overflow: refused
+#if PASS == 0
+        atomicAdd(out_words[1], 1u);
+#endif
+        return;
+    }
+    draw_ilv(P0, P1, 0, 0);
+    draw_ilv(P1, P2, 0, 0);
+    draw_ilv(P2, P0, 0, 0);
+    ivec3 n = icross(P1 - P0, P2 - P0);
+    if (n == ivec3(0)) return;
+    int w = dominant(n);
+    int a = (w + 1) % 3, b = (w + 2) % 3;
+    // sort on (w, lexicographic)
+    ivec3 Q0 = P0, Q1 = P1, Q2 = P2, t;
+    if (Q1[w] < Q0[w] || (Q1[w] == Q0[w] && lex_less(Q1, Q0))) { t = Q0; Q0 = Q1; Q1 = t; }
+    if (Q2[w] < Q1[w] || (Q2[w] == Q1[w] && lex_less(Q2, Q1))) { t = Q1; Q1 = Q2; Q2 = t; }
+    if (Q1[w] < Q0[w] || (Q1[w] == Q0[w] && lex_less(Q1, Q0))) { t = Q0; Q0 = Q1; Q1 = t; }
+    g_Q0 = Q0;
+    g_n = n;
+    g_w = w;
+    g_a = a;
+    g_b = b;
+    Chain ca = chain_begin(Q0, Q2, Q2);  // V_A: the long edge
+    Chain cb = chain_begin(Q0, Q1, Q2);  // V_B: the two short edges joined
+    int first = Q0[w];
+    for (int Z = first; Z <= Q2[w]; ++Z) {
+        if (!tick(7u)) break;  // 1 + the two look-ahead loops, the scan loop and its three
+        Chain la = ca, lb = cb;  // -> the chains' last entries in layer Z
+        for (;;) {
+            if (!tick(1u)) break;
+            Chain c = la;
+            if (!chain_next(c) || chain_pos(c)[w] != Z) break;
+            la = c;
+        }
+        for (;;) {
+            if (!tick(1u)) break;
+            Chain c = lb;
+            if (!chain_next(c) || chain_pos(c)[w] != Z) break;
+            lb = c;
+        }
+        if (g_abort) break;
+        if (Z >= 0 && Z < u_dims[w])
+            ilv_slice(ca, cb, chain_pos(la), chain_pos(lb), Z > first, Z < Q2[w], w, Z, a, b);
+        ca = la;
+        cb = lb;
+        chain_next(ca);  // the step along w into layer Z + 1
+        chain_next(cb);
+    }
+}
+
+// ---------------------------------------------------------------------------
+
+void main() {
+    uint gid = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x;
+    if (gid >= u_count) return;
+#if PASS == 0
+    uint tri = gid;
+#else
+    uvec4 item = items[gid];
+    uint tri = item.x;
+    g_lo = item.y;
+    g_hi = item.z;
+#endif
+    tick(16u);  // the entries of the loops outside any other loop
+    vec3 X0 = vertex(faces[3u * tri]);
+    vec3 X1 = vertex(faces[3u * tri + 1u]);
+    vec3 X2 = vertex(faces[3u * tri + 2u]);
+#if LINE_MODE == 2
+    ilv_triangle(X0, X1, X2);
+#else
+    float_triangle(X0, X1, X2);
+#endif
+#if PASS == 0
+    if (g_abort) out_words[2u + atomicAdd(out_words[0], 1u)] = tri;
+#elif PASS == 1
+    out_words[3u * gid] = g_abort ? 0xFFFFFFFFu : g_ticks;
+    out_words[3u * gid + 1u] = g_cost;
+    out_words[3u * gid + 2u] = g_maxjob;
+#else
+    if (g_abort) atomicAdd(out_words[0], 1u);
+#endif
+}
