@@ -292,9 +292,6 @@ class GLContext:
         self._limits = out
         return out
 
-    def limit(self, name: str) -> Any:
-        return self.limits()[name]
-
     def describe(self) -> dict[str, Any]:
         """Everything ``glvox info`` prints, as a JSON-friendly dict."""
         return {
