@@ -316,16 +316,28 @@ class VoxelGrid:
     spec : GridSpec
     run : RunInfo or None
         Method name, kind, timings and statistics of the run that made it.
+    extras : dict of str to VoxelGrid
+        Named masks a method returns beside its result on the same spec
+        (e.g. ``'unclassifiable'`` of passalis-stencil); saved in npz as
+        ``extra_<name>``.
     """
 
     def __init__(self, occupancy: np.ndarray | None = None, spec: GridSpec | None = None, *,
-                 words: np.ndarray | None = None, run: Any = None):
+                 words: np.ndarray | None = None, run: Any = None,
+                 extras: dict[str, "VoxelGrid"] | None = None):
         if spec is None:
             raise GridError("a VoxelGrid needs its GridSpec")
         if (occupancy is None) == (words is None):
             raise GridError("give exactly one of occupancy (dense bool) or words (bit-packed)")
         self.spec = spec
         self.run = run
+        self.extras: dict[str, VoxelGrid] = {}
+        for name, g in (extras or {}).items():
+            if not name.isidentifier():
+                raise GridError(f"extra mask names must be identifiers, got {name!r}")
+            if not isinstance(g, VoxelGrid) or not g.spec.same_placement(spec):
+                raise GridError(f"extra mask {name!r} must be a VoxelGrid on {spec}")
+            self.extras[name] = g
         self._dense: np.ndarray | None = None
         self._words: np.ndarray | None = None
         if occupancy is not None:

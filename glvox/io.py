@@ -2,7 +2,8 @@
 
 npz keys: ``occupancy`` (bool, (nx, ny, nz), indexed [i, j, k]), ``origin``
 (float64[3], world position of voxel (0,0,0)'s minimum corner),
-``voxel_size`` (float64), ``method`` (str), ``kind`` (str).
+``voxel_size`` (float64), ``method`` (str), ``kind`` (str), and one
+``extra_<name>`` (bool, (nx, ny, nz)) per mask in ``grid.extras``.
 
 binvox placement
 ----------------
@@ -52,6 +53,7 @@ def save(grid: VoxelGrid, path: str | os.PathLike, *, convention: str = "trimesh
             voxel_size=np.float64(grid.voxel_size),
             method=np.str_(run.method if run is not None else ""),
             kind=np.str_(run.kind if run is not None else ""),
+            **{f"extra_{k}": np.asarray(g.dense(), dtype=bool) for k, g in grid.extras.items()},
         )
     else:
         path.write_bytes(binvox_bytes(grid, convention=convention))
@@ -77,13 +79,19 @@ def _load_npz(path: Path) -> VoxelGrid:
             occ = np.asarray(z["occupancy"])
             origin = np.asarray(z["origin"], dtype=np.float64)
             h = float(z["voxel_size"])
+            extras = {k[len("extra_"):]: np.asarray(z[k]) for k in z.files if k.startswith("extra_")}
     except FormatError:
         raise
     except Exception as exc:  # noqa: BLE001 - zip/pickle errors vary
         raise FormatError(f"cannot read {path} as npz: {exc}") from None
     if occ.ndim != 3:
         raise FormatError(f"{path}: occupancy must be 3D (nx, ny, nz), got shape {occ.shape}")
-    return VoxelGrid(occ.astype(bool), GridSpec(occ.shape, origin, h))
+    spec = GridSpec(occ.shape, origin, h)
+    for k, e in extras.items():
+        if e.shape != occ.shape:
+            raise FormatError(f"{path}: extra_{k} must have the occupancy's shape {occ.shape}, got {e.shape}")
+    return VoxelGrid(occ.astype(bool), spec,
+                     extras={k: VoxelGrid(e.astype(bool), spec) for k, e in extras.items()})
 
 
 def binvox_bytes(grid: VoxelGrid, *, convention: str = "trimesh") -> bytes:

@@ -31,6 +31,23 @@ def test_npz_keys_dtypes_and_round_trip(tmp_path):
     assert back.equal(g) and back.spec == g.spec
 
 
+def test_extra_masks_round_trip_and_are_checked(tmp_path):
+    g = random_grid()
+    mask = random_grid(seed=1)
+    with_extra = VoxelGrid(g.dense(), g.spec, extras={"unclassifiable": mask})
+    p = io.save(with_extra, tmp_path / "e.npz")
+    with np.load(p) as z:
+        assert "extra_unclassifiable" in z.files
+    back = io.load(p)
+    assert back.equal(g) and set(back.extras) == {"unclassifiable"}
+    assert back.extras["unclassifiable"].equal(mask)
+    other = VoxelGrid(mask.dense(), GridSpec((9, 9, 9), (0.0, 0.0, 0.0), 0.25))
+    with pytest.raises(glvox.errors.GridError, match="must be a VoxelGrid on"):
+        VoxelGrid(g.dense(), g.spec, extras={"m": other})
+    with pytest.raises(glvox.errors.GridError, match="identifiers"):
+        VoxelGrid(g.dense(), g.spec, extras={"a b": mask})
+
+
 def test_binvox_is_read_by_trimesh_with_same_occupancy_and_placement(tmp_path):
     g = random_grid()
     p = io.save(g, tmp_path / "g.binvox")
