@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import warnings
 import time
 from pathlib import Path
 from typing import Sequence
@@ -113,8 +114,12 @@ def cmd_voxelize(args) -> int:
                     padding=args.padding, tight=args.tight)
     say(f"grid {spec}")
     say(f"voxelizing with {method.info.name} ({method.info.family}, {method.info.kind})")
-    result = run_method(args.method, mesh, spec, backend=args.backend, allow_open=args.allow_open,
-                        **options)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = run_method(args.method, mesh, spec, backend=args.backend, allow_open=args.allow_open,
+                            **options)
+    for w in caught:
+        print(f"glvox: warning: {w.message}", file=sys.stderr)
     run = result.run
     say(f"{run.stats.get('voxels', '?')} voxels set; {run.timings.summary()}")
     if out is not None:

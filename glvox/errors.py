@@ -49,6 +49,11 @@ class NotWatertightError(MeshError):
     """A solid method was asked for a mesh that is not closed."""
 
 
+class NotWatertightWarning(UserWarning):
+    """A solid method ran on a mesh that is not closed (``allow_open=True``):
+    the result is the parity of crossings along the method's rays."""
+
+
 class GridError(GlvoxError, ValueError):
     """The grid specification is invalid (resolution, bounds, dims)."""
 

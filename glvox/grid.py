@@ -33,9 +33,15 @@ import numpy as np
 
 from .errors import GridError
 
-#: Largest voxel count accepted by a grid spec (2^31 - 1 keeps indices in int32
-#: on the GPU; the bit array of such a grid is 256 MiB).
+#: Largest voxel count of a *dense* result (2^31 - 1 keeps flat indices in
+#: int32 on the GPU; the bit array of such a grid is 256 MiB).  Sparse methods
+#: (ss-octree) take larger grids; :func:`glvox.methods.run_method` refuses
+#: the others beyond it.
 MAX_VOXELS = 2**31 - 1
+
+#: Largest grid size along one axis: voxel indices stay in int32 and the
+#: octree's level-0 Morton codes (indices / 4, 14 bits per axis) in uint64.
+MAX_DIM = 2**16
 
 #: Two placements are the same when origin and h agree within this fraction of
 #: h: text formats (binvox headers) round-trip floats to ~7 digits, far below
@@ -53,11 +59,8 @@ def _as_dims(dims: Sequence[int]) -> tuple[int, int, int]:
         raise GridError(f"dims must be three integers (nx, ny, nz), got {dims!r}")
     if min(d) < 1:
         raise GridError(f"dims must be at least 1 along every axis, got {d}")
-    if d[0] * d[1] * d[2] > MAX_VOXELS:
-        raise GridError(
-            f"grid {d[0]}x{d[1]}x{d[2]} has {d[0] * d[1] * d[2]} voxels, more than the "
-            f"{MAX_VOXELS} glvox supports; use a smaller grid"
-        )
+    if max(d) > MAX_DIM:
+        raise GridError(f"dims must be at most {MAX_DIM} along every axis, got {d}")
     return d  # type: ignore[return-value]
 
 

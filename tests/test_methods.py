@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import glvox
-from glvox.errors import MethodError
+from glvox.errors import LimitError, MethodError
 from glvox.grid import GridSpec, VoxelGrid
 from glvox.mesh import load_mesh
 from glvox.methods import (FAMILIES, KINDS, Method, MethodInfo, get_method, method_infos,
@@ -52,6 +52,14 @@ def test_method_contract_on_a_small_mesh(name, gl_context):
         assert run.timings.gpu_s is not None
     # same input, same voxels
     assert run_method(name, mesh, spec).equal(g)
+
+
+def test_dense_results_beyond_int32_voxels_are_refused_before_any_work():
+    mesh = load_mesh("gen:sphere")
+    spec = glvox.grid_for(mesh, 2048)  # 2^33 voxels: a valid spec, too big to hold densely
+    for name in ("reference-solid", "ss-solid", "ss-conservative"):
+        with pytest.raises(LimitError, match=r"more than the 2147483647 glvox keeps dense; .*ss-octree"):
+            run_method(name, mesh, spec)
 
 
 def test_unknown_method_and_options():

@@ -10,11 +10,12 @@ from __future__ import annotations
 import importlib
 import os
 import pkgutil
+import warnings
 from typing import Any
 
 from ..context import get_context
-from ..errors import CapabilityError, MethodError, NotWatertightError
-from ..grid import GridSpec, RunInfo
+from ..errors import CapabilityError, LimitError, MethodError, NotWatertightError, NotWatertightWarning
+from ..grid import MAX_VOXELS, GridSpec, RunInfo
 from ..mesh import Mesh
 from ..timing import StageTimer
 from ._base import (FAMILIES, KINDS, Method, MethodInfo, Option, Requirements, _REGISTRY,
@@ -109,12 +110,22 @@ def run_method(name: str, mesh: Mesh, spec: GridSpec, *, ctx=None, backend: str 
     method = get_method(name)
     info = method.info
     opts = validate_options(info, options)
+    if info.kind != "sparse" and spec.n_voxels > MAX_VOXELS:
+        raise LimitError(
+            f"method {name!r} returns a dense grid, and {spec.dims} has {spec.n_voxels} voxels, more "
+            f"than the {MAX_VOXELS} glvox keeps dense; use a smaller grid or the sparse ss-octree"
+        )
     if info.kind in ("solid", "sparse") and not mesh.watertight and not allow_open:
         raise NotWatertightError(
             f"{mesh.name} is not watertight, so 'inside' is undefined for the solid method {name!r}; "
             "repair the mesh, use a surface method, or pass allow_open=True (--allow-open) to "
             "voxelize by parity of crossings anyway"
         )
+    if info.kind in ("solid", "sparse") and not mesh.watertight:
+        warnings.warn(
+            f"{mesh.name} is not watertight: {name!r} returns the parity of ray crossings, which "
+            "is 'inside' only where the rays cross a closed part of the surface; expect streaks "
+            "along the rays through holes", NotWatertightWarning, stacklevel=2)
     if debug is None:
         debug = os.environ.get("GLVOX_DEBUG", "") not in ("", "0")
     if info.uses_gl:

@@ -183,6 +183,27 @@ def read_grid_words(buf, spec) -> np.ndarray:
     return np.frombuffer(data, dtype="<u4").reshape(spec.dims[2], spec.dims[1], spec.words_per_row)
 
 
+def transform_vertices(ctx, mesh, spec, timer, pool):
+    """Stage ``transform`` (S&S Sec. 6): the mesh's vertices in voxel space.
+
+    Returns ``(bufs, vox)``: the mesh's :class:`MeshBuffers` and a pooled
+    buffer of float32 x, y, z per vertex in voxel space (computed in double
+    from the anchored vertices, rounded once), ready for the next stage.
+    """
+    from ..shaders import compute_program
+
+    bufs = mesh_buffers(ctx, mesh)
+    vox = pool.get("vox_vertices", bufs.n_vertices * 12, what="voxel-space vertices", clear=False)
+    prog = compute_program(ctx, "ss/transform.comp")
+    set_uniforms(prog, {**grid_uniforms(spec, bufs.anchor), "u_vertices": bufs.n_vertices})
+    with timer.stage("transform"):
+        bufs.vertices.bind_to_storage_buffer(0)
+        vox.bind_to_storage_buffer(1)
+        dispatch_1d(ctx, prog, bufs.n_vertices, 256)
+        barrier(ctx)
+    return bufs, vox
+
+
 def barrier(ctx) -> None:
     """Make SSBO writes of earlier dispatches visible to later dispatches,
     indirect-dispatch argument reads and buffer reads."""

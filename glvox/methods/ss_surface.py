@@ -31,8 +31,8 @@ from ..errors import LimitError
 from ..grid import VoxelGrid
 from ..shaders import compute_program
 from ._base import Method, MethodInfo, Option, Requirements, register
-from ._gpu import (LOOP_BUDGET, barrier, buffer_pool, dispatch_1d, grid_uniforms, mesh_buffers,
-                   read_grid_words, set_uniforms)
+from ._gpu import (LOOP_BUDGET, barrier, buffer_pool, dispatch_1d, grid_uniforms,
+                   read_grid_words, set_uniforms, transform_vertices)
 
 _PAPER = "Schwarz & Seidel 2010"
 _LOCAL = 64  # local_size_x of ss/surface.comp and ss/classify.comp
@@ -58,18 +58,6 @@ DEFAULT_VARIANT = "specialized"
 class _SSSurface(Method):
     criterion = 0
 
-    def _transform(self, ctx, mesh, spec, timer, pool):
-        bufs = mesh_buffers(ctx, mesh)
-        vox = pool.get("vox_vertices", bufs.n_vertices * 12, what="voxel-space vertices", clear=False)
-        prog = compute_program(ctx, "ss/transform.comp")
-        set_uniforms(prog, {**grid_uniforms(spec, bufs.anchor), "u_vertices": bufs.n_vertices})
-        with timer.stage("transform"):
-            bufs.vertices.bind_to_storage_buffer(0)
-            vox.bind_to_storage_buffer(1)
-            dispatch_1d(ctx, prog, bufs.n_vertices, 256)
-            barrier(ctx)
-        return bufs, vox
-
     def _run(self, ctx, mesh, spec, timer, variant: str):
         n = mesh.n_triangles
         max_groups = int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])
@@ -82,7 +70,7 @@ class _SSSurface(Method):
         pool = buffer_pool(ctx, self.info.name)
         # the grid first: a grid over the SSBO limit is refused before any other work
         grid = pool.get("grid", spec.n_words * 4, what=f"the {spec.dims} bit grid")
-        bufs, vox = self._transform(ctx, mesh, spec, timer, pool)
+        bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool)
         stats = pool.get("stats", 8 * 4)
         per_tri = pool.get("per_triangle", n * 4, what="per-triangle work", clear=False)
         args = pool.get("args", 9 * 4, clear=False)

@@ -1,0 +1,71 @@
+"""Table 2 of Schwarz & Seidel 2010 on this machine: solid voxelization times
+(ms, warm, median of repeats) of the pipeline baseline (eisemann-solid, when
+registered), the triangle-parallel ss-solid and the tile-based ss-solid-tiled
+with its breakdown (T_pairs, T_sort, T_tiles), the number of (tile, triangle)
+pairs and the average triangles per active tile.
+
+    python compare/table2_ss_solid.py [--sizes 128 256 512 1024] [--repeat 5]
+                                      [--meshes stanford_bunny_bun_zipper.ply ...]
+
+The bunny and the dragons are open meshes (the paper used them anyway): they
+run with allow_open, so the grids are parities of crossings, which costs the
+same as a closed mesh.  Meshes come from GLVOX_MESHES (default
+../shared/meshes beside the checkout).  Prints a markdown table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import warnings
+
+import glvox
+from glvox.context import get_context
+from glvox.errors import NotWatertightWarning
+from glvox.methods import method_names
+
+from table1_ss_surface import mesh_dir, timed
+
+DEFAULT_MESHES = ["stanford_bunny_bun_zipper.ply", "stanford_dragon_vrip_res2.ply"]
+
+
+def stage_ms(grid, names):
+    return sum(s.gpu_s or 0.0 for s in grid.run.timings.stages if s.name in names) * 1e3
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sizes", type=int, nargs="+", default=[128, 256, 512, 1024])
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--meshes", nargs="+", default=DEFAULT_MESHES)
+    args = ap.parse_args(argv)
+    warnings.simplefilter("ignore", NotWatertightWarning)
+    ctx = get_context()
+    pipeline = "eisemann-solid" if "eisemann-solid" in method_names() else None
+    print(f"<!-- {ctx.renderer}; {ctx.version}; wall ms (GPU ms), median of {args.repeat} warm runs; "
+          "T_pairs = classify + pairs, T_tiles = compact + tiles (GPU ms) -->")
+    print("| model | grid | pipeline | tri-parallel | tiled T_total | T_pairs | T_sort | T_tiles | #pairs | #tris |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for name in args.meshes:
+        mesh = glvox.load_mesh(mesh_dir() / name)
+        for n in args.sizes:
+            spec = glvox.grid_for(mesh, n)
+            cells = []
+            if pipeline:
+                wall, gpu, _ = timed(pipeline, mesh, spec, args.repeat, allow_open=True)
+                cells.append(f"{wall:.1f} ({gpu:.1f})")
+            else:
+                cells.append("-")
+            wall, gpu, _ = timed("ss-solid", mesh, spec, args.repeat, allow_open=True)
+            cells.append(f"{wall:.1f} ({gpu:.1f})")
+            wall, gpu, g = timed("ss-solid-tiled", mesh, spec, args.repeat, allow_open=True)
+            st = g.run.stats
+            cells += [f"{wall:.1f} ({gpu:.1f})", f"{stage_ms(g, ('classify', 'pairs')):.1f}",
+                      f"{stage_ms(g, ('sort',)):.1f}", f"{stage_ms(g, ('compact', 'tiles')):.1f}",
+                      f"{st['pairs'] / 1e3:.0f}k", f"{st['triangles_per_active_tile']:.1f}"]
+            print(f"| {name} ({mesh.n_triangles:,} tris) | {n}^3 | {' | '.join(cells)} |", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,277 @@
+"""Schwarz & Seidel 2010 solid voxelization in compute shaders (Sec. 4).
+
+``ss-solid`` (Sec. 4.1) runs one invocation per triangle (and chunk of its
+columns): every voxel column along x whose center the triangle's (y, z)
+projection covers, under the top-left fill rule, gets the voxels from
+``floor(q + 1/2)`` to its end flipped with ``atomicXor``.
+
+``ss-solid-tiled`` (Sec. 4.2) assigns triangles to tiles of 4 x 4 columns
+instead and processes each tile's triangles without atomics:
+
+* ``pairs``: per triangle, the tiles whose critical column center passes the
+  edge tests are counted (``ss/tile_pairs.comp``), the counts are scanned
+  (:func:`glvox.gpu_sort.exclusive_scan`) and the (tile, triangle) pairs
+  written at each triangle's offset;
+* ``sort``: the pairs are sorted by tile (:func:`glvox.gpu_sort.sort_pairs`,
+  only the significant key bits);
+* ``compact``: the first pair of each tile is flagged, the flags scanned and
+  the active tiles compacted into a list with their ranges;
+* ``tiles``: one work group of 16 invocations per active tile, one per
+  column, walks the tile's triangles keeping an active 32-bit segment and a
+  flip bitmask of the segments after it, and writes each row once per
+  segment at the end, with plain (non-atomic) xor: a row belongs to one
+  invocation.
+
+Both share ``shaders/ss/solid.glsl`` with ``ss-octree``, so the three decide
+every crossing with the same arithmetic (edge functions in double from the
+float32 voxel-space vertices; see that file for why).
+
+Only sizes are read back inside the tiled pipeline (the number of pairs, to
+size the sort); scan, sort and compaction run on the GPU.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import LimitError
+from ..grid import VoxelGrid
+from ..shaders import compute_program
+from ._base import Method, MethodInfo, Requirements, register
+from ._gpu import (LOOP_BUDGET, barrier, buffer_pool, dispatch_1d, grid_uniforms,
+                   read_grid_words, set_uniforms, transform_vertices)
+
+_PAPER = "Schwarz & Seidel 2010"
+_LOCAL = 64  # local_size_x of ss/solid_classify.comp, ss/solid.comp, ss/tile_pairs.comp
+_REQUIRES = Requirements(gl_version=430, extensions=("GL_ARB_gpu_shader_fp64",),
+                         limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 9})
+
+#: Tile edge in columns (Sec. 4.2: 4 x 4 voxel columns per tile).
+TILE = 4
+
+#: Tiles tested per invocation of the pair passes (each test is a handful of
+#: loop iterations at most, far below LOOP_BUDGET).
+TILE_CHUNK = 4096
+
+#: Triangles of one tile handled per pass of ``ss/tile_process.comp``: an
+#: invocation loops over at most this many (each at most a dozen loop
+#: iterations should the compiler keep the three-edge loops, plus the final
+#: flush of at most MAX_SEGMENTS words), within LOOP_BUDGET.
+TILE_TRIANGLES = 2048
+
+#: Segments (32-bit words) per row the tiled flip bitmask holds (uvec4): rows
+#: up to 4096 voxels.
+MAX_SEGMENTS = 128
+
+assert 12 * TILE_TRIANGLES + MAX_SEGMENTS < LOOP_BUDGET
+assert 8 * TILE_CHUNK < LOOP_BUDGET
+
+
+def column_chunk(words_per_row: int) -> int:
+    """Columns per invocation of ``ss/solid.comp`` for rows of ``words_per_row`` words.
+
+    A column costs its three edge tests and up to ``words_per_row`` atomic
+    words; the chunk is the largest power of two keeping an invocation under
+    half of LOOP_BUDGET (a power of two, so few distinct programs compile).
+    """
+    c = (LOOP_BUDGET // 2) // (4 + words_per_row)
+    return 1 << (max(1, c).bit_length() - 1)
+
+
+def _indirect_chunks(ctx, pool, n, stats, max_groups):
+    """Indirect dispatch args over (triangle, chunk) from the GPU-side max chunk count."""
+    args = pool.get("args", 3 * 4, clear=False)
+    dargs = compute_program(ctx, "ss/dispatch_args.comp")
+    set_uniforms(dargs, {"u_sorted": False, "u_groups_x": -(-n // _LOCAL), "u_max_groups": max_groups,
+                         "u_local_size": _LOCAL})
+    stats.bind_to_storage_buffer(4)
+    args.bind_to_storage_buffer(8)
+    dargs.run(1, 1, 1)
+    barrier(ctx)
+    return args
+
+
+def _check_triangles(ctx, n, name):
+    max_groups = int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])
+    if n > max_groups * _LOCAL:
+        raise LimitError(
+            f"{name} dispatches one invocation per triangle along x, at most {max_groups * _LOCAL} "
+            f"(GL_MAX_COMPUTE_WORK_GROUP_COUNT {max_groups} x {_LOCAL}); this mesh has {n} triangles"
+        )
+    return max_groups
+
+
+def _classify(ctx, spec, timer, bufs, vox, pool, unit, chunk):
+    """Stage ``classify``: chunks per triangle (tri_chunks) and their maximum (stats[3])."""
+    n = bufs.n_triangles
+    stats = pool.get("stats", 8 * 4)
+    tri_chunks = pool.get("tri_chunks", n * 4, what="per-triangle chunk counts", clear=False)
+    prog = compute_program(ctx, "ss/solid_classify.comp", {"SOLID_UNIT": unit, "SOLID_CHUNK": chunk})
+    set_uniforms(prog, {**grid_uniforms(spec, bufs.anchor), "u_triangles": n})
+    with timer.stage("classify"):
+        vox.bind_to_storage_buffer(1)
+        bufs.faces.bind_to_storage_buffer(2)
+        stats.bind_to_storage_buffer(4)
+        tri_chunks.bind_to_storage_buffer(5)
+        dispatch_1d(ctx, prog, n, _LOCAL)
+        barrier(ctx)
+    return stats, tri_chunks
+
+
+@register
+class SSSolid(Method):
+    info = MethodInfo(
+        name="ss-solid", kind="solid", family="compute",
+        paper=f"{_PAPER}, Sec. 4.1 (direct, triangle-parallel solid voxelization)",
+        summary="solid, one compute invocation per triangle, atomicXor of the column beyond each crossing",
+        reference="reference-solid",
+        requires=_REQUIRES,
+    )
+
+    def run(self, mesh, spec, *, ctx, timer):
+        n = mesh.n_triangles
+        max_groups = _check_triangles(ctx, n, "ss-solid")
+        pool = buffer_pool(ctx, self.info.name)
+        grid = pool.get("grid", spec.n_words * 4, what=f"the {spec.dims} bit grid")
+        bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool)
+        chunk = column_chunk(spec.words_per_row)
+        stats, tri_chunks = _classify(ctx, spec, timer, bufs, vox, pool, 1, chunk)
+        prog = compute_program(ctx, "ss/solid.comp", {"SOLID_CHUNK": chunk})
+        set_uniforms(prog, {**grid_uniforms(spec, bufs.anchor), "u_triangles": n, "u_tri_offset": 0})
+        with timer.stage("voxelize"):
+            args = _indirect_chunks(ctx, pool, n, stats, max_groups)
+            vox.bind_to_storage_buffer(1)
+            bufs.faces.bind_to_storage_buffer(2)
+            grid.bind_to_storage_buffer(3)
+            tri_chunks.bind_to_storage_buffer(5)
+            prog.run_indirect(args)
+            barrier(ctx)
+        with timer.stage("readback", gpu=False):
+            words = read_grid_words(grid, spec)
+            s = np.frombuffer(stats.read(size=16), dtype="<u4")
+        timer.stats["triangles_with_columns"] = int(s[0])
+        timer.stats["max_chunks"] = int(s[3])
+        return VoxelGrid(words=words, spec=spec)
+
+    def release(self, ctx) -> None:
+        buffer_pool(ctx, self.info.name).release()
+
+
+@register
+class SSSolidTiled(Method):
+    info = MethodInfo(
+        name="ss-solid-tiled", kind="solid", family="compute",
+        paper=f"{_PAPER}, Sec. 4.2 (tile-based solid voxelization)",
+        summary="solid, (tile, triangle) work queue built by GPU scan and sort, 4x4-column tiles "
+                "processed without atomics",
+        reference="reference-solid",
+        requires=_REQUIRES,
+    )
+
+    def run(self, mesh, spec, *, ctx, timer):
+        from ..gpu_sort import exclusive_scan, sort_pairs
+
+        n = mesh.n_triangles
+        nx, ny, nz = spec.dims
+        if spec.words_per_row > MAX_SEGMENTS:
+            raise LimitError(
+                f"ss-solid-tiled keeps a flip bitmask of at most {MAX_SEGMENTS} words per row, rows of "
+                f"{32 * MAX_SEGMENTS} voxels; this grid has nx = {nx}: use ss-solid, or ss-octree"
+            )
+        max_groups = _check_triangles(ctx, n, "ss-solid-tiled")
+        pool = buffer_pool(ctx, self.info.name)
+        grid = pool.get("grid", spec.n_words * 4, what=f"the {spec.dims} bit grid")
+        bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool)
+        tiles_y, tiles_z = -(-ny // TILE), -(-nz // TILE)
+        key_bits = max(1, (tiles_y * tiles_z - 1).bit_length())
+        common = {**grid_uniforms(spec, bufs.anchor), "u_triangles": n}
+        defines = {"TILE": TILE, "SOLID_CHUNK": TILE_CHUNK}
+        stats, tri_chunks = _classify(ctx, spec, timer, bufs, vox, pool, TILE, TILE_CHUNK)
+
+        with timer.stage("pairs"):
+            args = _indirect_chunks(ctx, pool, n, stats, max_groups)
+            counts = pool.get("counts", n * 4, what="per-triangle tile counts")
+            total = pool.get("total", 4, clear=False)
+            count = compute_program(ctx, "ss/tile_pairs.comp", {**defines, "EMIT": 0})
+            set_uniforms(count, common)
+            vox.bind_to_storage_buffer(1)
+            bufs.faces.bind_to_storage_buffer(2)
+            tri_chunks.bind_to_storage_buffer(5)
+            counts.bind_to_storage_buffer(6)
+            count.run_indirect(args)
+            barrier(ctx)
+            exclusive_scan(ctx, counts, counts, n, total=total)
+            barrier(ctx)
+            # the one value the CPU needs inside the pipeline: the queue length sizes the sort
+            n_pairs = int(np.frombuffer(total.read(size=4), dtype="<u4")[0])
+            keys = pool.get("keys", n_pairs * 4, what=f"{n_pairs} tile keys", clear=False)
+            values = pool.get("values", n_pairs * 4, what=f"{n_pairs} tile triangles", clear=False)
+            emit = compute_program(ctx, "ss/tile_pairs.comp", {**defines, "EMIT": 1})
+            set_uniforms(emit, common)
+            vox.bind_to_storage_buffer(1)
+            bufs.faces.bind_to_storage_buffer(2)
+            tri_chunks.bind_to_storage_buffer(5)
+            counts.bind_to_storage_buffer(6)
+            keys.bind_to_storage_buffer(7)
+            values.bind_to_storage_buffer(8)
+            emit.run_indirect(args)
+            barrier(ctx)
+
+        with timer.stage("sort"):
+            sort_pairs(ctx, keys, values, n_pairs, key_bits=key_bits)
+
+        with timer.stage("compact"):
+            flags = pool.get("flags", n_pairs * 4, what="tile start flags", clear=False)
+            slots = pool.get("slots", n_pairs * 4, what="tile slots", clear=False)
+            active = pool.get("active", n_pairs * 8, what="active tile list", clear=False)
+            tstats = pool.get("tile_stats", 4 * 4)
+            for phase in (0, 1, 2):
+                if phase == 1:
+                    exclusive_scan(ctx, flags, slots, n_pairs, total=tstats)
+                    barrier(ctx)
+                prog = compute_program(ctx, "ss/tile_compact.comp", {"PHASE": phase})
+                set_uniforms(prog, {"u_pairs": n_pairs})
+                keys.bind_to_storage_buffer(0)
+                flags.bind_to_storage_buffer(1)
+                slots.bind_to_storage_buffer(2)
+                active.bind_to_storage_buffer(3)
+                tstats.bind_to_storage_buffer(4)
+                # phase 2 runs over active tiles, of which there are at most as many as pairs
+                dispatch_1d(ctx, prog, n_pairs, 256)
+                barrier(ctx)
+
+        passes = max(1, -(-n_pairs // TILE_TRIANGLES))
+        with timer.stage("tiles"):
+            targs = pool.get("tile_args", 12 * passes, what="tile pass arguments", clear=False)
+            prog = compute_program(ctx, "ss/tile_args.comp", {"TILE_TRIANGLES": TILE_TRIANGLES})
+            set_uniforms(prog, {"u_passes": passes, "u_max_groups": max_groups})
+            tstats.bind_to_storage_buffer(4)
+            targs.bind_to_storage_buffer(5)
+            prog.run(1, 1, 1)
+            barrier(ctx)
+            proc = compute_program(ctx, "ss/tile_process.comp", {**defines, "TILE_TRIANGLES": TILE_TRIANGLES})
+            set_uniforms(proc, {**common, "u_pairs": n_pairs})
+            vox.bind_to_storage_buffer(1)
+            bufs.faces.bind_to_storage_buffer(2)
+            grid.bind_to_storage_buffer(3)
+            tstats.bind_to_storage_buffer(4)
+            active.bind_to_storage_buffer(6)
+            values.bind_to_storage_buffer(8)
+            for p in range(passes):
+                set_uniforms(proc, {"u_pass": p})
+                proc.run_indirect(targs, offset=12 * p)
+                barrier(ctx)
+
+        with timer.stage("readback", gpu=False):
+            words = read_grid_words(grid, spec)
+            t = np.frombuffer(tstats.read(size=8), dtype="<u4")
+        active_tiles, most = int(t[0]), int(t[1])
+        timer.stats.update({
+            "pairs": n_pairs, "active_tiles": active_tiles,
+            "triangles_per_active_tile": round(n_pairs / active_tiles, 2) if active_tiles else 0.0,
+            "max_triangles_per_tile": most, "tile_passes": -(-most // TILE_TRIANGLES),
+        })
+        return VoxelGrid(words=words, spec=spec)
+
+    def release(self, ctx) -> None:
+        buffer_pool(ctx, self.info.name).release()

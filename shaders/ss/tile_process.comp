@@ -1,0 +1,82 @@
+#version 450
+// ss-solid-tiled (Schwarz & Seidel 2010, Sec. 4.2), tile processing: one
+// work group per active tile, one invocation per voxel column of the tile.
+// Each invocation walks the tile's triangles (TILE_TRIANGLES of them in this
+// pass) keeping an active 32-bit segment of its row and a flip bitmask of
+// the segments after it; a crossing outside the active segment first flushes
+// it.  At the end the active segment is flushed and the flagged segments are
+// flipped whole.  A row belongs to exactly one invocation, so every write is
+// a plain read-modify-write: no atomics.
+//
+// Departure: the paper sets up up to 14 triangles per warp in shared memory
+// and runs two triangles per warp (twin threads); here each invocation sets up
+// the triangle itself, which costs no barriers (expensive on llvmpipe).
+#include "common/bits.glsl"
+#include "common/voxel_space.glsl"
+#include "ss/solid.glsl"
+#define SOLID_UNIT TILE
+#include "ss/solid_input.glsl"
+layout(local_size_x = TILE, local_size_y = TILE) in;
+layout(std430, binding = 3) buffer Grid { uint grid[]; };
+layout(std430, binding = 4) readonly buffer Stats { uint stats[]; };
+layout(std430, binding = 6) readonly buffer Active { uint tiles[]; };
+layout(std430, binding = 8) readonly buffer Values { uint values[]; };
+uniform uint u_pairs;
+uniform uint u_pass;
+
+// Bits of the segments after `seg` in a 128-bit mask.
+uvec4 segments_after(uint seg) {
+    uvec4 m;
+    for (int w = 0; w < 4; ++w) {
+        int lo = int(seg) + 1 - 32 * w;
+        m[w] = lo <= 0 ? 0xFFFFFFFFu : mask_from(uint(lo));
+    }
+    return m;
+}
+
+void main() {
+    uint s = gl_WorkGroupID.x + gl_WorkGroupID.y * gl_NumWorkGroups.x;
+    uint n_active = stats[0];
+    if (s >= n_active) return;
+    uint key = tiles[2u * s], start = tiles[2u * s + 1u];
+    uint end = s + 1u < n_active ? tiles[2u * s + 3u] : u_pairs;
+    uint first = start + u_pass * uint(TILE_TRIANGLES);
+    if (first >= end) return;
+    uint last = min(end, first + uint(TILE_TRIANGLES));
+    uint tiles_y = (uint(u_dims.y) + uint(TILE) - 1u) / uint(TILE);
+    int j = int(key % tiles_y) * TILE + int(gl_LocalInvocationID.x);
+    int k = int(key / tiles_y) * TILE + int(gl_LocalInvocationID.y);
+    if (j >= u_dims.y || k >= u_dims.z) return;
+    vec2 center = vec2(j, k) + 0.5;
+    uint wpr = words_per_row();
+    uint row = (uint(k) * uint(u_dims.y) + uint(j)) * wpr;
+
+    // the last word keeps its bits past nx zero
+    uint tail = mask_upto(uint(u_dims.x) - 32u * (wpr - 1u) - 1u);
+    int seg = -1;      // active segment
+    uint value = 0u;   // its pending flips
+    uvec4 flips = uvec4(0u);
+    for (uint p = first; p < last; ++p) {
+        SolidTri T;
+        if (!load_solid_triangle(values[p], T) || !solid_covers(T, center)) continue;
+        int f = solid_first_flip(T, center);
+        if (f >= u_dims.x) continue;
+        uint b = uint(max(f, 0));
+        if (int(b >> 5) != seg) {
+            if (seg >= 0) grid[row + uint(seg)] ^= value & (uint(seg) == wpr - 1u ? tail : 0xFFFFFFFFu);
+            seg = int(b >> 5);
+            value = 0u;
+        }
+        value ^= mask_from(b & 31u);
+        flips ^= segments_after(b >> 5);
+    }
+    if (seg >= 0) grid[row + uint(seg)] ^= value & (uint(seg) == wpr - 1u ? tail : 0xFFFFFFFFu);
+    for (int w = 0; w < 4; ++w) {
+        uint bits = flips[w];
+        while (bits != 0u) {
+            uint g = uint(32 * w + findLSB(bits));
+            bits &= bits - 1u;
+            if (g < wpr) grid[row + g] ^= g == wpr - 1u ? tail : 0xFFFFFFFFu;
+        }
+    }
+}

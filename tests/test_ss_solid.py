@@ -1,0 +1,266 @@
+"""Schwarz & Seidel solid voxelization (ss-solid, ss-solid-tiled) against reference-solid.
+
+Every mismatch must be a proven tie (the voxel's center lies within TIE_EPS of
+the surface, so moving the mesh by at most TIE_EPS can flip it); none is
+tolerated by count.  The two methods share ss/solid.glsl, so they must agree
+with each other exactly.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+import glvox
+from glvox.errors import LimitError, NotWatertightError, NotWatertightWarning
+from glvox.grid import GridSpec
+from glvox.mesh import load_mesh
+from glvox.methods import run_method
+from glvox.methods import ss_solid
+from glvox.metrics import check_against_reference, tie_set
+from glvox.reference._candidates import column_candidates, normals
+from glvox.reference.solid import _edge_function
+
+from conftest import SHARED_MESHES
+
+SOLID = ("ss-solid", "ss-solid-tiled")
+
+
+def watertight_shared():
+    return [n for n in SHARED_MESHES if n.startswith(("cad_", "stanford_armadillo", "depth_reduced"))]
+
+
+def check_solid(mesh, spec, allow_open=False):
+    """Both methods against the reference with ties proven, and against each other exactly."""
+    ref = run_method("reference-solid", mesh, spec, allow_open=True)
+    ties = tie_set("reference-solid", mesh, spec)
+    out = {}
+    for name in SOLID:
+        g = run_method(name, mesh, spec, allow_open=allow_open)
+        c = check_against_reference(g, mesh, "reference-solid", reference_grid=ref, ties=ties)
+        assert c.ok, f"{mesh.name} {spec.dims} {name}: {c.describe()}"
+        out[name] = g
+    assert out["ss-solid"].equal(out["ss-solid-tiled"]), f"{mesh.name}: the two solid methods differ"
+    out["reference-solid"] = ref
+    return out
+
+
+@pytest.mark.parametrize("n", [64, 128])
+@pytest.mark.parametrize("name", watertight_shared())
+def test_watertight_shared_meshes(gl_context, shared_mesh, name, n):
+    mesh = load_mesh(shared_mesh(name))
+    assert mesh.watertight
+    check_solid(mesh, glvox.grid_for(mesh, n))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("n", [256])
+@pytest.mark.parametrize("name", watertight_shared())
+def test_watertight_shared_meshes_large(gl_context, shared_mesh, name, n):
+    mesh = load_mesh(shared_mesh(name))
+    check_solid(mesh, glvox.grid_for(mesh, n))
+
+
+def nested_shells():
+    """A hollow ball: an outer sphere and an inner one facing inwards, so a ray
+    crosses four times; plus a small solid ball floating in the cavity."""
+    outer = trimesh.creation.icosphere(3, radius=1.0)
+    inner = trimesh.creation.icosphere(3, radius=0.7)
+    inner.invert()
+    core = trimesh.creation.icosphere(2, radius=0.3)
+    return trimesh.util.concatenate([outer, inner, core])
+
+
+GENERATED = {
+    "sphere": lambda: trimesh.creation.icosphere(4, radius=1.0),
+    "torus": lambda: trimesh.creation.torus(1.0, 0.35),
+    "nested-shells": nested_shells,
+    "rotated-box": lambda: trimesh.creation.box(
+        extents=(2.0, 1.3, 0.7), transform=trimesh.transformations.euler_matrix(0.3, 0.5, 0.7)),
+}
+
+
+@pytest.mark.parametrize("n", [33, 64])
+@pytest.mark.parametrize("shape", sorted(GENERATED))
+def test_generated_solids(gl_context, shape, n):
+    m = GENERATED[shape]()
+    assert m.is_watertight
+    mesh = load_mesh((m.vertices, m.faces), name=shape)
+    check_solid(mesh, glvox.grid_for(mesh, n))
+
+
+def test_nested_shells_are_hollow(gl_context):
+    m = nested_shells()
+    mesh = load_mesh((m.vertices, m.faces), name="nested")
+    spec = glvox.grid_for(mesh, 48)
+    g = run_method("ss-solid-tiled", mesh, spec).dense()
+    # the voxels around radius r along +x: the core, the cavity, the shell, outside
+    for r, inside in ((0.05, True), (0.5, False), (0.85, True), (0.99, True)):
+        idx = np.floor(spec.world_to_voxel(np.array([[r, 0.01, 0.01]]))).astype(int)[0]
+        assert g[tuple(idx)] == inside, (r, idx)
+
+
+def test_box_faces_exactly_on_voxel_centers(gl_context):
+    """Faces on the center planes x, y, z = c + 1/2 put every center of the box's
+    boundary exactly on the surface and every boundary column exactly on a
+    projected edge.  Coordinates are exact in float32, so the GPU must equal
+    the reference with no tie at all: the half-open rule along x (center > q)
+    and the top-left rule on the (y, z) edges decide every one.  The grid of
+    128 makes the faces span more than one chunk of columns."""
+    spec = GridSpec((128, 128, 128), (0.0, 0.0, 0.0), 1.0)
+    box = trimesh.creation.box(bounds=[[2.5, 3.5, 4.5], [101.5, 90.5, 120.5]])
+    mesh = load_mesh((box.vertices, box.faces))
+    ref = run_method("reference-solid", mesh, spec)
+    d = ref.dense()
+    assert d.any()
+    for name in SOLID:
+        g = run_method(name, mesh, spec)
+        assert g.equal(ref), f"{name}: {g.compare(ref).to_dict()}"
+    # hand-worked: along x, voxel i is in iff 2.5 < i + 1/2 <= 101.5 (i = 3..101);
+    # along y the face y = 3.5 is a left edge of the projection (owned) and
+    # y = 90.5 is not (j = 3..89); along z the face z = 4.5 has an inward
+    # normal +z, not a top edge, and z = 120.5 is one (k = 5..120)
+    expect = np.zeros(spec.dims, bool)
+    expect[3:102, 3:90, 5:121] = True
+    np.testing.assert_array_equal(d, expect)
+
+
+def test_big_triangles_span_several_chunks_and_tiles(gl_context):
+    """A grid of 300^3 with a box across it: each face triangle covers about
+    45k columns (several chunks of ss-solid) and 5.6k tiles (two chunks of the
+    tile test)."""
+    spec = GridSpec((300, 300, 300), (0.0, 0.0, 0.0), 1.0)
+    box = trimesh.creation.box(bounds=[[1.2, 0.7, 0.9], [298.3, 299.1, 297.6]])
+    mesh = load_mesh((box.vertices, box.faces))
+    assert ss_solid.column_chunk(spec.words_per_row) < 45000 / 2
+    check_solid(mesh, spec)
+
+
+def test_many_triangles_per_tile_take_several_passes(gl_context):
+    """1100 nested cubes on a 16^3 grid: every cube puts at least two
+    triangles in every tile its x faces cover, more than one pass of
+    ss/tile_process.comp handles; the parity of the nesting decides."""
+    sizes = np.linspace(2.0, 15.0, 1100)
+    cubes = [trimesh.creation.box(extents=(s, s * 0.9, s * 0.8)) for s in sizes]
+    m = trimesh.util.concatenate(cubes)
+    mesh = load_mesh((m.vertices, m.faces), name="nested-cubes")
+    assert mesh.watertight
+    spec = GridSpec((16, 16, 16), (-8.0, -8.0, -8.0), 1.0)
+    out = check_solid(mesh, spec)
+    st = out["ss-solid-tiled"].run.stats
+    assert st["max_triangles_per_tile"] > ss_solid.TILE_TRIANGLES
+    assert st["tile_passes"] >= 2
+
+
+def test_anisotropic_dims_and_clipping(gl_context):
+    """Rows that are not a multiple of 32 voxels, tiles cut by the grid's
+    edge, and a grid covering only part of the mesh (crossings before the
+    grid flip whole columns, those past it nothing)."""
+    m = trimesh.creation.torus(1.0, 0.4)
+    mesh = load_mesh((m.vertices, m.faces), name="torus")
+    for spec in (glvox.grid_for(mesh, dims=(45, 37, 29)),
+                 GridSpec((50, 23, 41), (-0.3, -1.5, -0.45), 0.031)):
+        out = check_solid(mesh, spec)
+        words = out["ss-solid"].words()
+        # the bits past nx in each row's last word stay zero
+        tail = spec.dims[0] % 32
+        if tail:
+            assert not np.any(words[..., -1] >> np.uint32(tail))
+
+
+def cover_pairs(tris, dims):
+    """(tile, triangle) pairs where the triangle covers a column center of the
+    tile, and where its (y, z) bounding box's centers reach the tile (CPU, float64)."""
+    n = normals(tris)
+    keep = np.flatnonzero(n[:, 0] != 0.0)
+    sgn = np.where(n[keep, 0] > 0.0, 1.0, -1.0)
+    t = tris[keep]
+    e = np.roll(t, -1, axis=1) - t
+    neu, nev = -e[:, :, 2] * sgn[:, None], e[:, :, 1] * sgn[:, None]
+    top_left = (neu > 0.0) | ((neu == 0.0) & (nev < 0.0))
+    uv = t[:, :, [1, 2]]
+    exact, boxes = set(), set()
+    tiles_y = -(-dims[1] // 4)
+    for tri, ju, jv in column_candidates(t, dims, 0):
+        key = (jv // 4) * tiles_y + ju // 4
+        boxes.update(zip(key.tolist(), keep[tri].tolist()))
+        inside = np.ones(len(tri), bool)
+        for i in range(3):
+            f = _edge_function(ju + 0.5, jv + 0.5, uv[tri, i], uv[tri, (i + 1) % 3]) * sgn[tri]
+            inside &= (f > 0.0) | ((f == 0.0) & top_left[tri, i])
+        exact.update(zip(key[inside].tolist(), keep[tri[inside]].tolist()))
+    return exact, boxes
+
+
+@pytest.mark.parametrize("src,n", [("sphere", 64), ("armadillo", 64)])
+def test_tile_queue_holds_every_covering_pair_and_few_others(gl_context, shared_mesh, src, n):
+    """The critical-center tile test keeps every (tile, triangle) pair with a
+    covered center, and discards most of the bounding-box pairs that have none."""
+    if src == "sphere":
+        m = trimesh.creation.icosphere(4, radius=1.0)
+        mesh = load_mesh((m.vertices, m.faces), name="sphere")
+    else:
+        mesh = load_mesh(shared_mesh("stanford_armadillo_libigl_86k.obj"))
+    spec = glvox.grid_for(mesh, n)
+    g = run_method("ss-solid-tiled", mesh, spec)
+    st = g.run.stats
+    exact, boxes = cover_pairs(mesh.triangles_voxel(spec), spec.dims)
+    assert len(exact) <= st["pairs"] <= len(boxes)
+    # the test is conservative, not loose: most bounding-box-only pairs are dropped
+    assert st["pairs"] - len(exact) <= 0.5 * (len(boxes) - len(exact))
+    assert len({k for k, _ in exact}) <= st["active_tiles"] <= len({k for k, _ in boxes})
+    assert st["triangles_per_active_tile"] == pytest.approx(st["pairs"] / st["active_tiles"], abs=0.01)
+
+
+def test_deterministic(gl_context, shared_mesh):
+    mesh = load_mesh(shared_mesh("cad_rocker_arm.obj"))
+    spec = glvox.grid_for(mesh, 96)
+    for name in SOLID:
+        a = run_method(name, mesh, spec)
+        b = run_method(name, mesh, spec)
+        assert a.equal(b)
+
+
+def test_open_mesh_is_refused_then_warned_and_parity(gl_context):
+    """A box with one face missing: refused by default; with allow_open a
+    warning, and the result is the parity of crossings along x, as the
+    reference computes it."""
+    box = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
+    top = np.flatnonzero(box.face_normals[:, 2] > 0.5)
+    faces = np.delete(box.faces, top, axis=0)
+    mesh = load_mesh((box.vertices, faces), name="open-box")
+    assert not mesh.watertight
+    spec = glvox.grid_for(mesh, 16)
+    with pytest.raises(NotWatertightError, match="not watertight.*allow_open"):
+        run_method("ss-solid", mesh, spec)
+    with pytest.warns(NotWatertightWarning, match="parity of ray crossings"):
+        out = check_solid(mesh, spec, allow_open=True)
+    # rays along x never meet the missing +z face: the parity is the whole box
+    closed = load_mesh((box.vertices, box.faces), name="box")
+    assert out["ss-solid"].equal(run_method("ss-solid", closed, spec))
+
+
+def test_limits_are_refused_clearly(gl_context, shared_mesh):
+    mesh = load_mesh("gen:sphere")
+    with pytest.raises(LimitError, match="rows of 4096 voxels; this grid has nx = 4100: use ss-solid"):
+        run_method("ss-solid-tiled", mesh, glvox.grid_for(mesh, dims=(4100, 4, 4)))
+    # a dense grid glvox holds whose bits exceed one storage block (128 MiB on llvmpipe)
+    limit = int(gl_context.limits()["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"])
+    nz = 8 * limit // (2048 * 1024) + 8
+    if 2048 * 1024 * nz > 2**31 - 1:
+        pytest.skip(f"GL_MAX_SHADER_STORAGE_BLOCK_SIZE is {limit}: no dense grid exceeds it")
+    with pytest.raises(LimitError, match="GL_MAX_SHADER_STORAGE_BLOCK_SIZE.*ss-octree"):
+        run_method("ss-solid", mesh, glvox.grid_for(mesh, dims=(2048, 1024, nz)))
+
+
+def test_stats_and_stages(gl_context):
+    mesh = load_mesh("gen:torus")
+    spec = glvox.grid_for(mesh, 64)
+    g = run_method("ss-solid-tiled", mesh, spec)
+    names = [s.name for s in g.run.timings.stages]
+    assert names == ["transform", "classify", "pairs", "sort", "compact", "tiles", "readback"]
+    st = g.run.stats
+    assert st["pairs"] > 0 and st["active_tiles"] > 0 and st["voxels"] == g.count
+    g = run_method("ss-solid", mesh, spec)
+    assert [s.name for s in g.run.timings.stages] == ["transform", "classify", "voxelize", "readback"]
