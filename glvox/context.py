@@ -346,10 +346,32 @@ class GLContext:
     def released(self) -> bool:
         return self._released
 
+    def make_current(self) -> None:
+        """Make this the calling thread's current GL context.
+
+        GL calls go to whichever context is current, not to the one a
+        moderngl object belongs to: with two contexts in a process (a
+        private one from :func:`create_context` beside the shared one),
+        running on one after creating or using the other would otherwise
+        address the wrong context's objects.  :func:`glvox.methods.run_method`
+        and :func:`get_context` call this; it is cheap when already current.
+        """
+        if self._released:
+            raise BackendError("this GL context was released; create a new one")
+        global _current
+        if _current is not self:
+            self.mgl.__enter__()
+            _current = self
+
     def release(self) -> None:
         """Release every cached program and the context itself."""
         if self._released:
             return
+        global _current
+        previous = _current
+        # deleting GL objects addresses the current context: make it this one,
+        # or another context's objects of the same names would go
+        self.make_current()
         for callback in self.on_release:
             callback()
         self.on_release.clear()
@@ -361,6 +383,9 @@ class GLContext:
         self.programs.clear()
         self.mgl.release()
         self._released = True
+        _current = None
+        if previous is not None and previous is not self and not previous.released:
+            previous.make_current()
 
 
 def _normalize_backend(backend: str | None) -> str:
@@ -407,8 +432,10 @@ def create_context(backend: str | None = None, *, require: int = GL_VERSION_REQU
                     pass
             continue
         made = _last_created[-1]
-        return GLContext(mgl=mgl, backend=b, device=made.device,
-                         raw=RawGL(made.load_opengl_function))
+        ctx = GLContext(mgl=mgl, backend=b, device=made.device, raw=RawGL(made.load_opengl_function))
+        global _current
+        _current = ctx  # a new context is current where it was made
+        return ctx
     raise BackendError(
         f"no headless OpenGL {require // 100}.{(require // 10) % 10} core context could be created "
         f"({'; '.join(failures)}); {_PACKAGE_HINT}"
@@ -417,6 +444,8 @@ def create_context(backend: str | None = None, *, require: int = GL_VERSION_REQU
 
 _shared: GLContext | None = None
 _lock = threading.Lock()
+#: The GLContext glvox last made current (see GLContext.make_current).
+_current: GLContext | None = None
 
 
 def get_context(backend: str | None = None) -> GLContext:
@@ -434,6 +463,7 @@ def get_context(backend: str | None = None) -> GLContext:
                     f"the shared context uses backend {_shared.backend!r}, asked for {backend!r}; "
                     "call glvox.context.close_context() first or use create_context()"
                 )
+            _shared.make_current()
             return _shared
         _shared = create_context(backend)
         return _shared

@@ -130,6 +130,7 @@ def run_method(name: str, mesh: Mesh, spec: GridSpec, *, ctx=None, backend: str 
         debug = os.environ.get("GLVOX_DEBUG", "") not in ("", "0")
     if info.uses_gl:
         ctx = ctx if ctx is not None else get_context(backend)
+        ctx.make_current()
         missing = info.requires.missing(ctx)
         if missing:
             raise CapabilityError(f"method {name!r} needs {'; '.join(missing)} ({ctx.renderer})")
