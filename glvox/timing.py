@@ -101,6 +101,11 @@ class StageTimer:
         if queries is not None:
             raw = self.ctx.raw
             raw.timestamp(queries[0])
+            # llvmpipe records a timestamp issued while a framebuffer is bound
+            # when its deferred scene is flushed, so the start of a compute-only
+            # stage would be stamped after its work (seen once a raster method
+            # had bound one: compute stages then measured ~0 ms); flush it now
+            self.ctx.mgl.finish()
             yield
             raw.timestamp(queries[1])
             self.ctx.mgl.finish()
