@@ -78,3 +78,26 @@ def test_gpu_time_of_a_long_dispatch_is_measured(gl_context):
     out.release()
     s = timer.finish().stage("busy")
     assert 0 < s.gpu_s <= s.wall_s
+
+
+def test_compute_stage_after_a_draw_is_measured(gl_context):
+    """With a framebuffer bound and drawn to (as every raster method leaves the
+    context), a compute stage's GPU time is still its work, not ~0: llvmpipe
+    defers timestamps into the bound framebuffer's scene unless flushed."""
+    mgl = gl_context.mgl
+    tex = mgl.texture((8, 8), 4)
+    fbo = mgl.framebuffer(color_attachments=[tex])
+    fbo.use()
+    fbo.clear(0.0, 0.0, 0.0, 1.0)
+    prog = compute_program(gl_context, "testing/busy.comp")
+    out = mgl.buffer(reserve=64 * 64 * 4)
+    out.bind_to_storage_buffer(0)
+    prog["u_iterations"].value = 4000
+    timer = StageTimer(gl_context)
+    with timer.stage("busy"):
+        prog.run(64)
+    out.release()
+    gl_context.release_framebuffer(fbo)
+    tex.release()
+    s = timer.finish().stage("busy")
+    assert 0.5 * s.wall_s <= s.gpu_s <= s.wall_s, (s.gpu_s, s.wall_s)
