@@ -1,4 +1,4 @@
-"""Command line: ``glvox info | methods | voxelize``.
+"""Command line: ``glvox info | methods | voxelize | compare``.
 
 Errors glvox raises on purpose print one line ``glvox: error: ...`` and exit
 with status 1 (2 for wrong usage, as argparse does); never a traceback.
@@ -136,6 +136,12 @@ def cmd_voxelize(args) -> int:
     return 0
 
 
+def cmd_compare(args) -> int:
+    from .compare.run import main as compare_main
+
+    return compare_main(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="glvox", description="Headless GPU voxelization of triangle meshes.")
     p.add_argument("--version", action="version", version=f"glvox {__version__}")
@@ -173,6 +179,16 @@ def build_parser() -> argparse.ArgumentParser:
     pv.add_argument("--json", action="store_true", help="print counts and timings as JSON")
     pv.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     pv.set_defaults(func=cmd_voxelize)
+
+    pc = sub.add_parser(
+        "compare", help="run methods x meshes x grid sizes: tables, plots and pictures",
+        description="Every chosen method on every mesh and grid size: timed warm runs, voxel counts, "
+                    "agreement with the exact references, separability; writes results.csv/.json, "
+                    "tables.md, plots/ and pictures/ into -o (rerunning resumes).")
+    from .compare.run import add_arguments
+
+    add_arguments(pc)
+    pc.set_defaults(func=cmd_compare)
     return p
 
 

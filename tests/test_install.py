@@ -51,6 +51,8 @@ def test_regular_install_finds_shaders_from_another_directory(tmp_path):
                                  str(wheel)], capture_output=True, text=True, timeout=600)
     assert inst.returncode == 0, inst.stdout + inst.stderr
     assert (target / "glvox" / "_shaders" / "common" / "bits.glsl").is_file()
+    assert (target / "glvox" / "_shaders" / "render" / "cubes.vert").is_file()
+    assert (target / "glvox" / "compare" / "harness.py").is_file()
     work = tmp_path / "elsewhere"
     work.mkdir()
     env = {k: v for k, v in os.environ.items() if k != "GLVOX_SHADER_PATH"}
@@ -63,3 +65,9 @@ def test_regular_install_finds_shaders_from_another_directory(tmp_path):
     cli = subprocess.run([sys.executable, "-m", "glvox", "methods"], capture_output=True, text=True,
                          timeout=600, cwd=work, env=env)
     assert cli.returncode == 0 and "reference-solid" in cli.stdout
+    # the comparison ships too: one small run from the installed package
+    cmp = subprocess.run([sys.executable, "-m", "glvox", "compare", "-q", "-m", "ss-solid", "--meshes",
+                          "gen:sphere", "-r", "8", "--repeat", "1", "-o", str(work / "cmp")],
+                         capture_output=True, text=True, timeout=600, cwd=work, env=env)
+    assert cmp.returncode == 0, cmp.stdout + cmp.stderr
+    assert (work / "cmp" / "tables.md").is_file()

@@ -1,0 +1,271 @@
+"""Tables and plots from the harness's rows.
+
+Markdown tables are laid out like the papers' (mesh x grid rows, method
+columns); plots are PNG files drawn with matplotlib's Agg backend (no display).
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from pathlib import Path
+from typing import Any, Sequence
+
+
+def _label(r: dict[str, Any]) -> str:
+    opts = r.get("options") or {}
+    return r["method"] + (f" ({', '.join(f'{k}={v}' for k, v in opts.items())})" if opts else "")
+
+
+def _grid(rows: Sequence[dict[str, Any]]):
+    """(row keys in order, column labels in order, {(row key, column): row})."""
+    keys: OrderedDict = OrderedDict()
+    cols: OrderedDict = OrderedDict()
+    cells = {}
+    for r in rows:
+        rk = (r["mesh"], r["triangles"], r["n"])
+        keys[rk] = None
+        cols[_label(r)] = None
+        cells[(rk, _label(r))] = r
+    return list(keys), list(cols), cells
+
+
+def _table(rows, fmt, title: str, note: str = "") -> str:
+    keys, cols, cells = _grid(rows)
+    out = [f"### {title}", ""]
+    if note:
+        out += [note, ""]
+    out.append("| model | grid | " + " | ".join(f"`{c}`" for c in cols) + " |")
+    out.append("|---|---|" + "---|" * len(cols))
+    for rk in keys:
+        mesh, tris, n = rk
+        vals = []
+        for c in cols:
+            r = cells.get((rk, c))
+            vals.append("" if r is None else (r["status"] if r["status"] != "ok" else fmt(r)))
+        out.append(f"| {mesh} ({tris:,} tris) | {n}^3 | " + " | ".join(vals) + " |")
+    return "\n".join(out) + "\n"
+
+
+def _ms(v) -> str:
+    return "-" if v is None else (f"{v:.0f}" if v >= 100 else f"{v:.2f}" if v < 1 else f"{v:.1f}")
+
+
+def time_table(rows) -> str:
+    return _table(rows, lambda r: f"{_ms(r.get('wall_ms'))} ({_ms(r.get('gpu_ms'))})",
+                  "Time (ms): wall (GPU), median of warm runs",
+                  "GPU time sums the stages' GL_TIMESTAMP intervals; CPU references have wall time only. "
+                  "Cold runs (with shader compilation) are in the CSV (`cold_wall_ms`, `compile_ms`).")
+
+
+def count_table(rows) -> str:
+    def fmt(r):
+        v = r.get("voxels")
+        if v is None:
+            return "-"
+        s = f"{v / 1e3:.1f}k" if v >= 1000 else str(v)
+        if r.get("iou") is not None:
+            s += f" / {r['iou']:.4f}"
+            if r.get("not_ties"):
+                s += f" / **{r['not_ties']} not ties**"
+        return s
+    return _table(rows, fmt, "Voxels / IoU against the exact reference",
+                  "IoU is against the method's registered reference (`glvox methods`); mismatches are "
+                  "counted as *not ties* when they are not proven float ties. Blank IoU: grid above "
+                  "the check limit.")
+
+
+def error_table(rows) -> str:
+    checked = [r for r in rows if r.get("iou") is not None]
+    if not checked:
+        return ""
+    return _table(checked, lambda r: f"{r['missing']} / {r['extra']}",
+                  "Missing / extra voxels against the exact reference")
+
+
+def separability_table(rows) -> str:
+    sep = [r for r in rows if r.get("leaks_26") is not None]
+    if not sep:
+        return ""
+    return _table(sep, lambda r: f"{r['leaks_26']} / {r['leaks_6']}",
+                  "Separability on closed meshes: inside voxels reached from outside by 26- / 6-paths "
+                  "of empty voxels (0 / 0: 6-separating; 0 / >0: 26-separating only)")
+
+
+def stage_table(rows) -> str:
+    staged = [r for r in rows if r["status"] == "ok" and r.get("stages_ms")]
+    if not staged:
+        return ""
+    out = ["### Stages (ms, GPU where timed, median)", "",
+           "| method | model | grid | stages |", "|---|---|---|---|"]
+    for r in staged:
+        parts = ", ".join(f"{k} {_ms(v)}" for k, v in r["stages_ms"].items())
+        out.append(f"| `{_label(r)}` | {r['mesh']} | {r['n']}^3 | {parts} |")
+    return "\n".join(out) + "\n"
+
+
+def tiled_table(rows) -> str:
+    """Schwarz & Seidel Table 2's layout for ss-solid-tiled."""
+    tiled = [r for r in rows if r["method"] == "ss-solid-tiled" and r["status"] == "ok"]
+    if not tiled:
+        return ""
+    tri = {(r["mesh"], r["n"]): r for r in rows if r["method"] == "ss-solid" and r["status"] == "ok"}
+    out = ["### Tile-based solid voxelization (Schwarz & Seidel Table 2)", "",
+           "| model | grid | tri-parallel | T_total | T_pairs | T_sort | T_tiles | #pairs | #tris |",
+           "|---|---|---|---|---|---|---|---|---|"]
+    for r in tiled:
+        s, st = r["stages_ms"], r["stats"]
+        t = tri.get((r["mesh"], r["n"]))
+        out.append(
+            f"| {r['mesh']} | {r['n']}^3 | {_ms(t.get('gpu_ms')) if t else '-'} | {_ms(r.get('gpu_ms'))} | "
+            f"{_ms(s.get('classify', 0) + s.get('pairs', 0))} | {_ms(s.get('sort'))} | "
+            f"{_ms(s.get('compact', 0) + s.get('tiles', 0))} | {st.get('pairs', 0) / 1e3:.0f}k | "
+            f"{st.get('triangles_per_active_tile', 0):.1f} |")
+    return "\n".join(out) + "\n"
+
+
+def octree_table(rows) -> str:
+    """Schwarz & Seidel Table 3's layout for ss-octree (whatever memory stats it reports)."""
+    octs = [r for r in rows if r["method"] == "ss-octree" and r["status"] == "ok"]
+    if not octs:
+        return ""
+    keys = []
+    for r in octs:
+        keys += [k for k in r["stats"] if k not in keys and isinstance(r["stats"][k], (int, float))
+                 and k not in ("triangles", "degenerate_dropped", "watertight")]
+    out = ["### Sparse octree (Schwarz & Seidel Table 3)", "",
+           "| model | grid | time | stages | " + " | ".join(keys) + " |",
+           "|---|---|---|---|" + "---|" * len(keys)]
+    for r in octs:
+        stages = ", ".join(f"{k} {_ms(v)}" for k, v in r["stages_ms"].items())
+        vals = [str(r["stats"].get(k, "")) for k in keys]
+        out.append(f"| {r['mesh']} | {r['n']}^3 | {_ms(r.get('gpu_ms'))} | {stages} | " + " | ".join(vals) + " |")
+    return "\n".join(out) + "\n"
+
+
+def markdown(rows: Sequence[dict[str, Any]], machine: dict[str, Any]) -> str:
+    gl = machine.get("gl", {})
+    head = [f"# glvox comparison", "",
+            f"{gl.get('renderer', '?')}; OpenGL {gl.get('version', '?')}; glvox {machine.get('glvox')}, "
+            f"moderngl {machine.get('moderngl')}, trimesh {machine.get('trimesh')}, "
+            f"Python {machine.get('python')}, {machine.get('cpu_count')} CPUs.", ""]
+    parts = [time_table(rows), count_table(rows), error_table(rows), separability_table(rows),
+             tiled_table(rows), octree_table(rows), stage_table(rows)]
+    failed = [r for r in rows if r["status"] not in ("ok",)]
+    if failed:
+        parts.append("### Not run\n\n" + "\n".join(f"- `{_label(r)}` on {r['mesh']} at {r['n']}^3: "
+                                                    f"{r['status']}: {r['error']}" for r in failed) + "\n")
+    return "\n".join(head) + "\n".join(p for p in parts if p)
+
+
+# -- plots -------------------------------------------------------------------------
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def plot_times(rows, out: Path) -> list[Path]:
+    """Time vs resolution per method on log axes, one figure per mesh."""
+    plt = _plt()
+    paths = []
+    for mesh in dict.fromkeys(r["mesh"] for r in rows):
+        mine = [r for r in rows if r["mesh"] == mesh and r["status"] == "ok"]
+        if not mine:
+            continue
+        fig, ax = plt.subplots(figsize=(8, 5.5))
+        for label in dict.fromkeys(_label(r) for r in mine):
+            pts = sorted((r["n"], r["gpu_ms"] if r.get("gpu_ms") else r["wall_ms"])
+                         for r in mine if _label(r) == label)
+            style = "--" if mine and next(r for r in mine if _label(r) == label)["family"] == "cpu" else "-"
+            ax.plot([p[0] for p in pts], [p[1] for p in pts], style, marker="o", label=label)
+        ax.set_xscale("log", base=2)
+        ax.set_yscale("log")
+        ax.set_xlabel("grid resolution N (N^3 voxels)")
+        ax.set_ylabel("time per run, ms (GPU; wall for CPU references)")
+        ax.set_title(f"{mesh}: time vs resolution")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7, ncol=2)
+        fig.tight_layout()
+        p = out / f"time_{Path(mesh).stem.replace(':', '_')}.png"
+        fig.savefig(p, dpi=110)
+        plt.close(fig)
+        paths.append(p)
+    return paths
+
+
+def plot_counts(rows, out: Path) -> Path | None:
+    """Voxel counts per method and mesh at the largest resolution."""
+    plt = _plt()
+    ok = [r for r in rows if r["status"] == "ok" and r.get("voxels") is not None]
+    if not ok:
+        return None
+    n = max(r["n"] for r in ok)
+    ok = [r for r in ok if r["n"] == n]
+    meshes = list(dict.fromkeys(r["mesh"] for r in ok))
+    labels = list(dict.fromkeys(_label(r) for r in ok))
+    fig, ax = plt.subplots(figsize=(max(8, 0.45 * len(labels) * len(meshes)), 5))
+    width = 0.8 / max(1, len(meshes))
+    for i, mesh in enumerate(meshes):
+        vals = [next((r["voxels"] for r in ok if r["mesh"] == mesh and _label(r) == lb), 0) for lb in labels]
+        ax.bar([j + i * width for j in range(len(labels))], vals, width, label=mesh)
+    ax.set_xticks([j + 0.4 - width / 2 for j in range(len(labels))])
+    ax.set_xticklabels(labels, rotation=60, ha="right", fontsize=8)
+    ax.set_ylabel("voxels set")
+    ax.set_title(f"voxel counts at {n}^3")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    p = out / "voxel_counts.png"
+    fig.savefig(p, dpi=110)
+    plt.close(fig)
+    return p
+
+
+def plot_errors(rows, out: Path) -> Path | None:
+    """Missing + extra voxels as a fraction of the reference, per method and mesh."""
+    plt = _plt()
+    ok = [r for r in rows if r.get("iou") is not None]
+    if not ok:
+        return None
+    n = max(r["n"] for r in ok)
+    ok = [r for r in ok if r["n"] == n]
+    meshes = list(dict.fromkeys(r["mesh"] for r in ok))
+    labels = list(dict.fromkeys(_label(r) for r in ok))
+    fig, ax = plt.subplots(figsize=(max(8, 0.45 * len(labels) * len(meshes)), 5))
+    width = 0.8 / max(1, len(meshes))
+    floor = 1e-7
+    for i, mesh in enumerate(meshes):
+        vals = []
+        for lb in labels:
+            r = next((r for r in ok if r["mesh"] == mesh and _label(r) == lb), None)
+            vals.append(max(floor, (r["missing"] + r["extra"]) / max(1, r["reference_voxels"])) if r else 0)
+        ax.bar([j + i * width for j in range(len(labels))], vals, width, label=mesh)
+    ax.set_yscale("log")
+    ax.axhline(floor, color="k", lw=0.5)
+    ax.set_xticks([j + 0.4 - width / 2 for j in range(len(labels))])
+    ax.set_xticklabels(labels, rotation=60, ha="right", fontsize=8)
+    ax.set_ylabel(f"(missing + extra) / reference voxels (floor {floor:g} = exact)")
+    ax.set_title(f"error against the exact references at {n}^3")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    p = out / "errors.png"
+    fig.savefig(p, dpi=110)
+    plt.close(fig)
+    return p
+
+
+def write_all(rows, machine, out: Path) -> list[Path]:
+    """tables.md and the plots into ``out``; returns the paths written."""
+    out = Path(out)
+    (out / "tables.md").write_text(markdown(rows, machine))
+    paths = [out / "tables.md"]
+    plots = out / "plots"
+    plots.mkdir(exist_ok=True)
+    paths += plot_times(rows, plots)
+    paths += [p for p in (plot_counts(rows, plots), plot_errors(rows, plots)) if p is not None]
+    return paths
+
+

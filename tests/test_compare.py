@@ -1,0 +1,137 @@
+"""glvox compare: the harness's rows, resumption, tables, plots and pictures."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+import glvox
+from glvox.cli import main as cli_main
+from glvox.compare import harness, render
+from glvox.grid import GridSpec, VoxelGrid
+from glvox.methods import method_names
+
+
+def run_cli(*args):
+    return cli_main(["compare", "-q", *args])
+
+
+@pytest.fixture(scope="module")
+def small_run(tmp_path_factory, gl_context):
+    out = tmp_path_factory.mktemp("cmp")
+    argv = ["-m", "ss-conservative", "scanline-ilv", "ss-solid", "--meshes", "gen:torus", "gen:box",
+            "-r", "12", "20", "--repeat", "2", "-o", str(out)]
+    assert run_cli(*argv) == 0
+    return out, argv
+
+
+def test_outputs_and_rows(small_run):
+    out, _ = small_run
+    for name in ("machine.json", "results.jsonl", "results.csv", "results.json", "tables.md"):
+        assert (out / name).is_file(), name
+    machine = json.loads((out / "machine.json").read_text())
+    assert machine["gl"]["renderer"] and machine["glvox"] == glvox.__version__
+    rows = json.loads((out / "results.json").read_text())["rows"]
+    assert len(rows) == 3 * 2 * 2
+    with open(out / "results.csv") as f:
+        assert len(list(csv.DictReader(f))) == len(rows)
+    for r in rows:
+        assert r["status"] == "ok", r
+        assert r["wall_ms"] > 0 and r["gpu_ms"] > 0 and r["voxels"] > 0
+        assert r["gpu_bytes"] >= glvox.grid_for(glvox.load_mesh(f"gen:{r['mesh'][4:]}"), r["n"]).n_words * 4
+        assert r["reference"] in ("reference-conservative", "reference-solid")
+    # exact methods differ from their references by proven ties only (the box's
+    # faces lie on voxel planes: many ties there, so no IoU bound)
+    exact = [r for r in rows if r["method"] in ("ss-conservative", "ss-solid")]
+    assert all(r["not_ties"] == 0 for r in exact)
+    assert all(r["iou"] == 1.0 for r in exact if r["mesh"] == "gen:torus")
+    assert any(r["not_ties"] > 0 for r in rows if r["method"] == "scanline-ilv")
+    # the conservative surface of a closed mesh separates it; the stats of the
+    # methods travel with the rows
+    conservative = [r for r in rows if r["method"] == "ss-conservative"]
+    assert all(r["leaks_26"] == 0 for r in conservative)
+    assert all("cases_1d_2d_3d" in r["stats"] for r in conservative)
+
+
+def test_tables_plots_and_pictures(small_run):
+    out, _ = small_run
+    md = (out / "tables.md").read_text()
+    for text in ("| model | grid |", "`ss-conservative`", "`scanline-ilv`", "12^3", "20^3", "IoU"):
+        assert text in md
+    plots = sorted(p.name for p in (out / "plots").glob("*.png"))
+    assert plots == ["errors.png", "time_gen_box.png", "time_gen_torus.png", "voxel_counts.png"]
+    pics = sorted(p.name for p in (out / "pictures").glob("*.png"))
+    assert "gen_torus_ss-conservative_20.png" in pics and "gen_torus_ss-solid_20.png" in pics
+    # scanline-ilv is approximate: a disagreement slice against its reference
+    assert any(p.startswith("gen_torus_slice_scanline-ilv_vs_reference-conservative_20_z") for p in pics)
+    import matplotlib.image as mpimg
+
+    img = mpimg.imread(out / "pictures" / "gen_torus_ss-conservative_20.png")
+    assert img.shape[:2] == (720, 960)
+    assert (img[..., :3] < 0.95).any(axis=-1).mean() > 0.05  # the torus covers part of the picture
+
+
+def test_rerun_resumes_and_extends(small_run):
+    out, argv = small_run
+    before = (out / "results.jsonl").read_text().splitlines()
+    assert run_cli(*argv, "--no-pictures") == 0
+    assert (out / "results.jsonl").read_text().splitlines() == before  # nothing recomputed
+    # a line cut by an interruption is recomputed; a new size adds only its cells
+    with open(out / "results.jsonl", "a") as f:
+        f.write('{"key": "ss-solid[]|gen:box|28", "trunc')
+    extended = [a if a != "20" else "20 28" for a in argv]
+    extended = " ".join(extended).split()
+    assert run_cli(*extended, "--no-pictures") == 0
+    rows = harness.load_rows(out)
+    assert len(rows) == len(before) + 3 * 2
+    assert {r["n"] for r in rows} == {12, 20, 28}
+
+
+def test_unknown_method_and_missing_mesh_are_one_line_errors(tmp_path, capsys):
+    assert run_cli("-m", "nope", "--meshes", "gen:box", "-r", "8", "-o", str(tmp_path)) == 1
+    assert "unknown method 'nope'" in capsys.readouterr().err
+    assert run_cli("--meshes", "no_such_mesh.ply", "-r", "8", "-o", str(tmp_path)) == 1
+    assert "neither a path nor a file" in capsys.readouterr().err
+
+
+def test_presets_cover_the_registry():
+    from glvox.compare.run import PRESETS
+
+    assert PRESETS["quick"]["sizes"][-1] == 128 and len(PRESETS["quick"]["meshes"]) == 2
+    assert PRESETS["paper"]["sizes"] == [128, 256, 512, 1024]
+    plan = harness.Plan(methods=method_names(), meshes=["gen:box"], sizes=[128, 512], cpu_max=256)
+    cells = plan.cells()
+    assert {c.method for c in cells if c.n == 128} == set(method_names())
+    assert not any(c.method.startswith("reference-") for c in cells if c.n == 512)
+
+
+def test_render_frames_a_single_voxel(gl_context):
+    occ = np.zeros((5, 5, 5), bool)
+    occ[2, 2, 2] = True
+    g = VoxelGrid(occ, GridSpec((5, 5, 5), (0.0, 0.0, 0.0), 1.0))
+    img = render.render_voxels(gl_context, g, size=(200, 150))
+    assert img.shape == (150, 200, 3) and img.dtype == np.uint8
+    lit = (img < 250).any(axis=-1)
+    assert lit[75, 100]  # the cube is in the middle of the picture
+    assert not lit[0, 0] and not lit[-1, -1]
+    ys, xs = np.nonzero(lit)
+    assert 20 < xs.max() - xs.min() < 190  # framed, not a speck nor clipped
+
+
+def test_disagreement_slice_colors():
+    spec = GridSpec((4, 3, 2), (0.0, 0.0, 0.0), 1.0)
+    a = np.zeros(spec.dims, bool)
+    b = np.zeros(spec.dims, bool)
+    a[0, 0, 1] = b[0, 0, 1] = True  # both
+    a[3, 2, 1] = True                # only a
+    b[1, 1, 1] = True                # only b
+    img, k = render.disagreement_slice(VoxelGrid(a, spec), VoxelGrid(b, spec), scale=1)
+    assert k == 1 and img.shape == (3, 4, 3)
+    # rows grow upwards: y = 0 is the last row
+    assert tuple(img[2, 0]) == render.BOTH
+    assert tuple(img[0, 3]) == render.ONLY_A
+    assert tuple(img[1, 1]) == render.ONLY_B
+    assert tuple(img[2, 3]) == render.NONE
