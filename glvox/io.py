@@ -19,6 +19,17 @@ glvox writes the trimesh reading so trimesh loads the same occupancy and
 placement; pass ``convention='binvox'`` for files made by the binvox tool.
 binvox stores cubic grids only (one scale for all axes), so non-cubic grids
 are refused: save them as npz.
+
+Sparse octrees (``ss-octree``, :class:`glvox.octree.SparseOctree`)
+------------------------------------------------------------------
+npz stores the octree itself, never a decoded grid, so a 4096^3 result
+stays a few hundred MiB: ``origin``, ``voxel_size``, ``method``, ``kind``
+('sparse'), ``octree_dims`` (int64[3]), ``octree_data`` (uint64, one 4^3
+sub-grid per level-0 node) and per level L ``octree_L<L>_morton``,
+``_parent``, ``_x_next``, ``_x_prev``, ``_count`` (uint32), ``_child``
+(uint32) and ``_inside`` (bool) above level 0.  :func:`load` returns a
+SparseOctree for such a file.  binvox is dense: an octree is decoded
+(:meth:`SparseOctree.to_grid`) when it fits, and refused otherwise.
 """
 
 from __future__ import annotations
@@ -42,8 +53,23 @@ def _suffix(path: Path) -> str:
 
 
 def save(grid: VoxelGrid, path: str | os.PathLike, *, convention: str = "trimesh") -> Path:
-    """Write ``grid`` to ``path`` (.npz or .binvox, chosen by suffix)."""
+    """Write ``grid`` (a VoxelGrid or a SparseOctree) to ``path`` (.npz or .binvox, by suffix)."""
+    from .octree import SparseOctree
+
     path = Path(path)
+    suffix = _suffix(path)
+    if isinstance(grid, SparseOctree):
+        if suffix == ".binvox":
+            dense = grid.to_grid()
+            path.write_bytes(binvox_bytes(dense, convention=convention))
+            return path
+        run = grid.run
+        np.savez_compressed(
+            path, origin=np.asarray(grid.origin, dtype=np.float64), voxel_size=np.float64(grid.voxel_size),
+            method=np.str_(run.method if run is not None else ""), kind=np.str_("sparse"),
+            **grid.to_arrays(),
+        )
+        return path
     if _suffix(path) == ".npz":
         run = grid.run
         np.savez_compressed(
@@ -60,8 +86,12 @@ def save(grid: VoxelGrid, path: str | os.PathLike, *, convention: str = "trimesh
     return path
 
 
-def load(path: str | os.PathLike, *, convention: str = "trimesh") -> VoxelGrid:
-    """Read a grid written by :func:`save` (or any conforming npz / binvox)."""
+def load(path: str | os.PathLike, *, convention: str = "trimesh"):
+    """Read a grid written by :func:`save` (or any conforming npz / binvox).
+
+    Returns a VoxelGrid, or a :class:`glvox.octree.SparseOctree` for an npz
+    holding one.
+    """
     path = Path(path)
     if not path.is_file():
         raise FormatError(f"voxel file not found: {path}")
@@ -70,9 +100,11 @@ def load(path: str | os.PathLike, *, convention: str = "trimesh") -> VoxelGrid:
     return _load_binvox(path.read_bytes(), path, convention)
 
 
-def _load_npz(path: Path) -> VoxelGrid:
+def _load_npz(path: Path):
     try:
         with np.load(path, allow_pickle=False) as z:
+            if "octree_dims" in z.files:
+                return _load_octree(path, z)
             missing = {"occupancy", "origin", "voxel_size"} - set(z.files)
             if missing:
                 raise FormatError(f"{path} lacks the npz keys {sorted(missing)}")
@@ -92,6 +124,23 @@ def _load_npz(path: Path) -> VoxelGrid:
             raise FormatError(f"{path}: extra_{k} must have the occupancy's shape {occ.shape}, got {e.shape}")
     return VoxelGrid(occ.astype(bool), spec,
                      extras={k: VoxelGrid(e.astype(bool), spec) for k, e in extras.items()})
+
+
+def _load_octree(path: Path, z):
+    from .octree import SparseOctree
+
+    missing = {"origin", "voxel_size"} - set(z.files)
+    if missing:
+        raise FormatError(f"{path} lacks the npz keys {sorted(missing)}")
+    dims = np.asarray(z["octree_dims"])
+    if dims.shape != (3,):
+        raise FormatError(f"{path}: octree_dims must hold 3 integers, got shape {dims.shape}")
+    spec = GridSpec(tuple(int(d) for d in dims), np.asarray(z["origin"], dtype=np.float64),
+                    float(z["voxel_size"]))
+    try:
+        return SparseOctree.from_arrays({k: z[k] for k in z.files}, spec)
+    except FormatError as exc:
+        raise FormatError(f"{path}: {exc}") from None
 
 
 def binvox_bytes(grid: VoxelGrid, *, convention: str = "trimesh") -> bytes:

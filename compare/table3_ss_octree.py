@@ -1,0 +1,104 @@
+"""Table 3 of Schwarz & Seidel 2010 on this machine: ss-octree's sparse solid
+voxelization, time per stage (GPU ms, warm, median of repeats), share of
+stored level-0 nodes and octree size, per model and binary grid size.
+
+    python compare/table3_ss_octree.py [--sizes 512 1024 2048 4096] [--repeat 3]
+                                       [--meshes stanford_bunny_bun_zipper.ply ...] [--no-walls]
+
+Rows as in the paper (the scalar-valued grid is the level-0 coverage, a
+quarter of the binary resolution); below them glvox's extras: wall-clock
+total, transform and readback, the octree against the dense bit grid, the
+nodes per level, the walls and the active level-1 nodes.  Sizes are MiB
+(2^20 bytes) of the node arrays as stored (Morton codes and child, parent
+and x-neighbour pointers as uint32, 8 bytes of sub-grid per level-0 node, a
+byte of inside flag per node above), not counting the coverage counts.
+
+The bunny and the dragons are open meshes (the paper used them anyway): they
+run with allow_open, and by default with walls (the octree then decodes to
+ss-solid's parity result; --no-walls gives the paper's algorithm and fewer
+nodes).  Meshes come from GLVOX_MESHES (default ../shared/meshes beside the
+checkout).  Prints a markdown table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+import warnings
+
+import glvox
+from glvox.context import get_context
+from glvox.errors import NotWatertightWarning
+from glvox.methods import run_method
+
+from table1_ss_surface import mesh_dir
+
+DEFAULT_MESHES = ["stanford_bunny_bun_zipper.ply", "stanford_dragon_vrip_res2.ply",
+                  "stanford_armadillo_libigl_86k.obj"]
+STAGES = [("Determine active level-1 nodes", "active nodes"), ("Construct octree", "construct"),
+          ("Voxelize into octree", "voxelize"), ("Propagate inside/outside", "propagate"),
+          ("Compute coverage factor", "coverage")]
+
+
+def measure(mesh, spec, repeat, walls):
+    run_method("ss-octree", mesh, spec, allow_open=True, walls=walls)  # warm-up: compile, allocate
+    runs = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        o = run_method("ss-octree", mesh, spec, allow_open=True, walls=walls)
+        runs.append((time.perf_counter() - t0, o))
+    wall = statistics.median(w for w, _ in runs) * 1e3
+    stage = {}
+    for s in runs[0][1].run.timings.stages:
+        vals = [o.run.timings.stage(s.name) for _, o in runs]
+        stage[s.name] = statistics.median((v.gpu_s if v.gpu_s is not None else v.wall_s) for v in vals) * 1e3
+    return wall, stage, runs[-1][1]
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sizes", type=int, nargs="+", default=[512, 1024, 2048, 4096])
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--meshes", nargs="+", default=DEFAULT_MESHES)
+    ap.add_argument("--no-walls", action="store_true", help="the paper's algorithm on open meshes")
+    args = ap.parse_args(argv)
+    warnings.simplefilter("ignore", NotWatertightWarning)
+    ctx = get_context()
+    cols, rows = [], {}
+
+    def put(row, value):
+        rows.setdefault(row, []).append(value)
+
+    for name in args.meshes:
+        mesh = glvox.load_mesh(mesh_dir() / name)
+        for n in args.sizes:
+            spec = glvox.grid_for(mesh, n)
+            wall, stage, o = measure(mesh, spec, args.repeat, not args.no_walls)
+            mem, st = o.memory(), o.run.stats
+            cols.append(f"{name.split('.')[0]} {n}^3")
+            put("Scalar-valued grid size", f"{-(-n // 4)}^3")
+            put("Total (the five stages)", f"{sum(stage[s] for _, s in STAGES):.1f}")
+            for label, s in STAGES:
+                put(label, f"{stage[s]:.1f}")
+            put("Stored level-0 nodes", f"{mem['level0_percent']:.2f}%")
+            put("Octree size", f"{mem['total'] / 2**20:.1f} MiB")
+            put("wall clock, whole run", f"{wall:.1f}")
+            put("transform / readback", f"{stage['transform']:.1f} / {stage['readback']:.1f}")
+            put("dense bit grid", f"{mem['dense'] / 2**20:.0f} MiB ({mem['percent_of_dense']:.1f}% of it)")
+            put("active level-1 nodes", f"{st['active_level1_nodes']:,}")
+            put("nodes per level (0..top)", " / ".join(f"{k:,}" for k in mem["nodes"]))
+            put("walls (open boundary edges)", f"{st['walls']}")
+            print(f"<!-- done {cols[-1]}: {wall:.0f} ms -->", file=sys.stderr, flush=True)
+    print(f"<!-- {ctx.renderer}; {ctx.version}; GPU ms (timestamp queries), median of {args.repeat} warm "
+          f"runs; walls {'off' if args.no_walls else 'on'} -->")
+    print("| | " + " | ".join(cols) + " |")
+    print("|---" * (len(cols) + 1) + "|")
+    for row, vals in rows.items():
+        print(f"| {row} | " + " | ".join(vals) + " |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
