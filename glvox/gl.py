@@ -142,3 +142,50 @@ class RawGL:
             yield
         finally:
             self.set_logic_op(None)
+
+
+# -- appended for the depth-buffer methods (glvox/methods/depth_layers.py) ----
+# Framebuffers with a depth-stencil *texture* (moderngl makes depth attachments
+# without stencil), reading its stencil in shaders, integer colour clears and
+# stencil state.  Only the entry points and enums; the helpers that use them
+# live with the methods.
+
+GL_FRAMEBUFFER = 0x8D40
+GL_DRAW_FRAMEBUFFER_BINDING = 0x8CA6
+GL_FRAMEBUFFER_COMPLETE = 0x8CD5
+GL_COLOR_ATTACHMENT0 = 0x8CE0
+GL_DEPTH_STENCIL_ATTACHMENT = 0x821A
+GL_TEXTURE_2D = 0x0DE1
+GL_TEXTURE0 = 0x84C0
+GL_TEXTURE_BINDING_2D = 0x8069
+GL_ACTIVE_TEXTURE = 0x84E0
+GL_DEPTH32F_STENCIL8 = 0x8CAD
+GL_DEPTH24_STENCIL8 = 0x88F0
+GL_TEXTURE_MIN_FILTER = 0x2801
+GL_TEXTURE_MAG_FILTER = 0x2800
+GL_NEAREST = 0x2600
+GL_DEPTH_STENCIL_TEXTURE_MODE = 0x90EA
+GL_STENCIL_INDEX = 0x1901
+GL_COLOR = 0x1800
+GL_DEPTH = 0x1801
+GL_DEPTH_STENCIL = 0x84F9
+GL_ALWAYS = 0x0207
+GL_KEEP = 0x1E00
+GL_INCR = 0x1E02
+
+_SIGNATURES.update({
+    "glGenFramebuffers": (None, (ctypes.c_int, ctypes.POINTER(GLuint))),
+    "glDeleteFramebuffers": (None, (ctypes.c_int, ctypes.POINTER(GLuint))),
+    "glBindFramebuffer": (None, (GLenum, GLuint)),
+    "glFramebufferTexture2D": (None, (GLenum, GLenum, GLenum, GLuint, GLint)),
+    "glCheckFramebufferStatus": (GLenum, (GLenum,)),
+    "glGenTextures": (None, (ctypes.c_int, ctypes.POINTER(GLuint))),
+    "glDeleteTextures": (None, (ctypes.c_int, ctypes.POINTER(GLuint))),
+    "glBindTexture": (None, (GLenum, GLuint)),
+    "glActiveTexture": (None, (GLenum,)),
+    "glTexStorage2D": (None, (GLenum, ctypes.c_int, GLenum, ctypes.c_int, ctypes.c_int)),
+    "glTexParameteri": (None, (GLenum, GLenum, GLint)),
+    "glClearBufferuiv": (None, (GLenum, GLint, ctypes.POINTER(GLuint))),
+    "glClearBufferfv": (None, (GLenum, GLint, ctypes.POINTER(ctypes.c_float))),
+    "glClearBufferfi": (None, (GLenum, GLint, ctypes.c_float, GLint)),
+})

@@ -1,0 +1,81 @@
+#version 450
+// Passalis et al. 2006, Sec. 2-3: one z-buffer of a view.  A fragment is a crossing of
+// the column's ray (its pixel center) with the triangle, decided as the reference decides
+// it; its crossing depth q is computed from the triangle's plane in double, in voxel units.
+//
+// The depth test orders crossings by a key: (q - u_key_lo) * u_key_scale rounded to float,
+// monotone in q and inside (0, 1) for the whole mesh (reversed with u_far, so that the test
+// keeps the farthest crossing: the view from the opposite face of the bounding box; there
+// it is LEQUAL, so of equal keys the last in primitive order wins, and a class's nearest and
+// farthest crossings differ whenever it has two).  The key is written as gl_FragDepth into
+// a 32-bit float depth buffer, which stores it unchanged.
+//
+// Depth peeling (Sec. 3.3): the previous layer of the same facing class is held in a
+// texture, and a fragment passes only when its (key, triangle id) is larger than the
+// previous layer's.  The id breaks ties between crossings with equal keys: the depth test
+// keeps the first of equal keys in primitive order, i.e. the smallest id, so the layers
+// enumerate every crossing of a column exactly once, however close two of them are.
+flat in vec3 g_p0;
+flat in vec3 g_p1;
+flat in vec3 g_p2;
+flat in double g_na;
+flat in uint g_id;
+uniform ivec2 u_tile_origin;
+uniform int u_depth_n;       // voxels along the rays
+uniform double u_key_lo;
+uniform double u_key_scale;
+uniform bool u_far;
+uniform bool u_peel;
+uniform usampler2D u_prev;   // previous layer: (key bits, id, slot, valid)
+// The layer: key bits, triangle id, the first voxel whose center lies beyond the crossing
+// (reference: voxel i flips iff i + 1/2 > q, i.e. i >= floor(q + 1/2)), clamped to
+// [0, u_depth_n] with u_depth_n meaning "beyond the grid", and 1 = a crossing is here.
+layout(location = 0) out uvec4 o_layer;
+
+// Edge function of p -> q at c, evaluated from the lexicographically smaller end point and
+// negated when the edge runs the other way, so the two triangles of a shared edge get
+// exactly opposite values (as glvox.reference.solid does).
+double edge_function(dvec2 p, dvec2 q, dvec2 c) {
+    bool swap = p.x > q.x || (p.x == q.x && p.y > q.y);
+    dvec2 s = swap ? q : p;
+    dvec2 t = swap ? p : q;
+    double f = (t.x - s.x) * (c.y - s.y) - (t.y - s.y) * (c.x - s.x);
+    return swap ? -f : f;
+}
+
+// Center c belongs to the projected triangle on the inner side of edge p -> q, with the
+// top-left rule for centers exactly on it (sgn orients the triangle counter-clockwise).
+bool owns(dvec2 p, dvec2 q, dvec2 c, double sgn) {
+    double f = edge_function(p, q, c) * sgn;
+    dvec2 e = q - p;
+    double neu = -e.y * sgn;
+    double nev = e.x * sgn;
+    bool top_left = neu > 0.0 || (neu == 0.0 && nev < 0.0);
+    return f > 0.0 || (f == 0.0 && top_left);
+}
+
+void main() {
+    ivec2 pix = ivec2(gl_FragCoord.xy);
+    dvec2 c = dvec2(pix + u_tile_origin) + 0.5;
+    dvec3 a = dvec3(g_p0), b = dvec3(g_p1), d = dvec3(g_p2);
+    double sgn = g_na > 0.0 ? 1.0 : -1.0;
+    if (!(owns(a.xy, b.xy, c, sgn) && owns(b.xy, d.xy, c, sgn) && owns(d.xy, a.xy, c, sgn))) {
+        discard;
+    }
+    dvec3 n = cross(b - a, d - a);
+    double q = a.z + (n.x * (a.x - c.x) + n.y * (a.y - c.y)) / g_na;
+    // the exact crossing lies within the triangle's extent; this only removes rounding
+    q = clamp(q, min(a.z, min(b.z, d.z)), max(a.z, max(b.z, d.z)));
+    float key = float((q - u_key_lo) * u_key_scale);
+    if (u_far) key = 1.0 - key;
+    if (u_peel) {
+        uvec4 prev = texelFetch(u_prev, pix, 0);
+        if (prev.w == 0u) discard;  // the previous layer was empty: so is this one
+        float kp = uintBitsToFloat(prev.x);
+        if (!(key > kp || (key == kp && g_id > prev.y))) discard;
+    }
+    double first = floor(q + 0.5);
+    uint slot = first >= double(u_depth_n) ? uint(u_depth_n) : uint(max(first, 0.0lf));
+    gl_FragDepth = key;
+    o_layer = uvec4(floatBitsToUint(key), g_id, slot, 1u);
+}

@@ -1,0 +1,95 @@
+#version 450
+// Passalis et al. 2006, Sec. 2-3: one orthographic view along u_axis, drawn tile by tile;
+// pixel (x, y) of the render target is voxel column u_tile_origin + (x, y).
+//
+// Which columns a triangle crosses is decided in the fragment shader exactly as the
+// reference decides it (edge functions in double, top-left rule), not by GL's rasterizer:
+// GL snaps vertices to a sub-pixel grid (1/256 pixel on llvmpipe, 8 bits on most GPUs),
+// which moves a silhouette edge by up to ~0.003 voxel and so adds or drops whole crossing
+// pairs next to it, far from any tie (measured: a 256-voxel column of cad_featuretype.stl
+// at 256^3).  This shader draws a proxy that contains every pixel center the triangle can
+// own with a margin of PROXY_MARGIN pixel, far more than the snapping moves it: the
+// triangle with its edges pushed out, or for slivers (long miters) its bounding box.  It
+// also sorts triangles into Passalis' two facing classes by the sign of the normal's
+// component along the rays (what face culling does, decided in double so it agrees with
+// the fragment shader and the reference).
+layout(triangles) in;
+layout(triangle_strip, max_vertices = 4) out;
+#include "view.glsl"
+in vec3 v_vox[];
+uniform ivec2 u_tile_origin;
+uniform ivec2 u_target_size;
+uniform int u_class;  // 0: every triangle; +1: n_a > 0 only; -1: n_a < 0 only
+flat out vec3 g_p0;
+flat out vec3 g_p1;
+flat out vec3 g_p2;
+flat out double g_na;
+flat out uint g_id;
+
+const double PROXY_MARGIN = 1.0 / 16.0;
+// Miter factor (1 / sin of half the vertex angle) above which the pushed-out triangle is
+// replaced by the bounding box: its tips would reach 625 pixels out.
+const double MAX_MITER = 1.0e4;
+
+void emit(dvec2 p) {
+    gl_Position = vec4(vec2(2.0 * p / dvec2(u_target_size) - 1.0), 0.0, 1.0);
+    EmitVertex();
+}
+
+void main() {
+    vec3 p0 = to_view(v_vox[0]);
+    vec3 p1 = to_view(v_vox[1]);
+    vec3 p2 = to_view(v_vox[2]);
+    dvec3 a = dvec3(p0), b = dvec3(p1), c = dvec3(p2);
+    // n_a of (p1 - p0) x (p2 - p0); the differences and products of float32 values are
+    // exact in double, so its sign is exact
+    precise double na = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+    if (na == 0.0) return;  // parallel to the rays: no crossing, as in the reference
+    if (u_class != 0 && ((na > 0.0) != (u_class > 0))) return;
+    dvec2 off = dvec2(u_tile_origin);
+    dvec2 q[3] = dvec2[3](a.xy - off, b.xy - off, c.xy - off);
+    dvec2 lo = min(q[0], min(q[1], q[2]));
+    dvec2 hi = max(q[0], max(q[1], q[2]));
+    // no pixel center x + 1/2 of the target inside [lo, hi] along some axis: nothing to own
+    dvec2 first = max(ceil(lo - 0.5), dvec2(0.0));
+    dvec2 last = min(floor(hi - 0.5), dvec2(u_target_size) - 1.0);
+    if (any(greaterThan(first, last))) return;
+
+    g_p0 = p0;
+    g_p1 = p1;
+    g_p2 = p2;
+    g_na = na;
+    g_id = uint(gl_PrimitiveIDIn);
+
+    double s = na > 0.0 ? 1.0 : -1.0;
+    bool pushed = true;
+    dvec2 nrm[3];
+    for (int i = 0; i < 3; ++i) {
+        dvec2 e = q[(i + 1) % 3] - q[i];
+        double len = sqrt(dot(e, e));
+        if (len == 0.0) pushed = false;
+        nrm[i] = s * dvec2(e.y, -e.x) / max(len, 1.0e-300lf);  // outward unit normal
+    }
+    dvec2 corner[3];
+    for (int j = 0; j < 3; ++j) {
+        dvec2 n1 = nrm[(j + 2) % 3];
+        dvec2 n2 = nrm[j];
+        // the offset lines of the two edges at vertex j meet at q_j + m (n1 + n2) / (1 + n1.n2)
+        double d = 1.0 + dot(n1, n2);
+        if (d < 2.0 / (MAX_MITER * MAX_MITER)) pushed = false;
+        corner[j] = q[j] + PROXY_MARGIN * (n1 + n2) / max(d, 1.0e-300lf);
+    }
+    if (pushed) {
+        emit(corner[0]);
+        emit(corner[1]);
+        emit(corner[2]);
+    } else {
+        dvec2 l = max(lo - PROXY_MARGIN, dvec2(-1.0));
+        dvec2 h = min(hi + PROXY_MARGIN, dvec2(u_target_size) + 1.0);
+        emit(l);
+        emit(dvec2(h.x, l.y));
+        emit(dvec2(l.x, h.y));
+        emit(h);
+    }
+    EndPrimitive();
+}
