@@ -39,8 +39,10 @@ from .errors import GridError
 #: the others beyond it.
 MAX_VOXELS = 2**31 - 1
 
-#: Largest grid size along one axis: voxel indices stay in int32 and the
-#: octree's level-0 Morton codes (indices / 4, 14 bits per axis) in uint64.
+#: Largest grid size along one axis a spec accepts (voxel indices stay in
+#: int32 with room to spare).  Methods have their own, lower limits: dense
+#: grids are bounded by MAX_VOXELS and the storage-block size, ss-octree by
+#: glvox.octree.MAX_OCTREE_DIM (4096, 32-bit Morton codes).
 MAX_DIM = 2**16
 
 #: Two placements are the same when origin and h agree within this fraction of
