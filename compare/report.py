@@ -88,7 +88,7 @@ def separability_table(rows) -> str:
         return ""
     return _table(sep, lambda r: f"{r['leaks_26']} / {r['leaks_6']}",
                   "Separability on closed meshes: inside voxels reached from outside by 26- / 6-paths "
-                  "of empty voxels (0 / 0: 6-separating; 0 / >0: 26-separating only)")
+                  "of empty voxels (0 / 0: 26-separating; >0 / 0: 6-separating only)")
 
 
 def stage_table(rows) -> str:
