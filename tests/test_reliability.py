@@ -116,6 +116,15 @@ def test_a_private_context_runs_every_method_and_releases_everything(gl_context)
         run_method(name, mesh, spec)
 
 
+@pytest.mark.parametrize("name", GL)
+def test_every_stage_is_clean_in_debug_mode(gl_context, name):
+    """With debug on (GLVOX_DEBUG=1), glGetError is checked after every stage and
+    a failure would raise GLError naming the method and stage: none may."""
+    mesh = small_mesh()
+    g = run_method(name, mesh, glvox.grid_for(mesh, 16), debug=True)
+    assert g.run.timings.stages
+
+
 # -- determinism -----------------------------------------------------------------
 
 DETERMINISM_MESHES = ("cad_rocker_arm.obj", "stanford_bunny_bun_zipper.ply")
