@@ -1,4 +1,4 @@
-"""Command line: ``glvox info | methods | voxelize | compare``.
+"""Command line: ``glvox info | methods | voxelize | batch | compare``.
 
 Errors glvox raises on purpose print one line ``glvox: error: ...`` and exit
 with status 1 (2 for wrong usage, as argparse does); never a traceback.
@@ -136,6 +136,53 @@ def cmd_voxelize(args) -> int:
     return 0
 
 
+def cmd_batch(args) -> int:
+    """``glvox batch``: exit 0 when every mesh is done or skipped, 3 when some failed."""
+    import signal
+    import threading
+
+    from .batch import BatchSettings, run_batch
+
+    if args.scheduler and args.workers is not None:
+        raise GlvoxError("--workers sizes the local cluster; with --scheduler the cluster's own "
+                         "workers run the batch, so give one or the other")
+    options = _parse_options(args.option)
+    settings = BatchSettings(
+        method=args.method, resolution=args.resolution,
+        dims=tuple(args.dims) if args.dims is not None else None, voxel_size=args.voxel_size,
+        padding=args.padding, tight=args.tight, options=tuple(sorted(options.items())),
+        allow_open=args.allow_open, backend=args.backend, fmt=args.format)
+
+    def on_term(signum, frame):  # batch schedulers stop jobs with SIGTERM: keep the manifest
+        raise KeyboardInterrupt
+
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, on_term) if main_thread else None
+    try:
+        summary = run_batch(args.input, args.output, settings,
+                            workers=1 if args.workers is None else args.workers,
+                            scheduler=args.scheduler, overwrite=args.overwrite, manifest=args.manifest,
+                            suffixes=args.suffix or None, quiet=args.quiet or args.json)
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGTERM, previous)
+    if args.json:
+        print(json.dumps(summary.to_dict(), indent=2))
+    elif not args.quiet:
+        print(summary.format())
+    return 3 if summary.failed else 0
+
+
+def _axis(value: str) -> int:
+    """``x``/``y``/``z`` or ``0``/``1``/``2``."""
+    v = value.strip().lower()
+    if v in ("x", "y", "z"):
+        return "xyz".index(v)
+    if v in ("0", "1", "2"):
+        return int(v)
+    raise argparse.ArgumentTypeError(f"axis must be x, y, z or 0, 1, 2, got {value!r}")
+
+
 def cmd_compare(args) -> int:
     from .compare.run import main as compare_main
 
@@ -180,6 +227,41 @@ def build_parser() -> argparse.ArgumentParser:
     pv.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     pv.set_defaults(func=cmd_voxelize)
 
+    pb = sub.add_parser(
+        "batch", help="voxelize every mesh of a folder or list (parallel, resumable)",
+        description="Voxelize every mesh file under INPUT (a folder, searched recursively by suffix, or a "
+                    "text file with one mesh path per line) with the same options, into OUTPUT mirroring "
+                    "the input tree.  Workers are Dask processes, one GL context each.  Outputs are written "
+                    "atomically and skipped on rerun, so a killed batch resumes; OUTPUT/manifest.csv has "
+                    "one row per mesh.  Exit status 0 when every mesh is done or skipped, 3 when some "
+                    "failed (see the manifest).")
+    pb.add_argument("input", help="folder of meshes, or text file listing mesh paths")
+    pb.add_argument("-o", "--output", required=True, help="output folder")
+    pb.add_argument("-r", "--resolution", type=int, help="voxels along the longest axis (cubic N^3 grid)")
+    pb.add_argument("-m", "--method", default=None, help="registry name (see `glvox methods`)")
+    pb.add_argument("--format", choices=["npz", "binvox"], default="npz", help="output format (default npz)")
+    pb.add_argument("-O", "--option", action="append", default=[], metavar="KEY=VALUE",
+                    help="method option (repeatable)")
+    pb.add_argument("--dims", type=int, nargs=3, metavar=("NX", "NY", "NZ"), help="explicit dims")
+    pb.add_argument("--voxel-size", type=float, help="explicit voxel size (world units)")
+    pb.add_argument("--padding", type=int, default=0, help="empty voxels kept on every side")
+    pb.add_argument("--tight", action="store_true", help="non-cubic dims fitted to the bounding box")
+    pb.add_argument("--allow-open", action="store_true",
+                    help="let solid methods run on meshes that are not watertight")
+    pb.add_argument("--workers", type=int, default=None,
+                    help="worker processes of the local Dask cluster (default 1); 0 runs in this "
+                         "process without Dask (no crash isolation)")
+    pb.add_argument("--scheduler", metavar="ADDRESS",
+                    help="run on an existing Dask cluster (e.g. tcp://host:8786) instead of a local one")
+    pb.add_argument("--overwrite", action="store_true", help="redo meshes whose output exists")
+    pb.add_argument("--manifest", help="manifest CSV path (default OUTPUT/manifest.csv)")
+    pb.add_argument("--suffix", action="append", metavar="SUFFIX",
+                    help="mesh suffix to search for (repeatable; default: every format trimesh loads)")
+    pb.add_argument("--backend", choices=["egl", "osmesa", "auto"], default=None)
+    pb.add_argument("--json", action="store_true", help="print the summary as JSON")
+    pb.add_argument("-q", "--quiet", action="store_true", help="no progress bar, messages or summary")
+    pb.set_defaults(func=cmd_batch)
+
     pc = sub.add_parser(
         "compare", help="run methods x meshes x grid sizes: tables, plots and pictures",
         description="Every chosen method on every mesh and grid size: timed warm runs, voxel counts, "
@@ -189,6 +271,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_arguments(pc)
     pc.set_defaults(func=cmd_compare)
+
     return p
 
 
