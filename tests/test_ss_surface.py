@@ -221,3 +221,15 @@ def test_large_grids(gl_context, shared_mesh, name, n):
     assert g.count > six.count > 0
     if n <= 512:
         check_all(mesh, spec)
+
+
+def test_triangle_below_float32_spacing_is_a_tie_not_an_error(gl_context):
+    """Found by the fuzz tests: a 1e-6 triangle at voxel y = 32 rounds onto the
+    face y = 32 in float32, where the 6-separating test sets the voxels on both
+    sides; in float64 it is tilted and sets one.  Its whole shape is rounding,
+    so every voxel its box touches is a tie."""
+    tris = np.array([[[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+                     [[1.0, 0.0, 0.0], [0.999999, 0.0, 0.0], [0.999999, 1e-6, 1e-6]]])
+    mesh = load_mesh((tris.reshape(-1, 3), np.arange(6).reshape(2, 3)), name="tiny")
+    spec = glvox.grid_for(mesh, dims=(2, 65, 1))
+    check_all(mesh, spec)

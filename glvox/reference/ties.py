@@ -99,6 +99,16 @@ def surface_ties(tris: np.ndarray, dims: Sequence[int],
     if short.any():
         sub = short.any(axis=1)
         ties |= f(tris[sub], dims, 0.5, no_proj=short[sub])
+        # A triangle short in every projection is smaller than float32's
+        # spacing can shape: its plane and edges are both rounding, so every
+        # voxel its bounding box touches within eps is a tie (found by the
+        # fuzz tests: a 1e-6 triangle at y = 32 lands on the face y = 32 in
+        # float32 and sets the voxels on both sides).
+        for tri in tris[short.all(axis=1)]:
+            lo = np.maximum(np.ceil(tri.min(axis=0) - eps).astype(np.int64) - 1, 0)
+            hi = np.minimum(np.floor(tri.max(axis=0) + eps).astype(np.int64), np.array(dims) - 1)
+            if (lo <= hi).all():
+                ties[lo[0]:hi[0] + 1, lo[1]:hi[1] + 1, lo[2]:hi[2] + 1] = True
     return ties
 
 
