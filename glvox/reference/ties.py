@@ -91,6 +91,11 @@ def surface_ties(tris: np.ndarray, dims: Sequence[int],
             for bits in range(8):
                 flip = np.array([(bits >> p) & 1 for p in range(3)], dtype=bool)[None, :].repeat(len(sliver), 0)
                 ties |= f(sliver, dims, 0.5, flip=flip, no_plane=no_plane)
+            if criterion == "6sep":
+                # the 6-separating criterion of a segment-like triangle depends on
+                # a dominant axis that rounding picks: any voxel the sliver touches
+                # (found by the fuzz tests: a collinear triangle at a 1e6 offset)
+                ties |= conservative_surface(sliver, dims, 0.5 + eps)
     # Projected edges too short for float32 to keep their direction: the
     # 6-separating projection test they belong to is undecided near them.
     # (The conservative test decides whether the triangle meets the box, a
