@@ -360,6 +360,10 @@ class GLContext:
             raise BackendError("this GL context was released; create a new one")
         global _current
         if _current is not self:
+            # unbind first: after an OSMesa context came and went (it rebinds
+            # Mesa's shared dispatch), EGL takes a make-current of the context
+            # it still believes current as a no-op, and nothing is bound
+            self.mgl.__exit__(None, None, None)
             self.mgl.__enter__()
             _current = self
 
@@ -384,8 +388,13 @@ class GLContext:
         self.mgl.release()
         self._released = True
         _current = None
-        if previous is not None and previous is not self and not previous.released:
-            previous.make_current()
+        # leave a live context current: the one current before, else the
+        # shared one (a private context is usually current when released,
+        # having been made current by its own creation)
+        for ctx in (previous, _shared):
+            if ctx is not None and ctx is not self and not ctx.released:
+                ctx.make_current()
+                break
 
 
 def _normalize_backend(backend: str | None) -> str:

@@ -147,3 +147,23 @@ def test_loop_budget_of_the_driver_is_known(gl_context):
         assert LOOP_BUDGET - 2000 < done < 100**3, done  # cut near the budget
     else:
         assert done == 100**3
+
+
+def test_releasing_private_contexts_leaves_the_shared_one_current(gl_context):
+    """Found when the comparison's renderer ran before these tests: after a
+    private EGL and a private OSMesa context came and went, no context was
+    current and the next program failed with 'cannot create program'."""
+    for backend in ("egl", "osmesa"):
+        try:
+            private = create_context(backend)
+        except BackendError as exc:
+            pytest.skip(f"backend {backend} unavailable: {exc}")
+        private.release()
+    from glvox.shaders import compute_program
+
+    # a program not compiled before: glCreateProgram must reach a current context
+    assert compute_program(gl_context, "testing/bits.comp", {"GLVOX_TEST_FRESH": 1}) is not None
+    lo = np.arange(8, dtype=np.uint32)
+    out = run_compute(gl_context, "testing/bits.comp", 1, buffers={0: lo, 1: lo, 2: (32, np.uint32)},
+                      read=[2], uniforms={"u_count": 8})[2]
+    assert out.size == 32

@@ -46,6 +46,7 @@ def run_compute(ctx, shader: str, groups: int | Sequence[int], *,
     {binding: array} for each binding in ``read``, with the dtype (and, for
     uploaded arrays, the shape) it was given.
     """
+    ctx.make_current()
     prog = compute_program(ctx, shader, defines, search)
     set_uniforms(prog, uniforms or {})
     made, meta = {}, {}
@@ -104,6 +105,7 @@ def run_fragment(ctx, fragment: str, size: tuple[int, int], *, outputs: int = 1,
     -------
     list of arrays, one per attachment, shape (height, width, components).
     """
+    ctx.make_current()
     prog = render_program(ctx, vertex, fragment, defines=defines, search=search)
     set_uniforms(prog, uniforms or {})
     mgl = ctx.mgl

@@ -48,6 +48,7 @@ def _glvox_gl_error_check(request):
         yield
         return
     ctx = request.getfixturevalue("gl_context")
+    ctx.make_current()  # an earlier test may have left a private context current
     before = ctx.mgl.error
     assert before == "GL_NO_ERROR", f"GL error pending before the test: {before}"
     yield
