@@ -177,7 +177,8 @@ def run_cell(cell: Cell, plan: Plan, meshes: dict, refs: dict) -> dict[str, Any]
         "gpu_bytes": gpu_bytes(ctx) if ctx is not None else 0,
         "stats": {k: v for k, v in result.run.stats.items() if _jsonable(v)},
     })
-    grid = _grid_of(result)
+    # an LDI is compared through its own checks (conservativeness), not as a grid
+    grid = _grid_of(result) if info.kind in ("surface", "solid", "sparse") else None
     if grid is not None:
         row["voxels"] = grid.count
     if info.reference and grid is not None and cell.n <= plan.check_max:
