@@ -50,6 +50,39 @@ def _ms(v) -> str:
     return "-" if v is None else (f"{v:.0f}" if v >= 100 else f"{v:.2f}" if v < 1 else f"{v:.1f}")
 
 
+def summary_table(rows) -> str:
+    """One row per method at the largest size: time, voxels and agreement per mesh."""
+    ok = [r for r in rows if r["status"] in ("ok", "skipped")]
+    if not ok:
+        return ""
+    n = max(r["n"] for r in ok)
+    at = [r for r in ok if r["n"] == n]
+    meshes = list(dict.fromkeys(r["mesh"] for r in at))
+    labels = list(dict.fromkeys(_label(r) for r in at))
+    out = [f"### Summary at {n}^3: GPU ms (wall for CPU references) / voxels / IoU against the reference", "",
+           "| method | kind | " + " | ".join(meshes) + " |", "|---|---|" + "---|" * len(meshes)]
+    for lb in labels:
+        cells, kind = [], ""
+        for m in meshes:
+            r = next((r for r in at if r["mesh"] == m and _label(r) == lb), None)
+            if r is None:
+                cells.append("")
+                continue
+            kind = r["kind"]
+            if r["status"] != "ok":
+                cells.append("skipped (open mesh)" if "watertight" in (r["error"] or "") else r["status"])
+                continue
+            t = r.get("gpu_ms") if r.get("gpu_ms") is not None else r.get("wall_ms")
+            c = f"{_ms(t)} ms"
+            if r.get("voxels") is not None:
+                c += f" / {r['voxels']:,}"
+            if r.get("iou") is not None:
+                c += f" / {r['iou']:.4f}" + (f" ({r['not_ties']} not ties)" if r.get("not_ties") else "")
+            cells.append(c)
+        out.append(f"| `{lb}` | {kind} | " + " | ".join(cells) + " |")
+    return "\n".join(out) + "\n"
+
+
 def time_table(rows) -> str:
     return _table(rows, lambda r: f"{_ms(r.get('wall_ms'))} ({_ms(r.get('gpu_ms'))})",
                   "Time (ms): wall (GPU), median of warm runs",
@@ -148,7 +181,7 @@ def markdown(rows: Sequence[dict[str, Any]], machine: dict[str, Any]) -> str:
             f"{gl.get('renderer', '?')}; OpenGL {gl.get('version', '?')}; glvox {machine.get('glvox')}, "
             f"moderngl {machine.get('moderngl')}, trimesh {machine.get('trimesh')}, "
             f"Python {machine.get('python')}, {machine.get('cpu_count')} CPUs.", ""]
-    parts = [time_table(rows), count_table(rows), error_table(rows), separability_table(rows),
+    parts = [summary_table(rows), time_table(rows), count_table(rows), error_table(rows), separability_table(rows),
              tiled_table(rows), octree_table(rows), stage_table(rows)]
     failed = [r for r in rows if r["status"] not in ("ok",)]
     if failed:
