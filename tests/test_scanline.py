@@ -16,8 +16,14 @@ What is checked, and against what:
   llvmpipe;
 * separation on closed meshes: 26 is 26-tunnel-free, 18 18-tunnel-free, 6
   6-tunnel-free, each thinner than the one before (ILV with respect to its
-  lattice surface, the mesh with its vertices snapped to voxel centres);
-* ILV's voxel count against the paper's Table 3 bound;
+  lattice surface, the mesh with its vertices snapped to voxel centres); ILV
+  (26) also against the mesh itself on the watertight meshes, and where ILV
+  (6) leaks through the mesh;
+* ILV's line ties (one shift of the lattice) and base-edge ties (the side
+  where the triangle meets the slicing plane), by hand and in exact
+  arithmetic;
+* ILV's voxel count against the paper's Table 3 bound, against the cover of
+  its own lattice surface, and why the bound fails on three dense scans;
 * bad input: degenerate and outside triangles, ILV's coordinate limit.
 """
 
@@ -104,12 +110,14 @@ def six_connected(path):
 
 def test_ilv_line_follows_algorithm_1_by_hand():
     # (0,0,0) -> (3,1,0): M = (|dY|, |dX|) = (1, 3), L starts at M.  Steps:
-    # L=(1,3) x; L=(2,2) tie: x first (lowest axis); L=(2,0) y; L=(2,6) x.
+    # L=(1,3) x; L=(2,2) tie: x first (both move up: lowest axis); L=(2,0) y; L=(2,6) x.
     # Geometrically the centre-to-centre line passes the voxel corner (2, 1): the tie.
     assert ilv_line((0, 0, 0), (3, 1, 0)) == [(0, 0, 0), (1, 0, 0), (2, 0, 0), (2, 1, 0), (3, 1, 0)]
-    # highest axis first at the tie takes the other side of that corner
-    assert ilv_line((0, 0, 0), (3, 1, 0), high_first=True) == [
+    # the other tie order takes the other side of that corner
+    assert ilv_line((0, 0, 0), (3, 1, 0), order=(1, 0, 2)) == [
         (0, 0, 0), (1, 0, 0), (1, 1, 0), (2, 1, 0), (3, 1, 0)]
+    # x moving down loses the tie: the lattice shifted by +e_x passes the corner on the +x side
+    assert ilv_line((3, 0, 0), (0, 1, 0)) == [(3, 0, 0), (2, 0, 0), (2, 1, 0), (1, 1, 0), (0, 1, 0)]
 
 
 def test_ilv_line_with_zero_deltas_terminates():
@@ -121,13 +129,40 @@ def test_ilv_line_with_zero_deltas_terminates():
     assert ilv_line((1, 1, 1), (1, 1, 1)) == [(1, 1, 1)]
 
 
-def test_ilv_line_reversed_with_high_first_is_the_exact_reverse():
+def _shifted_path(p, q, shift):
+    """The voxels a segment between voxel centres p + 1/2, q + 1/2 moved by
+    ``shift`` passes through, in order (exact: Fractions, no ties left)."""
+    a = [Fraction(x) + Fraction(1, 2) + s for x, s in zip(p, shift)]
+    b = [Fraction(x) + Fraction(1, 2) + s for x, s in zip(q, shift)]
+    events = []
+    for i in range(3):
+        lo, hi = sorted((a[i], b[i]))
+        for k in range(math.floor(lo) + 1, math.floor(hi) + 1):
+            events.append(((k - a[i]) / (b[i] - a[i]), i))
+    cur = [math.floor(x) for x in a]
+    out = [tuple(cur)]
+    for _, i in sorted(events):
+        cur[i] += 1 if b[i] > a[i] else -1
+        out.append(tuple(cur))
+    return out
+
+
+def test_ilv_line_ties_are_those_of_one_shift_of_the_lattice():
+    """Every ILV line is the exact voxel traversal of its centre-to-centre
+    segment moved by one small shift e1 >> e2 >> e3 > 0, the same for all
+    lines: so reversing a line reverses its path, and lines through a common
+    voxel corner pass it on the same side."""
+    shift = (Fraction(1, 10**3), Fraction(1, 10**6), Fraction(1, 10**9))
     rng = np.random.default_rng(3)
-    for _ in range(300):
+    ties = 0
+    for _ in range(400):
         p, q = (tuple(int(x) for x in rng.integers(-6, 7, 3)) for _ in range(2))
         fwd = ilv_line(p, q)
-        assert ilv_line(q, p, high_first=True)[::-1] == fwd
+        assert fwd == _shifted_path(p, q, shift), (p, q)
+        assert ilv_line(q, p)[::-1] == fwd
         assert six_connected(fwd) and len(fwd) == sum(abs(a - b) for a, b in zip(p, q)) + 1
+        ties += any(fwd != ilv_line(p, q, order=o) for o in itertools.permutations(range(3)))
+    assert ties > 50  # many of the lines met a voxel edge or corner
 
 
 def test_slv_is_the_super_cover_and_rlv_a_6_path_inside_it():
@@ -175,6 +210,26 @@ def test_ilv_triangle_scanned_by_hand():
     assert (got == want).all()
     assert (got == conservative_surface(tri, (6, 6, 1))).all()
     assert counts.end_candidates > 0 and counts.comparisons > 0 and counts.additions > 0
+
+
+def test_ilv_base_edge_ties_follow_the_slicing_plane():
+    """Lattice triangle (4,3,2), (2,4,3), (3,2,4): plane x + y + z = 9 (voxel
+    indices, centres at +1/2), normal (1,1,1), sliced along z.
+
+    Layer 2 holds the apex (4,3) of V_A and V_B's (4,3), (3,3), (3,4); its top
+    base edge (4,3) -> (3,4) passes the corner between (3,3) and (4,4).  The
+    triangle meets the slicing plane z = 2.5 (index) on x + y = 6.5, through
+    (3,3); the plane lies at z = 3 at the centre of column (3,3) and at z = 1
+    at (4,4), so the base edge steps through (3,3), not (4,4), in layer 2
+    and, as the bottom base edge, in layer 3 (the shift rule alone, y moving
+    up, would take (4,4), which the triangle reaches in neither layer).  The
+    whole result is then exactly the cover of the lattice triangle."""
+    tri = np.array([[[4, 3, 2], [2, 4, 3], [3, 2, 4]]], float) + 0.5
+    got = scanline_surface(tri, (7, 7, 7), "ilv")
+    assert not got[4, 4, 2] and not got[4, 4, 3] and got[3, 3, 2] and got[3, 3, 3]
+    cover = conservative_surface(tri + np.array([1e-3, 1e-6, 1e-9]), (7, 7, 7))
+    assert (got == cover).all() and got.sum() == 12
+    assert ilv_line((4, 3, 2), (3, 4, 2)) == [(4, 3, 2), (4, 4, 2), (3, 4, 2)]  # the shift rule's side
 
 
 def test_float_scanlines_cover_a_flat_triangle_with_the_optimal_count():
@@ -345,13 +400,41 @@ def test_thin_variants_are_thinner_on_curved_meshes(gl_context):
         assert n[0] > n[1] > n[2], (mode, n)
 
 
-def test_ilv_26_is_26_tunnel_free_against_the_mesh_itself(gl_context, shared_mesh):
-    """Where the lattice approximation keeps the inside, ILV separates the mesh too."""
-    for name, res in (("gen:sphere", 128), ("gen:torus", 128), ("cad_fandisk.off", 128)):
-        mesh = _mesh(name, shared_mesh)
-        spec = glvox.grid_for(mesh, res)
-        inside = run_method("reference-solid", mesh, spec).dense()
-        assert leaks(run_method("scanline-ilv", mesh, spec).dense(), inside, 26) == 0, name
+WATERTIGHT = ("cad_fandisk.off", "cad_featuretype.stl", "cad_rocker_arm.obj", "cad_wingnut.obj",
+              "depth_reduced_diamond_lattice.stl", "stanford_armadillo_libigl_86k.obj")
+_SLOW_MARK = pytest.mark.slow
+
+
+@pytest.mark.parametrize("name,res", [(n, 64) for n in WATERTIGHT]
+                         + [pytest.param(n, r, marks=_SLOW_MARK) for r in (96, 128) for n in WATERTIGHT]
+                         + [("gen:torus", 96), ("gen:sphere", 128), ("gen:bunny-like", 128)])
+def test_ilv_is_26_tunnel_free_against_the_mesh_itself(name, res, gl_context, shared_mesh):
+    """No 26-path of unset voxels from outside reaches a voxel whose centre is
+    inside the mesh (the reference solid), although ILV voxelizes the lattice
+    surface, not the mesh (a measured property, not a guarantee: see "ILV and
+    the mesh itself" in glvox.reference.scanline; gen:torus at 96^3 leaked
+    with an earlier tie rule for base edges)."""
+    mesh = _mesh(name, shared_mesh)
+    spec = glvox.grid_for(mesh, res)
+    inside = run_method("reference-solid", mesh, spec).dense()
+    assert leaks(run_method("scanline-ilv", mesh, spec).dense(), inside, 26) == 0
+
+
+@pytest.mark.parametrize("name", ["gen:torus", "gen:bunny-like"])
+def test_ilv_6_leaks_through_the_mesh_only_between_it_and_its_lattice_surface(name, gl_context):
+    """The naive ``tunnel=6`` variant separates its lattice surface but not the
+    mesh: at 96^3 a 6-path reaches a few voxel centres inside the mesh, all of
+    them outside the lattice surface, i.e. between the two (vertex rounding
+    moved the surface past them)."""
+    mesh = load_mesh(name)
+    spec = glvox.grid_for(mesh, 96)
+    g = run_method("scanline-ilv", mesh, spec, tunnel=6).dense()
+    inside = run_method("reference-solid", mesh, spec).dense()
+    lattice = solid(lattice_points(gpu_voxel_coords(mesh, spec), spec.dims) + 0.5, spec.dims)
+    reached = separation_leaks(g, inside, 6)
+    assert 0 < len(reached) <= 5
+    assert not lattice[tuple(reached.T)].any()
+    assert len(separation_leaks(g, lattice, 6)) == 0
 
 
 # ----------------------------------------------------------------------------
@@ -361,16 +444,32 @@ def test_ilv_26_is_26_tunnel_free_against_the_mesh_itself(gl_context, shared_mes
 PAPER_ILV_BOUND = 0.025
 
 #: Meshes on which this ILV exceeds it at 256^3 (measured error against RLV).
-#: Dense scans: most of their triangles span about one voxel, and ILV's
-#: lattice edges between vertex voxels (6-connected staircases) step through
-#: voxels the triangles do not touch; the paper's meshes at 256^3 had larger
-#: triangles.  See the report in compare/zhang_table1.py --counts.
+#: ILV voxelizes the lattice surface (vertices rounded to voxel centres, Alg. 1
+#: GetVoxel); on these dense scans (triangles of about one voxel, fine detail)
+#: the rounding roughens the surface, and its conservative count alone is
+#: 2.9 % (buddha, tower) and 2.5 % (dragon res2) above the mesh's, which ILV
+#: follows within 0.2 % (the tests below).
 ILV_ABOVE_PAPER_BOUND = {
-    "stanford_dragon_vrip_res2.ply": 0.056, "messy_tower_holes.obj": 0.059,
-    "stanford_happy_buddha_113k.obj": 0.047, "stanford_armadillo_libigl_86k.obj": 0.042,
-    "cad_rocker_arm.obj": 0.032, "stanford_dragon_vrip_res3.ply": 0.029,
-    "stanford_bunny_bun_zipper.ply": 0.0251, "depth_reduced_diamond_lattice.stl": 0.0251,
+    "stanford_happy_buddha_113k.obj": 0.031, "messy_tower_holes.obj": 0.029,
+    "stanford_dragon_vrip_res2.ply": 0.027,
 }
+
+#: Of those, the meshes whose lattice surface's conservative count alone
+#: exceeds the bound: no ILV of any scanline strategy reaches it there.
+LATTICE_ABOVE_PAPER_BOUND = ("stanford_happy_buddha_113k.obj", "messy_tower_holes.obj")
+
+#: ILV's count against the conservative count of its own lattice surface:
+#: +0.0 to +0.36 % measured at 256^3 on every shared mesh.
+ILV_OVER_LATTICE_COVER = 0.005
+
+#: Envelope of ILV's count error measured on every shared mesh: at most
+#: +3.1 % at 256^3 (buddha) and +2.5 % at 512^3 (tower).
+ILV_ENVELOPE = 0.035
+
+#: A shift of the lattice surface small and generic enough that no vertex,
+#: edge or face lies on a voxel face: its conservative count is then that of
+#: a cover without voxels touched only at singular points, like RLV's.
+LATTICE_SHIFT = np.array([1e-3, 1e-6, 1e-9])
 
 
 def _ilv_error(mesh, res):
@@ -382,6 +481,13 @@ def _ilv_error(mesh, res):
     return run_method("scanline-ilv", mesh, spec).count / rlv - 1.0
 
 
+def _lattice_cover(mesh, spec):
+    """Conservative count of ILV's lattice surface (every vertex at its voxel's
+    centre), shifted by LATTICE_SHIFT."""
+    lat = lattice_points(gpu_voxel_coords(mesh, spec), spec.dims) + 0.5
+    return int(conservative_surface(lat + LATTICE_SHIFT, spec.dims).sum())
+
+
 @pytest.mark.parametrize("name", ["messy_teapot_newell.obj", "cad_wingnut.obj", "cad_fandisk.off"])
 def test_ilv_count_within_the_paper_bound(name, gl_context, shared_mesh):
     assert abs(_ilv_error(load_mesh(shared_mesh(name)), 256)) <= PAPER_ILV_BOUND
@@ -390,7 +496,7 @@ def test_ilv_count_within_the_paper_bound(name, gl_context, shared_mesh):
 @pytest.mark.slow
 @pytest.mark.parametrize("name", [
     pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=f"ILV error {ILV_ABOVE_PAPER_BOUND[n]:.1%} "
-                                            "at 256^3: sub-voxel triangles (see ILV_ABOVE_PAPER_BOUND)"))
+                                            "at 256^3: vertex rounding (see ILV_ABOVE_PAPER_BOUND)"))
     if n in ILV_ABOVE_PAPER_BOUND else n for n in SHARED_MESHES])
 def test_ilv_count_within_the_paper_bound_on_every_shared_mesh(name, gl_context, shared_mesh):
     assert abs(_ilv_error(load_mesh(shared_mesh(name)), 256)) <= PAPER_ILV_BOUND
@@ -398,11 +504,33 @@ def test_ilv_count_within_the_paper_bound_on_every_shared_mesh(name, gl_context,
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", SHARED_MESHES)
+def test_ilv_count_follows_its_lattice_surface(name, gl_context, shared_mesh):
+    """ILV's count is that of a cover of its lattice surface, within 0.5 %:
+    what it loses against the mesh's cover is the vertex rounding."""
+    mesh = load_mesh(shared_mesh(name))
+    spec = glvox.grid_for(mesh, 256)
+    ilv = run_method("scanline-ilv", mesh, spec).count
+    assert abs(ilv / _lattice_cover(mesh, spec) - 1.0) <= ILV_OVER_LATTICE_COVER
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", LATTICE_ABOVE_PAPER_BOUND)
+def test_vertex_rounding_alone_exceeds_the_paper_bound(name, gl_context, shared_mesh):
+    """Why those xfails stay: the lattice surface ILV voxelizes has a
+    conservative count more than 2.5 % above the mesh's (RLV's) at 256^3."""
+    mesh = load_mesh(shared_mesh(name))
+    spec = glvox.grid_for(mesh, 256)
+    rlv = run_method("scanline-rlv", mesh, spec).count
+    assert _lattice_cover(mesh, spec) / rlv - 1.0 > PAPER_ILV_BOUND
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", SHARED_MESHES)
 def test_ilv_count_error_is_bounded_on_every_shared_mesh(name, gl_context, shared_mesh):
-    """The envelope measured here (6 %), at 256^3 and 512^3."""
+    """The envelope measured here (ILV_ENVELOPE), at 256^3 and 512^3."""
     mesh = load_mesh(shared_mesh(name))
     for res in (256, 512):
-        assert abs(_ilv_error(mesh, res)) <= 0.06, res
+        assert abs(_ilv_error(mesh, res)) <= ILV_ENVELOPE, res
 
 
 @pytest.mark.slow

@@ -44,7 +44,15 @@ Line voxelization (Sec. 4.1)
   Alg. 1 leaves open are fixed: M over the *non-zero* deltas only (with a zero
   delta the paper's scale s = 2|dX||dY||dZ| is 0 and every L ties at 0, so
   Alg. 1 would step a constant axis forever; every 2D scanline has dZ = 0),
-  and ties of L step the lowest axis index first.
+  and ties of L (the centre-to-centre segment passes a voxel edge or corner;
+  the paper: "pick an arbitrary voxel candidate") follow one infinitesimal
+  shift of the whole lattice (:func:`tie_order`: at a tie of axes i < j, i
+  steps first iff it moves up).  So every line passes every voxel corner on
+  the same side, whatever its direction, and the reverse of a line is its
+  exact reverse.  (The first version stepped the lowest axis first from the
+  lexicographically smaller end; lines meeting at a vertex then passed a
+  corner on different sides, which cost up to 2.3 % more voxels on the dense
+  scans, dragon res2 at 256^3.)
 
 Triangle voxelization (Sec. 4.2, Alg. 1)
 ----------------------------------------
@@ -109,14 +117,26 @@ layer k) by scanlines parallel to its base edges.
   end, a fan whose consecutive scanlines are again within d^ of each other.
   Where the current scanline is a single voxel (A = B, at a slice that
   starts at a vertex) Eq. 6 is 0/0: each chain advances one entry.
+
+  Base-edge ties: the base edges (bottom scanline on the plane w = Z, top one
+  on w = Z + 1, also as the new side edge of the boundary treatment) join
+  the centres of the chains' crossing voxels, and pass voxel edges wherever
+  those columns are diagonal neighbours, i.e. all the time on small
+  triangles.  There a base edge steps into the candidate voxel whose column
+  centre has the lattice plane nearer its slicing plane (twice the plane
+  equation, in integers; equal: the shift rule above): the side on which the
+  lattice triangle really meets that plane.  With the shift rule alone a base edge
+  took the other side half of the time, a voxel the triangle does not reach
+  in that layer, in both copies: +2.2 % voxels on a 82k-triangle sphere at
+  256^3, +0.6-1.2 % on the dense scans.
   The paper's line equation below Eq. 6 has a sign slip (``b = dX`` should be
   ``-dX``); the distance formula and Eq. 8 it derives are used as printed.
 
-Edges are always traversed from their lexicographically smaller end (reverse
-iteration, where a chain needs the other direction, steps the *highest* axis
-first at ties, which yields exactly the reversed path), so an edge shared by
-two triangles gets the same voxels in both and the result does not depend on
-vertex order.
+An edge shared by two triangles gets the same voxels in both, and the result
+does not depend on vertex order: float edges are always traversed from their
+lexicographically smaller end; an ILV line is the exact reverse of its
+reverse (see :func:`tie_order`; a base edge's tie rule depends only on the two
+candidate voxels).
 
 Thinner variants (Sec. 5, Fig. 9): ``tunnel``
 ---------------------------------------------
@@ -148,6 +168,35 @@ Measured (tests/test_scanline.py): 26 is 26-tunnel-free, 18 is
 18-tunnel-free, 6 is 6-tunnel-free, each a strict subset of the one before
 on curved meshes (equal on faces parallel to a coordinate plane, which have
 no base edges); for ILV with respect to its lattice surface.
+
+ILV and the mesh itself
+-----------------------
+ILV voxelizes the lattice surface S' (every vertex moved to its voxel's
+centre, by at most 1/2 voxel per axis; 1/2 + 1/64 for a vertex snapped in
+from just outside the grid, :data:`ILV_BOUNDARY_SNAP`), not the mesh S, so
+its guarantees are about S'.  Against S:
+
+- Separation.  A voxel centre c inside S and outside S' is swept by the
+  straight-line motion S -> S', so S' passes through the interior of c's
+  voxel (within 1/2 (1 - t) < 1/2 per axis of c): a cover of S' that is
+  26-tunnel-free w.r.t. S' is also 26-tunnel-free w.r.t. S.  ILV is close to
+  such a cover but not one (it misses a few of the voxels S' enters, e.g.
+  149 of 22172 on gen:torus at 96^3, where its base edges leave the true
+  cross-section), so this is not a proof; measured, ILV (tunnel 26) is
+  26-tunnel-free w.r.t. the mesh on every closed test mesh at 40^3-160^3 and
+  on 90 random rotations of the generated closed meshes at 32^3-100^3.  (The
+  version with the shift tie rule but without the base-edge rule leaked 2
+  voxels on gen:torus at 96^3.)  The thin ``tunnel=6`` variant, a naive
+  digitization of S', is *not* 6-tunnel-free w.r.t. the mesh: 1-5 inside
+  voxels reachable in about a fifth of those random runs, all between S and
+  S' (gen:torus and gen:bunny-like at 96^3).
+- Voxel count.  Rounding the vertices roughens the surface: the conservative
+  count of S' (shifted by a tiny generic vector, so that no voxel is only
+  touched) exceeds that of S by up to 3 % on the dense scans at 256^3
+  (buddha, tower), and ILV's count is within a few tenths of a percent of
+  that count of S' (compare/zhang_table1.py --counts).  The paper's Table 3
+  bound (ILV within 2.5 % of the cover) therefore cannot hold for meshes
+  whose lattice surface alone is further off; see tests/test_scanline.py.
 
 Bad input
 ---------
@@ -226,12 +275,15 @@ class OpCounts:
         k - 1 other step distances; the stepped one is reset, Alg. 1 l. 20-23;
         the paper's "2 additions plus 1 comparison" per 2D scanline voxel).
         An end-point candidate of Eq. 9 costs 3 comparisons and 1 addition
-        (Sec. 4.2).  Setup (sorting, normals, products M) is not counted, as
-        in the paper.
+        (Sec. 4.2); a base edge's tie decision 1 comparison and 2 additions
+        (the two plane heights, kept incrementally).  Setup (sorting,
+        normals, products M) is not counted, as in the paper.
     line_steps, edge_steps, scanline_steps : int
         Voxel steps of all lines, of which triangle edges and scanlines.
     end_candidates : int
         Eq. 9 evaluations (ILV).
+    base_ties : int
+        Base-edge tie decisions (ILV).
     scanlines : int
         Scanlines voxelized (base edges included).
     """
@@ -242,6 +294,7 @@ class OpCounts:
     edge_steps: int = 0
     scanline_steps: int = 0
     end_candidates: int = 0
+    base_ties: int = 0
     scanlines: int = 0
 
     def line(self, steps: int, moving: int, edge: bool) -> None:
@@ -258,6 +311,11 @@ class OpCounts:
         self.comparisons += 3 * n
         self.additions += n
 
+    def base_tie(self) -> None:
+        self.base_ties += 1
+        self.comparisons += 1
+        self.additions += 2
+
     def as_dict(self) -> dict[str, int]:
         return dict(self.__dict__)
 
@@ -268,21 +326,39 @@ Cell = tuple  # (i, j, k) ints
 # ----------------------------------------------------------------------------
 # lines
 
-def ilv_line(p: Sequence[int], q: Sequence[int], high_first: bool = False,
-             counts: OpCounts | None = None, edge: bool = True,
-             order: Sequence[int] | None = None) -> list[Cell]:
+def tie_order(d: Sequence[int]) -> list[int]:
+    """ILV's order of the moving axes at a tie of step distances, for direction d.
+
+    The axes that move up, lowest first, then those that move down, highest
+    first.  That is how the centre-to-centre segment crosses a voxel edge or
+    corner after an infinitesimal shift of the whole lattice by (e1, e2, e3),
+    e1 >> e2 >> e3 > 0: a shift of +e_i makes every x_i-face crossing earlier
+    where the segment moves up along axis i and later where it moves down.
+    Pairwise: at a tie of axes i < j, i steps first iff it moves up.  One
+    shift for every line makes all lines through a voxel corner pass it on the
+    same side, whatever their direction, so that lines meeting at a vertex, and
+    the two directions of one line, agree.
+    """
+    return [i for i in range(3) if d[i] > 0] + [i for i in (2, 1, 0) if d[i] < 0]
+
+
+def ilv_line(p: Sequence[int], q: Sequence[int], counts: OpCounts | None = None,
+             edge: bool = True, order: Sequence[int] | None = None,
+             tie: Callable[[Cell, Cell], int] | None = None) -> list[Cell]:
     """Integer-only line voxelization (Eq. 3-4, Alg. 1 ``MarkLineILV``).
 
     Parameters
     ----------
     p, q : (3,) int
         End voxels.
-    high_first : bool
-        Tie order of equal step distances: lowest axis first (default, the
-        canonical order) or highest first, which makes ``ilv_line(q, p, True)``
-        the exact reverse of ``ilv_line(p, q)``.
     order : (3,) int, optional
-        Explicit tie order (axes, first steps first); overrides ``high_first``.
+        Tie order (axes, first steps first).  Default :func:`tie_order`, with
+        which ``ilv_line(q, p)`` is the exact reverse of ``ilv_line(p, q)``.
+    tie : callable, optional
+        ``tie(c1, c2)`` decides a tie of two axes (the line passes a voxel
+        edge): < 0 steps into c1 (the candidate of the axis ``order`` puts
+        first), > 0 into c2, 0 leaves it to ``order``.  A rule that depends on
+        the two candidates only, symmetrically, keeps reversal exact.
 
     Returns
     -------
@@ -308,16 +384,24 @@ def ilv_line(p: Sequence[int], q: Sequence[int], high_first: bool = False,
         L[i] = m
         m2[i] = 2 * m
     left = ad[:]
-    if order is None:
-        order = act[::-1] if high_first else act
-    else:
-        order = [i for i in order if ad[i]]
+    order = tie_order(d) if order is None else [i for i in order if ad[i]]
     n = sum(ad)
     for _ in range(n):
         best = -1
         for i in order:
             if left[i] and (best < 0 or L[i] < L[best]):
                 best = i
+        if tie is not None:
+            tied = [i for i in order if i != best and left[i] and L[i] == L[best]]
+            if len(tied) == 1:
+                o = tied[0]
+                c1, c2 = list(cur), list(cur)
+                c1[best] += step[best]
+                c2[o] += step[o]
+                if counts is not None:
+                    counts.base_tie()
+                if tie(tuple(c1), tuple(c2)) > 0:
+                    best = o
         lm = L[best]
         for i in act:
             L[i] -= lm
@@ -774,9 +858,9 @@ def _float_triangle(P, dims, slv: bool, tunnel: int, mark: Callable, counts, hal
 # ----------------------------------------------------------------------------
 # integer path: ILV
 
-def _path(p: Cell, q: Cell, counts, edge=True) -> list[Cell]:
-    """ILV voxels from p to q, the same set whichever end is given first."""
-    return ilv_line(p, q, high_first=p > q, counts=counts, edge=edge)
+def _path(p: Cell, q: Cell, counts, edge=True, tie=None) -> list[Cell]:
+    """ILV voxels from p to q (the reverse of q -> p, see :func:`tie_order`)."""
+    return ilv_line(p, q, counts=counts, edge=edge, tie=tie)
 
 
 def _ilv_triangle(P, dims, tunnel: int, mark: Callable, counts):
@@ -800,11 +884,21 @@ def _ilv_triangle(P, dims, tunnel: int, mark: Callable, counts):
     corner = len(first_b) - 1  # index of P1 in V_B: a scanline must end there
     nw = n[w]
 
+    def height(c, K):
+        """2 n_w (h - K), h the lattice plane's w (through the voxel centres
+        P + 1/2) at the centre of c's column: exact, in integers."""
+        return 2 * (Q0[w] - K) * nw + nw - 2 * (n[a] * (c[a] - Q0[a]) + n[b] * (c[b] - Q0[b]))
+
     def above(c, K):
-        """The lattice plane (through the voxel centres P + 1/2) at the centre of
-        c's column lies at w >= K (exact: twice the plane equation, in integers)."""
-        e = 2 * (Q0[w] - K) * nw + nw - 2 * (n[a] * (c[a] - Q0[a]) + n[b] * (c[b] - Q0[b]))
+        """The lattice plane at the centre of c's column lies at w >= K."""
+        e = height(c, K)
         return e >= 0 if nw > 0 else e <= 0
+
+    def base_tie(K):
+        """Tie rule of a base edge on the plane w = K (see :func:`_ilv_slice`)."""
+        def tie(c1, c2):
+            return abs(height(c1, K)) - abs(height(c2, K))
+        return tie
 
     ia = ib = 0
     first = Q0[w]
@@ -817,18 +911,18 @@ def _ilv_triangle(P, dims, tunnel: int, mark: Callable, counts):
             jb += 1
         if 0 <= Z < dims[w]:
             _ilv_slice(chain_a[ia:ja + 1], chain_b[ib:jb + 1], a, b, corner - ib, Z,
-                       Z > first, Z < Q2[w], tunnel, above, dims, mark, counts)
+                       Z > first, Z < Q2[w], tunnel, above, base_tie, dims, mark, counts)
         ia, ib = ja + 1, jb + 1
 
 
-def _scanline(A: Cell, B: Cell, a: int, b: int, dims, counts) -> list[Cell] | None:
+def _scanline(A: Cell, B: Cell, a: int, b: int, dims, counts, tie=None) -> list[Cell] | None:
     """ILV scanline A -> B, or None when all its voxels lie outside the grid's (a, b) rectangle."""
     if counts is not None:
         counts.scanlines += 1
     if (max(A[a], B[a]) < 0 or min(A[a], B[a]) >= dims[a]
             or max(A[b], B[b]) < 0 or min(A[b], B[b]) >= dims[b]):
         return None
-    return _path(A, B, counts, edge=False)
+    return _path(A, B, counts, edge=False, tie=tie)
 
 
 def _keep_copy(c: Cell, K: int, bottom: bool, tunnel: int, above: Callable, a: int, b: int) -> bool:
@@ -855,11 +949,22 @@ def _keep_copy(c: Cell, K: int, bottom: bool, tunnel: int, above: Callable, a: i
 
 
 def _ilv_slice(VA, VB, a, b, corner: int, Z: int, has_below: bool, has_above: bool, tunnel: int,
-               above: Callable, dims, mark, counts):
+               above: Callable, base_tie: Callable, dims, mark, counts):
+    """Scan one slice (layer Z) of a lattice triangle: Eq. 8-9, boundary treatment.
+
+    ``VA``, ``VB``: the chains' entries in layer Z.  The base edges (the
+    bottom scanline, on the plane w = Z, and the top one, on w = Z + 1, also
+    where it continues an exhausted chain) join chain voxels' centres, which
+    pass voxel edges all the time; there ``base_tie`` steps into the
+    candidate voxel whose column centre has the lattice plane nearest that
+    slicing plane, i.e. towards where the triangle really meets it (the
+    paper leaves ties free, Sec. 4.1).
+    """
     A_last, B_last = VA[-1], VB[-1]
     A, B = VA[0], VB[0]
+    bottom_tie, top_tie = base_tie(Z), base_tie(Z + 1)
     # bottom base edge: the second copy of the previous slice's top base edge
-    cells = _scanline(A, B, a, b, dims, counts)
+    cells = _scanline(A, B, a, b, dims, counts, bottom_tie)
     if cells is not None:
         if has_below and tunnel != 26:
             cells = [c for c in cells if _keep_copy(c, Z, True, tunnel, above, a, b)]
@@ -877,9 +982,9 @@ def _ilv_slice(VA, VB, a, b, corner: int, Z: int, has_below: bool, has_above: bo
             # continuation; where both chains end in the same voxel there is none
             # and the exhausted side stays put while the other one goes on (a fan).
             if a_done and ca[-1] != cb[-1]:
-                ca = ca + _path(A_last, B_last, counts, edge=False)[1:]
+                ca = ca + _path(A_last, B_last, counts, edge=False, tie=top_tie)[1:]
             elif b_done and cb[-1] != ca[-1]:
-                cb = cb + _path(B_last, A_last, counts, edge=False)[1:]
+                cb = cb + _path(B_last, A_last, counts, edge=False, tie=top_tie)[1:]
         A, B = ca[ia], cb[ib]
         if A == B:
             na = min(ia + 1, len(ca) - 1)
@@ -912,13 +1017,14 @@ def _ilv_slice(VA, VB, a, b, corner: int, Z: int, has_below: bool, has_above: bo
                 counts.candidates(tried)
         ia, ib = na, nb
         last = (ca[ia], cb[ib])
-        cells = _scanline(ca[ia], cb[ib], a, b, dims, counts)
+        top = last == (A_last, B_last)
+        cells = _scanline(ca[ia], cb[ib], a, b, dims, counts, top_tie if top else None)
         if cells is not None:
-            if last == (A_last, B_last) and has_above and tunnel != 26:  # the top base edge
+            if top and has_above and tunnel != 26:  # the top base edge
                 cells = [c for c in cells if _keep_copy(c, Z + 1, False, tunnel, above, a, b)]
             mark(cells)
     if last != (A_last, B_last):
-        cells = _scanline(A_last, B_last, a, b, dims, counts)
+        cells = _scanline(A_last, B_last, a, b, dims, counts, top_tie)
         if cells is not None:
             if has_above and tunnel != 26:
                 cells = [c for c in cells if _keep_copy(c, Z + 1, False, tunnel, above, a, b)]

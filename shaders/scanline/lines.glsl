@@ -206,18 +206,25 @@ uint float_cost(vec3 p, vec3 q, bool super_cover) {
 // Integer line (ILV, Eq. 3-4 and Alg. 1 MarkLineILV)
 
 // M over the non-zero deltas only; L is the scaled distance to the next face
-// per axis.  `high`: ties step the highest axis first, which makes the line
-// q -> p the exact reverse of p -> q (see ilv_line in the CPU reference).
+// per axis.  Ties: at a tie of axes i < j, i steps first iff it moves up
+// (tie_order in the CPU reference: the crossings of the segment after an
+// infinitesimal shift of the lattice by (e1, e2, e3), e1 >> e2 >> e3 > 0), so
+// q -> p is the exact reverse of p -> q and all lines pass a voxel corner on
+// the same side.  A base edge (`base`, on the slicing plane w = K) decides a
+// tie of its two axes by base_tie() instead (defined by the includer).
 struct Ilv {
     ivec3 p;
     ivec3 stp;
     ivec3 m2;
     ivec3 L;
     ivec3 left;
-    bool high;
+    bool base;
+    int K;
 };
 
-Ilv ilv_begin(ivec3 p, ivec3 q, bool high) {
+int base_tie(ivec3 c1, ivec3 c2, int K);
+
+Ilv ilv_begin(ivec3 p, ivec3 q) {
     Ilv it;
     ivec3 d = q - p;
     it.p = p;
@@ -227,22 +234,38 @@ Ilv ilv_begin(ivec3 p, ivec3 q, bool high) {
     ivec3 m = ivec3(f.y * f.z, f.x * f.z, f.x * f.y) * ivec3(greaterThan(it.left, ivec3(0)));
     it.L = m;
     it.m2 = 2 * m;
-    it.high = high;
+    it.base = false;
+    it.K = 0;
     return it;
 }
 
-// The axis of the next step, -1 at the end.
+// A base edge on the plane w = K (_ilv_slice's base_tie in the CPU reference).
+Ilv ilv_base(ivec3 p, ivec3 q, int K) {
+    Ilv it = ilv_begin(p, q);
+    it.base = true;
+    it.K = K;
+    return it;
+}
+
+// The axis of the next step, -1 at the end.  Scanning x, y, z, a later axis
+// wins a tie iff the current best moves down (a total order: see above).
 int ilv_axis(Ilv it) {
     int best = -1;
     int bl = 0;
-    if (!it.high) {
-        if (it.left.x > 0) { best = 0; bl = it.L.x; }
-        if (it.left.y > 0 && (best < 0 || it.L.y < bl)) { best = 1; bl = it.L.y; }
-        if (it.left.z > 0 && (best < 0 || it.L.z < bl)) { best = 2; bl = it.L.z; }
-    } else {
-        if (it.left.z > 0) { best = 2; bl = it.L.z; }
-        if (it.left.y > 0 && (best < 0 || it.L.y < bl)) { best = 1; bl = it.L.y; }
-        if (it.left.x > 0 && (best < 0 || it.L.x < bl)) { best = 0; bl = it.L.x; }
+    if (it.left.x > 0) { best = 0; bl = it.L.x; }
+    if (it.left.y > 0 && (best < 0 || it.L.y < bl || (it.L.y == bl && it.stp[best] < 0))) { best = 1; bl = it.L.y; }
+    if (it.left.z > 0 && (best < 0 || it.L.z < bl || (it.L.z == bl && it.stp[best] < 0))) { best = 2; bl = it.L.z; }
+    if (it.base && best >= 0) {
+        int o = -1;  // the other axis tied with best (a base edge moves along two axes at most)
+        if (best != 0 && it.left.x > 0 && it.L.x == bl) o = 0;
+        if (best != 1 && it.left.y > 0 && it.L.y == bl) o = 1;
+        if (best != 2 && it.left.z > 0 && it.L.z == bl) o = 2;
+        if (o >= 0) {
+            ivec3 c1 = it.p, c2 = it.p;
+            c1[best] += it.stp[best];
+            c2[o] += it.stp[o];
+            if (base_tie(c1, c2, it.K) > 0) best = o;
+        }
     }
     return best;
 }
@@ -255,16 +278,17 @@ void ilv_step(inout Ilv it, int ax) {
     it.left[ax] -= 1;
 }
 
-// The ILV voxels from p to q, the same set whichever end comes first (_path).
-Ilv ilv_path(ivec3 p, ivec3 q) { return ilv_begin(p, q, lex_less(q, p)); }
+// The ILV voxels from p to q, the exact reverse of q -> p (_path).
+Ilv ilv_path(ivec3 p, ivec3 q) { return ilv_begin(p, q); }
 
 // Draw the path p -> q, every voxel, or (keep != 0) only the voxels
 // keep_copy() keeps of a base-edge copy: keep = 1 the copy in layer K,
 // keep = 2 the copy in layer K - 1 (keep_copy is defined by the includer).
+// `base`: p -> q is a base edge on the plane w = K (ilv_base).
 bool keep_copy(ivec3 c, int K, bool bottom);
 
-void draw_ilv(ivec3 p, ivec3 q, int keep, int K) {
-    Ilv it = ilv_path(p, q);
+void draw_ilv(ivec3 p, ivec3 q, int keep, int K, bool base) {
+    Ilv it = base ? ilv_base(p, q, K) : ilv_path(p, q);
     int n = it.left.x + it.left.y + it.left.z;
     if (!job(uint(n) + 1u)) return;
     if (keep == 0 || keep_copy(p, K, keep == 1)) mark(p);

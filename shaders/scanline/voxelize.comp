@@ -264,13 +264,26 @@ void side_select(inout Side s, int w, int Z, int a, int b, int dX, int dY, int c
 ivec3 g_Q0, g_n;
 int g_w, g_a, g_b;
 
-// The lattice plane lies at w >= K at the centre of c's column: twice the plane
-// equation, exact in double (the products reach ~1e14).
-bool plane_above(ivec3 c, int K) {
+// 2 n_w (h - K), h the lattice plane's w at the centre of c's column: twice the
+// plane equation, exact in double (the products reach ~1e14).
+double plane_height(ivec3 c, int K) {
     double nw = double(g_n[g_w]);
-    double e = 2.0lf * double(g_Q0[g_w] - K) * nw + nw
-             - 2.0lf * (double(g_n[g_a]) * double(c[g_a] - g_Q0[g_a]) + double(g_n[g_b]) * double(c[g_b] - g_Q0[g_b]));
-    return nw > 0.0lf ? e >= 0.0lf : e <= 0.0lf;
+    return 2.0lf * double(g_Q0[g_w] - K) * nw + nw
+         - 2.0lf * (double(g_n[g_a]) * double(c[g_a] - g_Q0[g_a]) + double(g_n[g_b]) * double(c[g_b] - g_Q0[g_b]));
+}
+
+// The lattice plane lies at w >= K at the centre of c's column.
+bool plane_above(ivec3 c, int K) {
+    double e = plane_height(c, K);
+    return g_n[g_w] > 0 ? e >= 0.0lf : e <= 0.0lf;
+}
+
+// A base edge on the plane w = K passing a voxel edge: step into the candidate
+// whose column centre has the lattice plane nearer w = K (> 0: c2, < 0: c1,
+// 0: the default order; base_tie in the CPU module's _ilv_triangle).
+int base_tie(ivec3 c1, ivec3 c2, int K) {
+    double d = abs(plane_height(c1, K)) - abs(plane_height(c2, K));
+    return d > 0.0lf ? 1 : (d < 0.0lf ? -1 : 0);
 }
 
 // ILV tunnel 18 / 6: keep this copy of a base-edge voxel (bottom: the copy in
@@ -287,11 +300,12 @@ bool keep_copy(ivec3 c, int K, bool bottom) {
         || plane_above(c - eb, K) == bottom || plane_above(c + eb, K) == bottom;
 }
 
-// One ILV scanline in layer Z, skipped when it lies outside the grid's (a, b) rectangle.
-void scan_draw(ivec3 L0, ivec3 L1, int keep, int K, int a, int b) {
+// One ILV scanline in layer Z, skipped when it lies outside the grid's (a, b)
+// rectangle; `base`: a base edge on the plane w = K.
+void scan_draw(ivec3 L0, ivec3 L1, int keep, int K, bool base, int a, int b) {
     if (max(L0[a], L1[a]) < 0 || min(L0[a], L1[a]) >= u_dims[a]
             || max(L0[b], L1[b]) < 0 || min(L0[b], L1[b]) >= u_dims[b]) return;
-    draw_ilv(L0, L1, keep, K);
+    draw_ilv(L0, L1, keep, K, base);
 }
 
 // Scan one slice (layer Z): bottom base edge, Eq. 8-9 scanlines, top base edge.
@@ -308,6 +322,7 @@ void ilv_slice(Chain ca, Chain cb, ivec3 A_last, ivec3 B_last, bool below, bool 
         ivec3 L0 = lastA, L1 = lastB;
         bool draw = true;
         int keep = 0, K = Z;  // keep: 1 bottom base edge copy, 2 top one (tunnel 18 / 6)
+        bool base = true;     // a base edge, on the plane w = K (its ties: base_tie)
         if (phase == 0) {
             keep = below && TUNNEL != 26 ? 1 : 0;
             phase = 1;
@@ -324,10 +339,10 @@ void ilv_slice(Chain ca, Chain cb, ivec3 A_last, ivec3 B_last, bool below, bool 
                     stop = true;
                 } else if (a_done && ea != eb) {
                     sa.ext = true;
-                    sa.e = ilv_path(A_last, B_last);
+                    sa.e = ilv_base(A_last, B_last, Z + 1);
                 } else if (b_done && ea != eb) {
                     sb.ext = true;
-                    sb.e = ilv_path(B_last, A_last);
+                    sb.e = ilv_base(B_last, A_last, Z + 1);
                 }
             }
             if (stop) {
@@ -355,13 +370,14 @@ void ilv_slice(Chain ca, Chain cb, ivec3 A_last, ivec3 B_last, bool below, bool 
                 L1 = side_pos(sb);
                 lastA = L0;
                 lastB = L1;
-                if (L0 == A_last && L1 == B_last && above && TUNNEL != 26) {  // the top base edge
-                    keep = 2;
+                base = L0 == A_last && L1 == B_last;  // the top base edge
+                if (base) {
                     K = Z + 1;
+                    if (above && TUNNEL != 26) keep = 2;
                 }
             }
         }
-        if (draw) scan_draw(L0, L1, keep, K, a, b);
+        if (draw) scan_draw(L0, L1, keep, K, base, a, b);
         if (phase == 2 || g_abort) break;
     }
 }
@@ -377,9 +393,9 @@ void ilv_triangle(vec3 X0, vec3 X1, vec3 X2) {
 #endif
         return;
     }
-    draw_ilv(P0, P1, 0, 0);
-    draw_ilv(P1, P2, 0, 0);
-    draw_ilv(P2, P0, 0, 0);
+    draw_ilv(P0, P1, 0, 0, false);
+    draw_ilv(P1, P2, 0, 0, false);
+    draw_ilv(P2, P0, 0, 0, false);
     ivec3 n = icross(P1 - P0, P2 - P0);
     if (n == ivec3(0)) return;
     int w = dominant(n);
