@@ -143,7 +143,7 @@ def run_cell(cell: Cell, plan: Plan, meshes: dict, refs: dict) -> dict[str, Any]
         "triangles": mesh.n_triangles, "watertight": mesh.watertight, "n": cell.n,
         "dims": list(spec.dims), "status": "ok", "error": None,
     }
-    if info.kind in ("solid", "sparse") and not mesh.watertight:
+    if info.kind in ("solid", "sparse", "ldi") and not mesh.watertight:
         row.update(status="skipped", error="mesh not watertight: inside is undefined for a solid method")
         return row
     ctx = get_context() if info.uses_gl else None

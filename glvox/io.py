@@ -54,10 +54,15 @@ def _suffix(path: Path) -> str:
 
 def save(grid: VoxelGrid, path: str | os.PathLike, *, convention: str = "trimesh") -> Path:
     """Write ``grid`` (a VoxelGrid or a SparseOctree) to ``path`` (.npz or .binvox, by suffix)."""
+    from .ldi import LDI
     from .octree import SparseOctree
 
     path = Path(path)
     suffix = _suffix(path)
+    if isinstance(grid, LDI):
+        if suffix == ".binvox":
+            raise FormatError(f"an LDI is saved as .npz (depths per ray), not binvox: {path}")
+        return grid.save(path)
     if isinstance(grid, SparseOctree):
         if suffix == ".binvox":
             dense = grid.to_grid()
@@ -89,8 +94,8 @@ def save(grid: VoxelGrid, path: str | os.PathLike, *, convention: str = "trimesh
 def load(path: str | os.PathLike, *, convention: str = "trimesh"):
     """Read a grid written by :func:`save` (or any conforming npz / binvox).
 
-    Returns a VoxelGrid, or a :class:`glvox.octree.SparseOctree` for an npz
-    holding one.
+    Returns a VoxelGrid, or a :class:`glvox.octree.SparseOctree` or a
+    :class:`glvox.ldi.LDI` for an npz holding one.
     """
     path = Path(path)
     if not path.is_file():
@@ -105,6 +110,10 @@ def _load_npz(path: Path):
         with np.load(path, allow_pickle=False) as z:
             if "octree_dims" in z.files:
                 return _load_octree(path, z)
+            if "depths" in z.files and "counts" in z.files:
+                from .ldi import LDI
+
+                return LDI.load(path)
             missing = {"occupancy", "origin", "voxel_size"} - set(z.files)
             if missing:
                 raise FormatError(f"{path} lacks the npz keys {sorted(missing)}")

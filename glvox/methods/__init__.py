@@ -115,13 +115,13 @@ def run_method(name: str, mesh: Mesh, spec: GridSpec, *, ctx=None, backend: str 
             f"method {name!r} returns a dense grid, and {spec.dims} has {spec.n_voxels} voxels, more "
             f"than the {MAX_VOXELS} glvox keeps dense; use a smaller grid or the sparse ss-octree"
         )
-    if info.kind in ("solid", "sparse") and not mesh.watertight and not allow_open:
+    if info.kind in ("solid", "sparse", "ldi") and not mesh.watertight and not allow_open:
         raise NotWatertightError(
             f"{mesh.name} is not watertight, so 'inside' is undefined for the solid method {name!r}; "
             "repair the mesh, use a surface method, or pass allow_open=True (--allow-open) to "
             "voxelize by parity of crossings anyway"
         )
-    if info.kind in ("solid", "sparse") and not mesh.watertight:
+    if info.kind in ("solid", "sparse", "ldi") and not mesh.watertight:
         warnings.warn(
             f"{mesh.name} is not watertight: {name!r} returns the parity of ray crossings, which "
             "is 'inside' only where the rays cross a closed part of the surface; expect streaks "

@@ -1,0 +1,53 @@
+#version 450
+// Leung & Wang 2013 Alg. 2 (DepthSampleRetrieval), one pass: LDI_LAYERS = 4 LDI_TARGETS
+// layers [u_layer_lo, u_layer_lo + LDI_LAYERS) of every ray, blended with MAX.
+//
+// A fragment in cell z is classified by T1 and T2 (Sec. III-B): entering voxel (EV,
+// T1(z) = 1, T1(z-1) = 0), leaving voxel (LV, 0 and 1), entering-leaving voxel (ELV, both 0
+// and T2(z) = 1); leaving-entering voxels (LEV, both 1) are taken as solid and their
+// fragments dropped, as are those of cells with no sample.  Its layer p is the number of
+// samples in front of its cell (fast bit checking, Eq. 5).  An EV keeps its nearest
+// fragment, an LV its farthest, an ELV both: with normalized depth d in [0, 1], the nearest
+// is the MAX of 1 - d (Eq. 6: entering samples sit at even layers here, counting from 0),
+// the farthest the MAX of d.  Values are rounded up to float32, so after decoding the
+// entering sample is at most and the leaving sample at least the computed crossing.
+#include "eisemann/column.glsl"
+#include "ldi/column.glsl"
+
+uniform ivec2 u_tile_lo;
+uniform int u_layer_lo;
+
+flat in uint v_tri;
+
+layout(location = 0) out vec4 o_depths[LDI_TARGETS];
+
+void main() {
+    dvec3 p0, p1, p2;
+    eis_triangle(v_tri, p0, p1, p2);
+    dvec3 n = eis_normal(p0, p1, p2);
+    ivec2 pix = ivec2(gl_FragCoord.xy) + u_tile_lo;
+    dvec2 c = dvec2(pix) + 0.5;
+    if (!eis_covers(p0, p1, p2, n.z, c)) discard;
+    double qc = ldi_cell_depth(eis_crossing(p0, p1, p2, n, c));
+    int z = ldi_cell(qc);
+    uint col = ldi_column(pix);
+    bool here = ldi_t1_bit(col, z);
+    bool before = ldi_t1_bit(col, z - 1);
+    bool ev = here && !before;
+    bool lv = !here && before;
+    bool elv = !here && !before && ldi_t2_bit(col, z);
+    if (!(ev || lv || elv)) discard;
+    int s0 = ldi_layers_ahead(col, z) - u_layer_lo;
+    int s1 = elv ? s0 + 1 : -1;
+    bool first_here = s0 >= 0 && s0 < LDI_LAYERS;
+    bool second_here = s1 >= 0 && s1 < LDI_LAYERS;
+    if (!(first_here || second_here)) discard;
+    double d = clamp(qc / double(u_cells), 0.0, 1.0);
+    float near_key = ldi_round_up(1.0 - d);  // entering: the MAX of 1 - d is the nearest
+    float far_key = ldi_round_up(d);         // leaving: the MAX of d is the farthest
+    vec4 outv[LDI_TARGETS];
+    for (int t = 0; t < LDI_TARGETS; ++t) outv[t] = vec4(0.0);
+    if (first_here) outv[s0 >> 2][s0 & 3] = lv ? far_key : near_key;
+    if (second_here) outv[s1 >> 2][s1 & 3] = far_key;
+    for (int t = 0; t < LDI_TARGETS; ++t) o_depths[t] = outv[t];
+}
