@@ -918,7 +918,7 @@ def run_batch(source: str | os.PathLike, out_dir: str | os.PathLike, settings: B
 
 #: Broken files of :func:`synthetic_dataset` and the reason glvox gives for each.
 BROKEN = {
-    "broken/truncated.stl": "EmptyMeshError",      # binary STL cut in half: trimesh reads no triangles
+    "broken/truncated.stl": "MeshLoadError",       # binary STL cut in half (glvox checks the size)
     "broken/garbage.ply": "MeshLoadError",         # random bytes
     "broken/garbage.obj": "EmptyMeshError",        # random bytes: no 'v' / 'f' lines
     "broken/empty.obj": "EmptyMeshError",          # 0 bytes

@@ -103,6 +103,8 @@ def _load_file(path: Path):
         raise MeshLoadError(f"mesh path is a directory, not a file: {path}")
     if path.stat().st_size == 0:
         raise EmptyMeshError(f"mesh file is empty (0 bytes): {path}")
+    if path.suffix.lower() == ".stl":
+        _check_binary_stl(path)
     try:
         # materials and textures are irrelevant to voxels (and would need Pillow)
         loaded = trimesh.load(str(path), process=False, skip_materials=True)
@@ -114,6 +116,24 @@ def _load_file(path: Path):
     if not hasattr(loaded, "faces") or not hasattr(loaded, "vertices"):
         raise MeshLoadError(f"{path} holds no triangle mesh (got {type(loaded).__name__})")
     return loaded.vertices, loaded.faces
+
+
+def _check_binary_stl(path: Path) -> None:
+    """A binary STL whose size disagrees with its triangle count is truncated (or
+    padded): one clear error, whatever the trimesh version makes of it (some read
+    no triangles, some raise)."""
+    size = path.stat().st_size
+    with open(path, "rb") as f:
+        head = f.read(84)
+    if head[:5].lower() == b"solid" and b"\0" not in head[5:80]:
+        return  # ASCII STL
+    if len(head) < 84:
+        raise MeshLoadError(f"binary STL is truncated: {path} has {size} bytes, less than its 84-byte header")
+    count = int.from_bytes(head[80:84], "little")
+    expected = 84 + 50 * count
+    if size < expected:
+        raise MeshLoadError(f"binary STL is truncated: {path} declares {count} triangles ({expected} bytes) "
+                            f"but has {size} bytes")
 
 
 def _scene_triangles(scene, path: Path):

@@ -497,7 +497,7 @@ def test_cli_summary_and_quiet(dataset, tmp_path):
     assert p.returncode == 3
     assert f"{len(BROKEN)} meshes in" in p.stdout and "(in-process" in p.stdout
     assert "done 0, skipped 0, failed 7" in p.stdout
-    assert "failed by reason: EmptyMeshError 4, MeshLoadError 2, NonFiniteVertexError 1" in p.stdout
+    assert "failed by reason: EmptyMeshError 3, MeshLoadError 3, NonFiniteVertexError 1" in p.stdout
     assert "meshes/s" in p.stdout
     q = glvox("batch", root / "broken", "-o", tmp_path / "o", "-r", R, "--workers", 0, "-q")
     assert q.returncode == 3 and q.stdout == "" and q.stderr == ""
