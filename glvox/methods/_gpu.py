@@ -179,8 +179,10 @@ def dispatch_1d(ctx, prog, n: int, local_size: int) -> None:
 
 def read_grid_words(buf, spec) -> np.ndarray:
     """The packed grid words of ``spec`` from ``buf`` (uint32, (nz, ny, words_per_row))."""
-    data = buf.read(size=spec.n_words * 4)
-    return np.frombuffer(data, dtype="<u4").reshape(spec.dims[2], spec.dims[1], spec.words_per_row)
+    # read_into a preallocated array: a third of buf.read()'s time on 128 MiB here
+    words = np.empty(spec.n_words, dtype="<u4")
+    buf.read_into(words, size=spec.n_words * 4)
+    return words.reshape(spec.dims[2], spec.dims[1], spec.words_per_row)
 
 
 def transform_vertices(ctx, mesh, spec, timer, pool):
