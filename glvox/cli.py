@@ -1,4 +1,4 @@
-"""Command line: ``glvox info | methods | voxelize | batch | ldi | volume | compare``.
+"""Command line: ``glvox info | methods | voxelize | batch | ldi | volume | compare | bench``.
 
 Errors glvox raises on purpose print one line ``glvox: error: ...`` and exit
 with status 1 (2 for wrong usage, as argparse does); never a traceback.
@@ -270,6 +270,13 @@ def cmd_compare(args) -> int:
     return compare_main(args)
 
 
+def cmd_bench(args) -> int:
+    """``glvox bench``: exit 0, or 3 when ``--check`` finds a regression."""
+    from .compare.bench import main as bench_main
+
+    return bench_main(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="glvox", description="Headless GPU voxelization of triangle meshes.")
     p.add_argument("--version", action="version", version=f"glvox {__version__}")
@@ -399,6 +406,16 @@ def build_parser() -> argparse.ArgumentParser:
     add_arguments(pc)
     pc.set_defaults(func=cmd_compare)
 
+    pbe = sub.add_parser(
+        "bench", help="glvox against Open3D, trimesh, PyVista and libigl on the same grids: ratio table",
+        description="Every glvox GPU method and every installed peer voxelizer (pip install 'glvox[peers]') "
+                    "on the same mesh and grid, timed in one process (medians of interleaved warm runs), "
+                    "with each one's agreement with glvox's exact references; prints the ratio of each "
+                    "method to the fastest peer of its kind and the issue's targets.")
+    from .compare.bench import add_arguments as add_bench_arguments
+
+    add_bench_arguments(pbe)
+    pbe.set_defaults(func=cmd_bench)
     return p
 
 

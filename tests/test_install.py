@@ -53,6 +53,7 @@ def test_regular_install_finds_shaders_from_another_directory(tmp_path):
     assert (target / "glvox" / "_shaders" / "common" / "bits.glsl").is_file()
     assert (target / "glvox" / "_shaders" / "render" / "cubes.vert").is_file()
     assert (target / "glvox" / "compare" / "harness.py").is_file()
+    assert (target / "glvox" / "compare" / "bench_baseline.json").is_file()
     work = tmp_path / "elsewhere"
     work.mkdir()
     env = {k: v for k, v in os.environ.items() if k != "GLVOX_SHADER_PATH"}
