@@ -241,7 +241,7 @@ def test_open_mesh_is_refused_then_warned_and_parity(gl_context):
     assert out["ss-solid"].equal(run_method("ss-solid", closed, spec))
 
 
-def test_limits_are_refused_clearly(gl_context, shared_mesh):
+def test_limits_are_refused_clearly(gl_context):
     mesh = load_mesh("gen:sphere")
     with pytest.raises(LimitError, match="rows of 4096 voxels; this grid has nx = 4100: use ss-solid"):
         run_method("ss-solid-tiled", mesh, glvox.grid_for(mesh, dims=(4100, 4, 4)))
