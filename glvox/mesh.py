@@ -107,7 +107,17 @@ def _load_file(path: Path):
         _check_binary_stl(path)
     try:
         # materials and textures are irrelevant to voxels (and would need Pillow)
-        loaded = trimesh.load(str(path), process=False, skip_materials=True)
+        try:
+            loaded = trimesh.load(str(path), process=False, skip_materials=True)
+        except ImportError:
+            # trimesh guesses the encoding of a text file that is not UTF-8 with
+            # an optional package (chardet); without it, decode here, replacing
+            # bad bytes, so the result does not depend on what else is installed
+            import io
+
+            text = path.read_bytes().decode("utf-8", errors="replace").encode("utf-8")
+            loaded = trimesh.load(io.BytesIO(text), file_type=path.suffix.lstrip(".").lower(),
+                                  process=False, skip_materials=True)
     except Exception as exc:  # noqa: BLE001 - trimesh raises many types; one clear error
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise MeshLoadError(f"could not read mesh file {path}: {msg}") from None

@@ -178,3 +178,26 @@ def test_multi_part_file_is_placed_by_the_scene_graph(tmp_path):
 def test_textured_obj_loads_without_pillow(shared_mesh):
     m = load_mesh(shared_mesh("messy_wallhole.obj"))  # mtllib and texture coordinates
     assert m.n_triangles + m.n_degenerate == 66 and m.n_degenerate == 11  # SOURCES.md: 11 zero-area faces
+
+
+def test_text_mesh_that_is_not_utf8_reads_the_same_without_chardet(tmp_path, monkeypatch):
+    """trimesh guesses a non-UTF-8 text file's encoding with chardet when it is
+    installed and raises ImportError when not (a fresh install): glvox decodes
+    itself then, so the error is the same either way."""
+    import trimesh
+
+    p = tmp_path / "garbage.obj"
+    p.write_bytes(bytes(np.random.default_rng(3).integers(128, 256, 4000, dtype=np.uint8)))
+    real = trimesh.load
+
+    def no_chardet(obj, *args, **kwargs):
+        if isinstance(obj, str):
+            raise ModuleNotFoundError("No module named 'chardet'")
+        return real(obj, *args, **kwargs)
+
+    monkeypatch.setattr(trimesh, "load", no_chardet)
+    with pytest.raises(EmptyMeshError, match=r"garbage\.obj holds no triangles"):
+        load_mesh(p)
+    q = tmp_path / "ok.obj"
+    q.write_bytes(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n# \xff\xfe not utf-8\n")
+    assert load_mesh(q).n_triangles == 1
