@@ -277,6 +277,17 @@ def cmd_bench(args) -> int:
     return bench_main(args)
 
 
+def _add_grid_arguments(p: argparse.ArgumentParser, bounds: bool = False) -> None:
+    """The grid options beside -r shared by voxelize, batch and ldi (see glvox.grid_for)."""
+    p.add_argument("--dims", type=int, nargs=3, metavar=("NX", "NY", "NZ"), help="explicit dims")
+    p.add_argument("--voxel-size", type=float, help="explicit voxel size (world units)")
+    if bounds:
+        p.add_argument("--bounds", type=float, nargs=6, metavar=("XMIN", "YMIN", "ZMIN", "XMAX", "YMAX", "ZMAX"),
+                       help="region to cover instead of the mesh's bounding box")
+    p.add_argument("--padding", type=int, default=0, help="empty voxels kept on every side")
+    p.add_argument("--tight", action="store_true", help="non-cubic dims fitted to the bounding box")
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="glvox", description="Headless GPU voxelization of triangle meshes.")
     p.add_argument("--version", action="version", version=f"glvox {__version__}")
@@ -302,12 +313,7 @@ def build_parser() -> argparse.ArgumentParser:
     pv.add_argument("-o", "--output", help="output file, .npz or .binvox")
     pv.add_argument("-O", "--option", action="append", default=[], metavar="KEY=VALUE",
                     help="method option (repeatable); `--KEY VALUE` works too, e.g. --axis 2")
-    pv.add_argument("--dims", type=int, nargs=3, metavar=("NX", "NY", "NZ"), help="explicit dims")
-    pv.add_argument("--voxel-size", type=float, help="explicit voxel size (world units)")
-    pv.add_argument("--bounds", type=float, nargs=6, metavar=("XMIN", "YMIN", "ZMIN", "XMAX", "YMAX", "ZMAX"),
-                    help="region to cover instead of the mesh's bounding box")
-    pv.add_argument("--padding", type=int, default=0, help="empty voxels kept on every side")
-    pv.add_argument("--tight", action="store_true", help="non-cubic dims fitted to the bounding box")
+    _add_grid_arguments(pv, bounds=True)
     pv.add_argument("--allow-open", action="store_true",
                     help="let solid methods run on meshes that are not watertight")
     pv.add_argument("--backend", choices=["egl", "osmesa", "auto"], default=None)
@@ -330,10 +336,7 @@ def build_parser() -> argparse.ArgumentParser:
     pb.add_argument("--format", choices=["npz", "binvox"], default="npz", help="output format (default npz)")
     pb.add_argument("-O", "--option", action="append", default=[], metavar="KEY=VALUE",
                     help="method option (repeatable)")
-    pb.add_argument("--dims", type=int, nargs=3, metavar=("NX", "NY", "NZ"), help="explicit dims")
-    pb.add_argument("--voxel-size", type=float, help="explicit voxel size (world units)")
-    pb.add_argument("--padding", type=int, default=0, help="empty voxels kept on every side")
-    pb.add_argument("--tight", action="store_true", help="non-cubic dims fitted to the bounding box")
+    _add_grid_arguments(pb)
     pb.add_argument("--allow-open", action="store_true",
                     help="let solid methods run on meshes that are not watertight")
     pb.add_argument("--workers", type=int, default=None,
@@ -367,10 +370,7 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("-o", "--output", help="output file (.npz)")
     pl.add_argument("-O", "--option", action="append", default=[], metavar="KEY=VALUE",
                     help="method option (repeatable), e.g. -O targets=4")
-    pl.add_argument("--dims", type=int, nargs=3, metavar=("NX", "NY", "NZ"), help="explicit dims")
-    pl.add_argument("--voxel-size", type=float, help="explicit voxel size (world units)")
-    pl.add_argument("--padding", type=int, default=0, help="empty voxels kept on every side")
-    pl.add_argument("--tight", action="store_true", help="non-cubic dims fitted to the bounding box")
+    _add_grid_arguments(pl)
     pl.add_argument("--allow-open", action="store_true", help="sample meshes that are not watertight (parity)")
     pl.add_argument("--backend", choices=["egl", "osmesa", "auto"], default=None)
     pl.add_argument("--json", action="store_true", help="print counts and timings as JSON")

@@ -22,6 +22,7 @@ from glvox.errors import (CapabilityError, LimitError, MethodError, NotWatertigh
 from glvox.grid import GridSpec
 from glvox.mesh import load_mesh
 from glvox.methods import eisemann, run_method
+from glvox.methods._gpu import object_cache
 from glvox.metrics import check_against_reference, tie_set
 from glvox.reference import TIE_EPS
 from glvox.timing import StageTimer
@@ -494,8 +495,8 @@ def test_masks_texture_and_bits_agree_and_runs_reuse_buffers(gl_context):
         bits = run_method(name, mesh, spec, masks="bits")
         pool = gl_context._glvox_caches["pools"][name]
         ids = {k: b.glo for k, b in pool._bufs.items()}
-        targets = gl_context._glvox_eisemann["targets"].textures[0].glo
+        targets = object_cache(gl_context, "eisemann", None)["targets"].textures[0].glo
         assert run_method(name, mesh, spec, masks="texture").equal(bits)
         assert run_method(name, mesh, spec, masks="bits").equal(bits)
         assert {k: b.glo for k, b in pool._bufs.items()} == ids  # no reallocation when warm
-        assert gl_context._glvox_eisemann["targets"].textures[0].glo == targets
+        assert object_cache(gl_context, "eisemann", None)["targets"].textures[0].glo == targets

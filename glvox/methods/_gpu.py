@@ -60,7 +60,7 @@ class MeshBuffers:
 def _caches(ctx) -> dict:
     caches = getattr(ctx, "_glvox_caches", None)
     if caches is None:
-        caches = {"meshes": {}, "pools": {}}
+        caches = {"meshes": {}, "pools": {}, "objects": {}}
         ctx._glvox_caches = caches
         ctx.on_release.append(lambda: _release_all(caches))
     return caches
@@ -73,6 +73,9 @@ def _release_all(caches: dict) -> None:
     for pool in caches["pools"].values():
         pool.release()
     caches["pools"].clear()
+    for cache, release in caches["objects"].values():
+        release(cache)
+    caches["objects"].clear()
 
 
 def mesh_buffers(ctx, mesh) -> MeshBuffers:
@@ -132,6 +135,23 @@ def buffer_pool(ctx, owner: str) -> BufferPool:
     if pool is None:
         pool = pools[owner] = BufferPool(ctx)
     return pool
+
+
+def object_cache(ctx, owner: str, release) -> dict:
+    """A dict of GL objects (render targets, framebuffers...) that ``owner`` keeps
+    in ``ctx`` between runs; ``release(cache)`` frees and empties it, and runs
+    when the context is released (or by :func:`release_object_cache`)."""
+    objects = _caches(ctx)["objects"]
+    if owner not in objects:
+        objects[owner] = ({}, release)
+    return objects[owner][0]
+
+
+def release_object_cache(ctx, owner: str) -> None:
+    """Free what ``owner`` keeps in :func:`object_cache` (nothing if it keeps nothing)."""
+    entry = _caches(ctx)["objects"].get(owner)
+    if entry is not None:
+        entry[1](entry[0])
 
 
 def check_buffer_size(ctx, nbytes: int, what: str) -> None:

@@ -71,7 +71,7 @@ from ..grid import VoxelGrid
 from ..shaders import compute_program, render_program
 from ._base import Method, MethodInfo, Option, Requirements, register
 from ._gpu import (LOOP_BUDGET, barrier, buffer_pool, dispatch_1d, grid_uniforms, mesh_buffers,
-                   read_grid_words, set_uniforms)
+                   object_cache, read_grid_words, release_object_cache, set_uniforms)
 
 _PAPER_2008 = ("Eisemann & Decoret 2008 (Leung & Wang 2013 Sec. III-A, Alg. 1 lines 1-7; "
                "Schwarz & Seidel 2010 Sec. 2)")
@@ -163,12 +163,7 @@ class _Targets:
 
 
 def _cache(ctx) -> dict:
-    cache = getattr(ctx, "_glvox_eisemann", None)
-    if cache is None:
-        cache = {}
-        ctx._glvox_eisemann = cache
-        ctx.on_release.append(lambda: _release_cache(ctx, cache))
-    return cache
+    return object_cache(ctx, "eisemann", lambda cache: _release_cache(ctx, cache))
 
 
 def _release_cache(ctx, cache: dict) -> None:
@@ -441,9 +436,7 @@ class _Eisemann(Method):
 
     def release(self, ctx) -> None:
         buffer_pool(ctx, self.info.name).release()
-        cache = getattr(ctx, "_glvox_eisemann", None)
-        if cache is not None:
-            _release_cache(ctx, cache)
+        release_object_cache(ctx, "eisemann")
 
 
 def _options(what: str) -> dict[str, Option]:

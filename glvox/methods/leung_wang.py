@@ -83,7 +83,7 @@ from ..shaders import compute_program, render_program
 from . import depth_layers, eisemann
 from ._base import Method, MethodInfo, Option, Requirements, register
 from ._gpu import (LOOP_BUDGET, barrier, buffer_pool, check_buffer_size, dispatch_1d, grid_uniforms,
-                   mesh_buffers, set_uniforms)
+                   mesh_buffers, object_cache, release_object_cache, set_uniforms)
 
 _PAPER = "Leung & Wang 2013"
 
@@ -135,12 +135,7 @@ class _Targets:
 
 
 def _cache(ctx) -> dict:
-    cache = getattr(ctx, "_glvox_ldi", None)
-    if cache is None:
-        cache = {}
-        ctx._glvox_ldi = cache
-        ctx.on_release.append(lambda: _release_cache(ctx, cache))
-    return cache
+    return object_cache(ctx, "leung-wang", lambda cache: _release_cache(ctx, cache))
 
 
 def _release_cache(ctx, cache: dict) -> None:
@@ -824,9 +819,7 @@ class LeungWangLDI(Method):
     def release(self, ctx) -> None:
         buffer_pool(ctx, self.info.name).release()
         buffer_pool(ctx, "leung-wang-intersection").release()
-        cache = getattr(ctx, "_glvox_ldi", None)
-        if cache is not None:
-            _release_cache(ctx, cache)
+        release_object_cache(ctx, "leung-wang")
 
 
 @register

@@ -13,6 +13,7 @@ import ctypes
 import os
 
 from ..gl import GLuint, _SIGNATURES
+from ..shaders import preprocess
 
 GLboolean = ctypes.c_ubyte
 
@@ -48,7 +49,8 @@ def _newest_name(ctx) -> int:
     buf = mgl.buffer(reserve=4)
     tex = mgl.texture((1, 1), 1)
     fbo = mgl.framebuffer(color_attachments=[tex])
-    prog = mgl.program(vertex_shader="#version 330\nvoid main() { gl_Position = vec4(0.0); }")
+    # a fresh, uncached program: the shader cache would hand back an old name
+    prog = mgl.program(vertex_shader=preprocess("testing/fullscreen.vert").text)
     top = max(buf.glo, tex.glo, fbo.glo, prog.glo)
     ctx.release_framebuffer(fbo)
     for obj in (prog, tex, buf):
