@@ -117,6 +117,19 @@ def test_a_private_context_runs_every_method_and_releases_everything(gl_context)
 
 
 @pytest.mark.parametrize("name", GL)
+def test_release_frees_what_a_method_keeps_and_it_runs_again(gl_context, name):
+    """Method.release frees the method's pooled buffers and cached targets: fewer
+    live GL objects afterwards, and the next run rebuilds them with the same result."""
+    mesh = small_mesh()
+    spec = glvox.grid_for(mesh, 12)
+    first = run_method(name, mesh, spec)
+    held = live_gl_objects(gl_context)["total"]
+    get_method(name).release(gl_context)
+    assert live_gl_objects(gl_context)["total"] < held
+    assert_same(run_method(name, mesh, spec), first, f"{name} after release")
+
+
+@pytest.mark.parametrize("name", GL)
 def test_every_stage_is_clean_in_debug_mode(gl_context, name):
     """With debug on (GLVOX_DEBUG=1), glGetError is checked after every stage and
     a failure would raise GLError naming the method and stage: none may."""

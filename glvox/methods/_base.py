@@ -161,7 +161,12 @@ class Method:
         raise NotImplementedError
 
     def release(self, ctx) -> None:
-        """Free GPU resources held for ``ctx`` (no-op by default)."""
+        """Free GPU resources held for ``ctx``: by default the method's buffer pool
+        (``buffer_pool(ctx, info.name)``); methods keeping more override this."""
+        if self.info.uses_gl:
+            from ._gpu import buffer_pool
+
+            buffer_pool(ctx, self.info.name).release()
 
 
 _REGISTRY: dict[str, Method] = {}

@@ -370,9 +370,6 @@ class _DepthLayers(Method):
         dispatch_1d(ctx, combine, spec.n_words, 256)
         barrier(ctx)
 
-    def release(self, ctx) -> None:
-        buffer_pool(ctx, self.info.name).release()
-
 
 class _Run:
     """One run's raster and record passes (the state every pass needs)."""

@@ -435,7 +435,7 @@ class _Eisemann(Method):
         return VoxelGrid(words=words, spec=spec)
 
     def release(self, ctx) -> None:
-        buffer_pool(ctx, self.info.name).release()
+        super().release(ctx)
         release_object_cache(ctx, "eisemann")
 
 

@@ -817,7 +817,7 @@ class LeungWangLDI(Method):
                                 owner=self.info.name)
 
     def release(self, ctx) -> None:
-        buffer_pool(ctx, self.info.name).release()
+        super().release(ctx)
         buffer_pool(ctx, "leung-wang-intersection").release()
         release_object_cache(ctx, "leung-wang")
 
@@ -840,9 +840,6 @@ class PeelLDI(Method):
     def run(self, mesh, spec, *, ctx, timer, axis, tile):
         _warn_open(mesh, self.info.name)
         return peeled_ldi(ctx, mesh, spec, timer=timer, axis=axis, tile=tile, owner=self.info.name)
-
-    def release(self, ctx) -> None:
-        buffer_pool(ctx, self.info.name).release()
 
 
 @register

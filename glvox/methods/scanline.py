@@ -115,6 +115,9 @@ class _Scanline(Method):
                    "RLV_BOUNDARY_SNAP": float(RLV_BOUNDARY_SNAP)}
         return compute_program(ctx, "scanline/voxelize.comp", defines)
 
+    def release(self, ctx) -> None:
+        buffer_pool(ctx, "scanline").release()  # the three line modes share one pool
+
     def run(self, mesh, spec, *, ctx, timer, tunnel):
         n = mesh.n_triangles
         pool = buffer_pool(ctx, "scanline")

@@ -340,6 +340,3 @@ class SSOctree(Method):
             "dense_bytes": mem["dense"], "level0_percent": round(mem["level0_percent"], 4),
         })
         return result
-
-    def release(self, ctx) -> None:
-        buffer_pool(ctx, self.info.name).release()

@@ -153,9 +153,6 @@ class SSSolid(Method):
         timer.stats["max_chunks"] = int(s[3])
         return VoxelGrid(words=words, spec=spec)
 
-    def release(self, ctx) -> None:
-        buffer_pool(ctx, self.info.name).release()
-
 
 @register
 class SSSolidTiled(Method):
@@ -272,6 +269,3 @@ class SSSolidTiled(Method):
             "max_triangles_per_tile": most, "tile_passes": -(-most // TILE_TRIANGLES),
         })
         return VoxelGrid(words=words, spec=spec)
-
-    def release(self, ctx) -> None:
-        buffer_pool(ctx, self.info.name).release()

@@ -151,9 +151,6 @@ class _SSSurface(Method):
                                                     for c in cases]
         return VoxelGrid(words=words, spec=spec)
 
-    def release(self, ctx) -> None:
-        buffer_pool(ctx, self.info.name).release()
-
 
 @register
 class SSConservative(_SSSurface):
