@@ -27,7 +27,8 @@ every crossing with the same arithmetic (edge functions in double from the
 float32 voxel-space vertices; see that file for why).
 
 Only sizes are read back inside the tiled pipeline (the number of pairs, to
-size the sort); scan, sort and compaction run on the GPU.
+size the sort; the active tiles and the fullest tile's length, to size the tile
+passes); scan, sort and compaction run on the GPU.
 """
 
 from __future__ import annotations
@@ -237,15 +238,13 @@ class SSSolidTiled(Method):
                 dispatch_1d(ctx, prog, n_pairs, 256)
                 barrier(ctx)
 
-        passes = max(1, -(-n_pairs // TILE_TRIANGLES))
+        # the second and last sizes read inside the pipeline: active tiles and the
+        # fullest tile's triangles give the work groups and passes of the tile stage
+        # (issuing an upper bound of passes from the pair count instead cost ~130
+        # empty dispatches and barriers at 1024^3)
+        active_tiles, most = (int(x) for x in np.frombuffer(tstats.read(size=8), dtype="<u4"))
+        passes = -(-most // TILE_TRIANGLES)
         with timer.stage("tiles"):
-            targs = pool.get("tile_args", 12 * passes, what="tile pass arguments", clear=False)
-            prog = compute_program(ctx, "ss/tile_args.comp", {"TILE_TRIANGLES": TILE_TRIANGLES})
-            set_uniforms(prog, {"u_passes": passes, "u_max_groups": max_groups})
-            tstats.bind_to_storage_buffer(4)
-            targs.bind_to_storage_buffer(5)
-            prog.run(1, 1, 1)
-            barrier(ctx)
             proc = compute_program(ctx, "ss/tile_process.comp", {**defines, "TILE_TRIANGLES": TILE_TRIANGLES})
             set_uniforms(proc, {**common, "u_pairs": n_pairs})
             vox.bind_to_storage_buffer(1)
@@ -254,18 +253,17 @@ class SSSolidTiled(Method):
             tstats.bind_to_storage_buffer(4)
             active.bind_to_storage_buffer(6)
             values.bind_to_storage_buffer(8)
+            gx = min(active_tiles, max_groups)
             for p in range(passes):
                 set_uniforms(proc, {"u_pass": p})
-                proc.run_indirect(targs, offset=12 * p)
+                proc.run(gx, -(-active_tiles // gx), 1)
                 barrier(ctx)
 
         with timer.stage("readback", gpu=False):
             words = read_grid_words(grid, spec)
-            t = np.frombuffer(tstats.read(size=8), dtype="<u4")
-        active_tiles, most = int(t[0]), int(t[1])
         timer.stats.update({
             "pairs": n_pairs, "active_tiles": active_tiles,
             "triangles_per_active_tile": round(n_pairs / active_tiles, 2) if active_tiles else 0.0,
-            "max_triangles_per_tile": most, "tile_passes": -(-most // TILE_TRIANGLES),
+            "max_triangles_per_tile": most, "tile_passes": passes,
         })
         return VoxelGrid(words=words, spec=spec)
