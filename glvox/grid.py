@@ -329,7 +329,7 @@ class VoxelGrid:
 
     def __init__(self, occupancy: np.ndarray | None = None, spec: GridSpec | None = None, *,
                  words: np.ndarray | None = None, run: Any = None,
-                 extras: dict[str, "VoxelGrid"] | None = None):
+                 extras: dict[str, "VoxelGrid"] | None = None, count: int | None = None):
         if spec is None:
             raise GridError("a VoxelGrid needs its GridSpec")
         if (occupancy is None) == (words is None):
@@ -345,6 +345,7 @@ class VoxelGrid:
             self.extras[name] = g
         self._dense: np.ndarray | None = None
         self._words: np.ndarray | None = None
+        self._count = None if count is None else int(count)
         if occupancy is not None:
             occ = np.asarray(occupancy)
             if occ.shape != spec.dims:
@@ -385,17 +386,22 @@ class VoxelGrid:
         return v
 
     def words(self) -> np.ndarray:
-        """Bit-packed occupancy, uint32 (nz, ny, words_per_row), GPU layout."""
+        """Bit-packed occupancy, uint32 (nz, ny, words_per_row), GPU layout; read-only view."""
         if self._words is None:
             self._words = pack_bits(self._dense)
-        return self._words
+        v = self._words.view()
+        v.setflags(write=False)
+        return v
 
     @property
     def count(self) -> int:
-        """Number of set voxels."""
-        if self._words is not None:
-            return int(np.bitwise_count(self._words).sum())
-        return int(np.count_nonzero(self._dense))
+        """Number of set voxels (counted once; GPU methods may give it, counted on the GPU)."""
+        if self._count is None:
+            if self._words is not None:
+                self._count = int(np.bitwise_count(self._words).sum())
+            else:
+                self._count = int(np.count_nonzero(self._dense))
+        return self._count
 
     def __len__(self) -> int:
         return self.count

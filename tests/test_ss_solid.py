@@ -8,6 +8,8 @@ with each other exactly.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 import trimesh
@@ -40,6 +42,8 @@ def check_solid(mesh, spec, allow_open=False):
         g = run_method(name, mesh, spec, allow_open=allow_open)
         c = check_against_reference(g, mesh, "reference-solid", reference_grid=ref, ties=ties)
         assert c.ok, f"{mesh.name} {spec.dims} {name}: {c.describe()}"
+        # ss-solid counts its voxels on the GPU: the count must be the words' popcount
+        assert g.count == g.run.stats["voxels"] == int(np.bitwise_count(g.words()).sum())
         out[name] = g
     assert out["ss-solid"].equal(out["ss-solid-tiled"]), f"{mesh.name}: the two solid methods differ"
     out["reference-solid"] = ref
@@ -133,8 +137,11 @@ def test_big_triangles_span_several_chunks_and_tiles(gl_context):
     spec = GridSpec((300, 300, 300), (0.0, 0.0, 0.0), 1.0)
     box = trimesh.creation.box(bounds=[[1.2, 0.7, 0.9], [298.3, 299.1, 297.6]])
     mesh = load_mesh((box.vertices, box.faces))
-    assert ss_solid.column_chunk(spec.words_per_row) < 45000 / 2
-    check_solid(mesh, spec)
+    assert ss_solid.COLUMN_CHUNK < 45000 / 2
+    out = check_solid(mesh, spec)
+    # the four triangles of the two x faces (the others are edge-on to x)
+    assert out["ss-solid"].run.stats["triangles_with_several_chunks"] == 4
+    assert out["ss-solid"].run.stats["max_chunks"] > 2
 
 
 def test_many_triangles_per_tile_take_several_passes(gl_context):
@@ -263,4 +270,49 @@ def test_stats_and_stages(gl_context):
     st = g.run.stats
     assert st["pairs"] > 0 and st["active_tiles"] > 0 and st["voxels"] == g.count
     g = run_method("ss-solid", mesh, spec)
-    assert [s.name for s in g.run.timings.stages] == ["transform", "classify", "voxelize", "readback"]
+    assert [s.name for s in g.run.timings.stages] == ["transform", "voxelize", "fill", "readback"]
+
+
+@pytest.mark.parametrize("nx", [20, 33, 64, 96, 100, 128, 160, 200])
+def test_row_fill_every_word_width(gl_context, nx):
+    """The fill pass moves 1, 2 or 4 words per load (by the words per row:
+    nx 20, 33, 96, 100, 160 and 200 cover 1, 2, 3, 4, 5 and 7 words).  A
+    single open triangle leaves the parity odd to the row's end, so the bits
+    past nx must be masked; a box checks the carry between words."""
+    spec = GridSpec((nx, 6, 7), (0.0, 0.0, 0.0), 1.0)
+    tri = load_mesh((np.array([[nx * 0.37, 0.2, 0.1], [nx * 0.61, 5.9, 0.3], [nx * 0.5, 0.4, 6.8]]),
+                     np.array([[0, 1, 2]])), name="one-triangle")
+    box = trimesh.creation.box(bounds=[[0.6, 1.2, 0.8], [nx - 1.3, 4.7, 6.1]])
+    for mesh, allow_open in ((tri, True), (load_mesh((box.vertices, box.faces)), False)):
+        ref = run_method("reference-solid", mesh, spec, allow_open=True)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", NotWatertightWarning)
+            g = run_method("ss-solid", mesh, spec, allow_open=allow_open)
+            # the fill pass zeroed the crossings: the next run starts clean
+            again = run_method("ss-solid", mesh, spec, allow_open=allow_open)
+        assert ref.count > 0 and g.equal(ref) and again.equal(ref), f"{mesh.name} nx={nx}"
+        assert g.count == int(np.bitwise_count(g.words()).sum())
+
+
+def test_zeroed_pool_buffers_are_cleared_unless_left_zero(gl_context):
+    """BufferPool.get_zeroed (ss-solid's crossing grid) clears a buffer unless
+    the last user marked it zero again, and always after a failed run (no
+    mark) or when the buffer grew."""
+    from glvox.methods._gpu import BufferPool
+
+    pool = BufferPool(gl_context)
+    ones = b"\x01" * 64
+    try:
+        b = pool.get_zeroed("x", 64)
+        assert b.read(size=64) == bytes(64)
+        b.write(ones)  # a run that failed before re-zeroing: no mark_zero
+        assert pool.get_zeroed("x", 64).read(size=64) == bytes(64)
+        b.write(ones)
+        pool.mark_zero("x", 64)  # the user vouches: the clear is skipped
+        assert pool.get_zeroed("x", 64).read(size=64) == ones
+        assert pool.get_zeroed("x", 64).read(size=64) == bytes(64)  # the vouch is used up
+        b.write(ones)
+        pool.mark_zero("x", 32)  # zero only up to 32 bytes: a larger request clears
+        assert pool.get_zeroed("x", 64).read(size=64) == bytes(64)
+    finally:
+        pool.release()

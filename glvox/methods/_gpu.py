@@ -107,6 +107,7 @@ class BufferPool:
     def __init__(self, ctx):
         self.ctx = ctx
         self._bufs: dict[str, Any] = {}
+        self._zero: dict[str, tuple[Any, int]] = {}
 
     def get(self, name: str, nbytes: int, *, what: str | None = None, clear: bool = True):
         """A buffer of at least ``nbytes`` bytes (zero-filled when ``clear``)."""
@@ -122,10 +123,28 @@ class BufferPool:
             buf.clear(size=nbytes)
         return buf
 
+    def get_zeroed(self, name: str, nbytes: int, *, what: str | None = None):
+        """Like ``get(clear=True)``, but skips the clear when the last user of
+        the buffer left its first ``nbytes`` zero and said so (:meth:`mark_zero`).
+
+        The buffer counts as dirty from this call until ``mark_zero``, so a run
+        that fails in between leaves it to be cleared by the next one.
+        """
+        buf = self.get(name, nbytes, what=what, clear=False)
+        zero = self._zero.pop(name, None)
+        if zero is None or zero[0] is not buf or zero[1] < nbytes:
+            buf.clear(size=max(4, int(nbytes)))
+        return buf
+
+    def mark_zero(self, name: str, nbytes: int) -> None:
+        """The first ``nbytes`` of buffer ``name`` are zero again (a pass re-zeroed them)."""
+        self._zero[name] = (self._bufs[name], max(4, int(nbytes)))
+
     def release(self) -> None:
         for b in self._bufs.values():
             b.release()
         self._bufs.clear()
+        self._zero.clear()
 
 
 def buffer_pool(ctx, owner: str) -> BufferPool:

@@ -1,41 +1,37 @@
 #version 450
 // ss-solid (Schwarz & Seidel 2010, Sec. 4.1): one invocation per triangle
-// and chunk of SOLID_CHUNK of its bounding-box columns; every covered column
-// flips voxels floor(q + 1/2) .. nx - 1 with atomicXor.
-// Invocation (t, chunk): t from x (plus u_tri_offset), chunk = y + z * groups y.
+// and chunk of SOLID_CHUNK of its covered-center columns.  The paper flips
+// voxels floor(q + 1/2) .. nx - 1 of every covered column with atomicXor;
+// here each crossing flips the single bit floor(q + 1/2) of a crossing grid
+// (one atomic instead of up to nx / 32), and ss/solid_fill.comp turns every
+// row into its prefix XOR afterwards: the same voxels, since XOR commutes.
+//
+// FIRST 1: one invocation per triangle (glvox.methods._gpu.dispatch_1d) does
+// the triangle's first chunk and lists the triangles with more (nearly none:
+// a chunk is thousands of columns), so no separate pass sets triangles up
+// only to count their chunks.  FIRST 0: invocation (i, chunk - 1) of an
+// indirect dispatch (ss/solid_big_args.comp) does chunk `chunk` of the i-th
+// listed triangle, chunk - 1 = y + z * groups y.
 #include "common/bits.glsl"
 #include "common/voxel_space.glsl"
 #include "ss/solid.glsl"
 #define SOLID_UNIT 1
 #include "ss/solid_input.glsl"
 layout(local_size_x = 64) in;
-layout(std430, binding = 3) buffer Grid { uint grid[]; };
-layout(std430, binding = 5) readonly buffer TriChunks { uint tri_chunks[]; };
+#include "common/dispatch.glsl"
+layout(std430, binding = 3) buffer Crossings { uint crossings[]; };
+layout(std430, binding = 4) buffer Big { uint big_count; uint big_max_chunks; uint big_list[]; };
 uniform uint u_triangles;
-uniform uint u_tri_offset;
 
-// Flip voxels first .. nx - 1 of row (j, k); the bits past nx in the last
-// word stay zero, so word counts equal voxel counts.
+// Record a crossing that flips voxels first .. nx - 1 of row (j, k).
 void flip_from(int first, int j, int k) {
-    uint wpr = words_per_row();
-    uint row = (uint(k) * uint(u_dims.y) + uint(j)) * wpr;
     uint f = uint(max(first, 0));
-    uint last_bits = uint(u_dims.x) - 32u * (wpr - 1u);  // 1..32 valid bits in the last word
-    for (uint w = f >> 5; w < wpr; ++w) {
-        uint m = w == (f >> 5) ? mask_from(f & 31u) : 0xFFFFFFFFu;
-        if (w == wpr - 1u) m &= mask_upto(last_bits - 1u);
-        atomicXor(grid[row + w], m);
-    }
+    atomicXor(crossings[(uint(k) * uint(u_dims.y) + uint(j)) * words_per_row() + (f >> 5)], bit_of(f));
 }
 
-void main() {
-    uint t = gl_GlobalInvocationID.x + u_tri_offset;
-    uint chunk = gl_WorkGroupID.y + gl_WorkGroupID.z * gl_NumWorkGroups.y;
-    if (t >= u_triangles || chunk >= tri_chunks[t]) return;
-    SolidTri T;
-    if (!load_solid_triangle(t, T)) return;
-    ivec4 c = solid_columns(T, u_dims);
-    uint nj = uint(c.z - c.x + 1), n = nj * uint(c.w - c.y + 1);
+// Columns chunk * SOLID_CHUNK .. of the covered-center range c (n columns).
+void voxelize_chunk(SolidTri T, ivec4 c, uint n, uint chunk) {
+    uint nj = uint(c.z - c.x + 1);
     uint q0 = chunk * uint(SOLID_CHUNK), q1 = min(n, q0 + uint(SOLID_CHUNK));
     int j = c.x + int(q0 % nj), k = c.y + int(q0 / nj);
     for (uint q = q0; q < q1; ++q) {
@@ -46,4 +42,29 @@ void main() {
         }
         if (++j > c.z) { j = c.x; ++k; }
     }
+}
+
+void main() {
+#if FIRST
+    uint t = global_index_1d();
+    uint chunk = 0u;
+    if (t >= u_triangles) return;
+#else
+    uint i = gl_GlobalInvocationID.x;
+    uint chunk = 1u + gl_WorkGroupID.y + gl_WorkGroupID.z * gl_NumWorkGroups.y;
+    if (i >= big_count) return;
+    uint t = big_list[i];
+#endif
+    SolidTri T;
+    if (!load_solid_triangle(t, T)) return;
+    uint n = solid_units(T).w;
+    uint chunks = (n + uint(SOLID_CHUNK) - 1u) / uint(SOLID_CHUNK);
+    if (chunk >= chunks) return;
+#if FIRST
+    if (chunks > 1u) {
+        big_list[atomicAdd(big_count, 1u)] = t;
+        atomicMax(big_max_chunks, chunks - 1u);
+    }
+#endif
+    voxelize_chunk(T, solid_columns(T, u_dims), n, chunk);
 }
