@@ -4,6 +4,7 @@
     glvox bench --preset full -o results/bench     # bunny and dragon, 128^3 to 1024^3
     glvox bench --preset quick --check             # no-regression check against bench_baseline.json
     glvox bench --preset quick --save-baseline     # refresh compare/bench_baseline.json
+    glvox bench --preset quick --against HEAD~1    # side by side with an earlier revision (:mod:`.ab`)
 
 Every glvox GPU method and every installed peer (:mod:`.peers`) run in one
 process on the same mesh and the same grid.  Per cell (mesh, N):
@@ -75,6 +76,9 @@ PRESETS: dict[str, dict[str, Any]] = {
 #: fraction over the baseline's, both in absolute terms and relative to the
 #: peers measured in the same run (see :func:`check_regressions`).
 REGRESSION_TOLERANCE = 0.10
+
+#: Timed runs per side and cell of ``--against`` (the sides take turns).
+AB_REPEAT = 10
 
 #: The baseline of the quick preset, beside this module (compare/ in a checkout).
 BASELINE = Path(__file__).resolve().with_name("bench_baseline.json")
@@ -861,6 +865,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         f"{REGRESSION_TOLERANCE * 100:.0f}%%")  # argparse formats help with %
     p.add_argument("--save-baseline", nargs="?", const=str(BASELINE), default=None, metavar="PATH",
                    help=f"write the results as the new baseline (default {BASELINE})")
+    p.add_argument("--against", default=None, metavar="REV",
+                   help="A/B check: time the plan's glvox methods with glvox at git revision REV and with this "
+                        "checkout, run by run in two processes (no peers; --repeat runs per side, default "
+                        f"{AB_REPEAT}); exit status 3 when a method's best and median times grew by more than "
+                        f"{REGRESSION_TOLERANCE * 100:.0f}%%. Immune to machine drift, unlike --check")
     p.add_argument("--cold-start", action="store_true",
                    help="also time each method's first call in a fresh process (Mesa's shader disk cache off) "
                         "on the first mesh at the smallest size")
@@ -930,6 +939,21 @@ def main(args) -> int:
     def progress(msg: str) -> None:
         if not args.quiet:
             print(f"[{time.perf_counter() - t_start:7.1f} s] {msg}", file=sys.stderr, flush=True)
+
+    if getattr(args, "against", None):
+        from .ab import run_against
+
+        plan = plan_from(args, log)
+        plan.repeat = args.repeat or AB_REPEAT
+        _, text = run_against(plan, args.against, REGRESSION_TOLERANCE, progress)
+        if args.out:
+            out = Path(args.out)
+            out.mkdir(parents=True, exist_ok=True)
+            (out / "ab.md").write_text(text + "\n")
+            log(f"wrote {out / 'ab.md'}")
+        print(text)
+        log(f"done in {time.perf_counter() - t_start:.0f} s")
+        return 3 if "**NOT MET**" in text else 0
 
     plan = plan_from(args, log)
     baseline = load_baseline(Path(args.check)) if args.check else None
