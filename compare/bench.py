@@ -945,7 +945,7 @@ def main(args) -> int:
 
         plan = plan_from(args, log)
         plan.repeat = args.repeat or AB_REPEAT
-        _, text = run_against(plan, args.against, REGRESSION_TOLERANCE, progress)
+        ab_rows, text = run_against(plan, args.against, REGRESSION_TOLERANCE, progress)
         if args.out:
             out = Path(args.out)
             out.mkdir(parents=True, exist_ok=True)
@@ -953,7 +953,7 @@ def main(args) -> int:
             log(f"wrote {out / 'ab.md'}")
         print(text)
         log(f"done in {time.perf_counter() - t_start:.0f} s")
-        return 3 if "**NOT MET**" in text else 0
+        return 3 if any(r.get("regressed") for r in ab_rows) else 0
 
     plan = plan_from(args, log)
     baseline = load_baseline(Path(args.check)) if args.check else None

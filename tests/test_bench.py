@@ -452,3 +452,14 @@ def test_against_an_unknown_revision_is_a_clear_error(tmp_path):
     root = _git_checkout()
     with pytest.raises(GlvoxError, match="git archive 'no-such-revision' failed"):
         ab.extract_revision("no-such-revision", tmp_path / "x", root)
+
+
+def test_against_exits_3_on_a_regressed_cell(monkeypatch, capsys):
+    rows = [{"key": "ss-solid", "mesh": "gen:torus", "n": 16, **ab.verdict([10.0] * 3, [13.0] * 3, 0.10)}]
+    monkeypatch.setattr(ab, "run_against", lambda plan, rev, tol, progress: (rows, ab.table(rows, rev, tol)))
+    assert cli_main(["bench", "--against", "HEAD", "-m", "ss-solid", "--meshes", "gen:torus", "-r", "16",
+                     "--peers", "-q"]) == 3
+    assert "**REGRESSED**" in capsys.readouterr().out
+    rows[0] = {**rows[0], **ab.verdict([10.0] * 3, [10.0] * 3, 0.10)}
+    assert cli_main(["bench", "--against", "HEAD", "-m", "ss-solid", "--meshes", "gen:torus", "-r", "16",
+                     "--peers", "-q"]) == 0
