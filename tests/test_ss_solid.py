@@ -288,31 +288,53 @@ def test_row_fill_every_word_width(gl_context, nx):
             warnings.simplefilter("ignore", NotWatertightWarning)
             ref = run_method("reference-solid", mesh, spec, allow_open=True)
             g = run_method("ss-solid", mesh, spec, allow_open=allow_open)
-            # the fill pass zeroed the crossings: the next run starts clean
+            # the grid is cleared again for the next run
             again = run_method("ss-solid", mesh, spec, allow_open=allow_open)
         assert ref.count > 0 and g.equal(ref) and again.equal(ref), f"{mesh.name} nx={nx}"
         assert g.count == int(np.bitwise_count(g.words()).sum())
 
 
-def test_zeroed_pool_buffers_are_cleared_unless_left_zero(gl_context):
-    """BufferPool.get_zeroed (ss-solid's crossing grid) clears a buffer unless
-    the last user marked it zero again, and always after a failed run (no
-    mark) or when the buffer grew."""
-    from glvox.methods._gpu import BufferPool
 
-    pool = BufferPool(gl_context)
-    ones = b"\x01" * 64
-    try:
-        b = pool.get_zeroed("x", 64)
-        assert b.read(size=64) == bytes(64)
-        b.write(ones)  # a run that failed before re-zeroing: no mark_zero
-        assert pool.get_zeroed("x", 64).read(size=64) == bytes(64)
-        b.write(ones)
-        pool.mark_zero("x", 64)  # the user vouches: the clear is skipped
-        assert pool.get_zeroed("x", 64).read(size=64) == ones
-        assert pool.get_zeroed("x", 64).read(size=64) == bytes(64)  # the vouch is used up
-        b.write(ones)
-        pool.mark_zero("x", 32)  # zero only up to 32 bytes: a larger request clears
-        assert pool.get_zeroed("x", 64).read(size=64) == bytes(64)
-    finally:
-        pool.release()
+
+def test_fill_visits_only_the_mesh_rows(gl_context):
+    """The fill pass visits the rows of the mesh's projected bounding box
+    (plus a row each side) and leaves the others to the clear: a small sphere
+    in a corner of the grid, run after a mesh that filled other rows of the
+    same buffer, must come out exactly as the reference, with every set voxel
+    inside the visited rectangle."""
+    spec = GridSpec((64, 64, 64), (0.0, 0.0, 0.0), 1.0)
+    big = trimesh.creation.box(bounds=[[3.3, 2.6, 4.1], [60.2, 61.7, 59.4]])
+    small = trimesh.creation.icosphere(subdivisions=3, radius=6.3)
+    small.apply_translation([30.2, 50.7, 9.4])
+    j0, k0, nj, nk = None, None, None, None
+    for m in (big, small):
+        mesh = load_mesh((m.vertices, m.faces))
+        out = check_solid(mesh, spec)
+        g = out["ss-solid"]
+        j0, k0, nj, nk = ss_solid.mesh_rows(spec, run_bufs(gl_context, mesh))
+        assert g.run.stats["fill_rows"] == nj * nk
+        rows = np.argwhere(out["reference-solid"].dense().any(axis=0))  # (j, k) of rows with voxels
+        assert rows.size and np.all(rows.min(0) >= (j0, k0)) and np.all(rows.max(0) < (j0 + nj, k0 + nk))
+    # the sphere spans 12.6 rows (y 44.4..57.0, z 3.1..15.7): the rectangle adds at most two each side
+    assert nj <= 17 and nk <= 17 and j0 >= 42 and k0 >= 1
+
+
+def run_bufs(ctx, mesh):
+    from glvox.methods._gpu import mesh_buffers
+    return mesh_buffers(ctx, mesh)
+
+
+def test_mesh_rows_outside_the_grid(gl_context):
+    """A mesh whose projection misses the grid's rows leaves no row to fill and
+    an empty grid; one cut by the grid keeps the rectangle inside it."""
+    m = trimesh.creation.icosphere(subdivisions=2, radius=2.0)
+    mesh = load_mesh((m.vertices, m.faces))
+    away = GridSpec((16, 8, 8), (-4.0, 10.0, -4.0), 0.5)  # y from 10 to 14: above the sphere
+    assert ss_solid.mesh_rows(away, run_bufs(gl_context, mesh))[2] == 0
+    g = run_method("ss-solid", mesh, away)
+    assert g.count == 0 and g.run.stats["fill_rows"] == 0
+    # y from 0 to 4 cuts the sphere (radius 2) at its middle: rows 0 .. ceil(4 - 1/2) + 1;
+    # z from -1 to 3 cuts it on both sides: every row
+    cut = GridSpec((16, 8, 8), (-4.0, 0.0, -1.0), 0.5)
+    assert ss_solid.mesh_rows(cut, run_bufs(gl_context, mesh)) == (0, 0, 6, 8)
+    check_solid(mesh, cut)

@@ -44,6 +44,9 @@ class MeshBuffers:
     anchor : (3,) float64
         World position subtracted from the vertices before the float32 cast.
     n_triangles, n_vertices : int
+    bounds : (2, 3) float64
+        Min and max corner of the uploaded (anchored float32) vertices that
+        faces reference, so passes can be sized to the mesh without a readback.
     """
 
     vertices: Any
@@ -51,6 +54,7 @@ class MeshBuffers:
     anchor: np.ndarray
     n_triangles: int
     n_vertices: int
+    bounds: np.ndarray
 
     def release(self) -> None:
         self.vertices.release()
@@ -88,8 +92,10 @@ def mesh_buffers(ctx, mesh) -> MeshBuffers:
     v, f = mesh.gpu_arrays()
     check_buffer_size(ctx, v.nbytes, "mesh vertices")
     check_buffer_size(ctx, f.nbytes, "mesh faces")
+    used = v[f.ravel()] if len(f) else np.zeros((1, 3), np.float32)
+    bounds = np.stack([used.min(axis=0), used.max(axis=0)]).astype(np.float64)
     bufs = MeshBuffers(ctx.mgl.buffer(v.tobytes()), ctx.mgl.buffer(f.tobytes()), mesh.anchor,
-                       len(f), len(v))
+                       len(f), len(v), bounds)
     meshes[key] = bufs
 
     def drop(meshes=meshes, key=key):
@@ -107,7 +113,6 @@ class BufferPool:
     def __init__(self, ctx):
         self.ctx = ctx
         self._bufs: dict[str, Any] = {}
-        self._zero: dict[str, tuple[Any, int]] = {}
 
     def get(self, name: str, nbytes: int, *, what: str | None = None, clear: bool = True):
         """A buffer of at least ``nbytes`` bytes (zero-filled when ``clear``)."""
@@ -123,28 +128,10 @@ class BufferPool:
             buf.clear(size=nbytes)
         return buf
 
-    def get_zeroed(self, name: str, nbytes: int, *, what: str | None = None):
-        """Like ``get(clear=True)``, but skips the clear when the last user of
-        the buffer left its first ``nbytes`` zero and said so (:meth:`mark_zero`).
-
-        The buffer counts as dirty from this call until ``mark_zero``, so a run
-        that fails in between leaves it to be cleared by the next one.
-        """
-        buf = self.get(name, nbytes, what=what, clear=False)
-        zero = self._zero.pop(name, None)
-        if zero is None or zero[0] is not buf or zero[1] < nbytes:
-            buf.clear(size=max(4, int(nbytes)))
-        return buf
-
-    def mark_zero(self, name: str, nbytes: int) -> None:
-        """The first ``nbytes`` of buffer ``name`` are zero again (a pass re-zeroed them)."""
-        self._zero[name] = (self._bufs[name], max(4, int(nbytes)))
-
     def release(self) -> None:
         for b in self._bufs.values():
             b.release()
         self._bufs.clear()
-        self._zero.clear()
 
 
 def buffer_pool(ctx, owner: str) -> BufferPool:

@@ -3,8 +3,9 @@
 // and chunk of SOLID_CHUNK of its covered-center columns.  The paper flips
 // voxels floor(q + 1/2) .. nx - 1 of every covered column with atomicXor;
 // here each crossing flips the single bit floor(q + 1/2) of a crossing grid
-// (one atomic instead of up to nx / 32), and ss/solid_fill.comp turns every
-// row into its prefix XOR afterwards: the same voxels, since XOR commutes.
+// (one atomic instead of up to nx / 32), and ss/solid_fill.comp turns the
+// rows into their prefix XOR afterwards, in place: the same voxels, since XOR
+// commutes.
 //
 // FIRST 1: one invocation per triangle (glvox.methods._gpu.dispatch_1d) does
 // the triangle's first chunk and lists the triangles with more (nearly none:

@@ -1,17 +1,19 @@
 #version 450
-// ss-solid, pass 3: one invocation per row (j, k) turns the row's crossing
-// bits (ss/solid.comp) into voxels: voxel x is set when an odd number of
-// crossings lie at or before x, the prefix XOR along the row.  Each word is
-// a 32-bit prefix XOR (five shifts) flipped by the carry of the words
-// before it.  Every word of the grid is written (no clear needed), and the
-// crossing words are zeroed as they are read, so the crossing grid is clean
-// for the next run without a separate clear.  The set voxels are counted on
-// the way (voxel_count), so no one counts 128 MiB again on the CPU.
+// ss-solid, pass 3: turns the crossing bits of ss/solid.comp into voxels, in
+// place.  Voxel x of a row is set when an odd number of crossings lie at or
+// before x: the prefix XOR along the row, each word a 32-bit prefix XOR (five
+// shifts) flipped by the carry of the words before it.
+//
+// The grid was cleared before the voxelize pass, so the pass visits only the
+// rows of u_rows (the mesh's projected bounding box on the (y, z) plane: no
+// other row has a crossing) and writes only the words that change: words with
+// crossings or an odd carry.  Every invocation does ROWS rows; the set voxels
+// are counted on the way (voxel_count), so no one counts the grid again on
+// the CPU.
 //
 // VEC words (1, 2 or 4, dividing the words per row) move per load and store:
-// llvmpipe runs an invocation per SIMD lane, and each lane walks its own row,
-// so wider loads mean fewer gathers (measured: 4 words take 0.6 the time of 1
-// at 1024^3).
+// llvmpipe accesses a buffer lane by lane, so wider accesses mean fewer of
+// them (measured: 4 words take 0.6 the time of 1 at 1024^3).
 #include "common/bits.glsl"
 #include "common/voxel_space.glsl"
 layout(local_size_x = 64) in;
@@ -23,30 +25,30 @@ layout(local_size_x = 64) in;
 #else
 #define WORDS uint
 #endif
-layout(std430, binding = 3) buffer Crossings { WORDS crossings[]; };
-layout(std430, binding = 4) writeonly buffer Grid { WORDS grid[]; };
+layout(std430, binding = 3) buffer Grid { WORDS grid[]; };
 layout(std430, binding = 5) buffer Count { uint voxel_count; };
-
-shared uint group_count;
+// the rows that may hold crossings: j0, k0, and their count along y and z
+uniform ivec4 u_rows;
 
 // 0 or ~0 for each component: the parity bit b (0 or 1) spread to all bits
 #define SPREAD(b) (WORDS(0u) - (b))
 
 void main() {
-    if (gl_LocalInvocationIndex == 0u) group_count = 0u;
-    barrier();
-    uint r = global_index_1d();
+    uint nj = uint(u_rows.z), rows = nj * uint(u_rows.w);
+    uint wpr = words_per_row();
+    uint n = wpr / uint(VEC);
+    // the bits past nx stay zero (an open mesh can leave the parity odd)
+    uint last_mask = mask_upto(uint(u_dims.x) - 32u * (wpr - 1u) - 1u);
     uint count = 0u;
-    if (r < uint(u_dims.y) * uint(u_dims.z)) {
-        uint wpr = words_per_row();
-        uint n = wpr / uint(VEC);
-        uint base = r * n;
+    for (uint i = 0u; i < uint(ROWS); ++i) {
+        uint r = global_index_1d() * uint(ROWS) + i;
+        if (r >= rows) break;
+        uint row = (uint(u_rows.y) + r / nj) * uint(u_dims.y) + uint(u_rows.x) + r % nj;
+        uint base = row * n;
         uint carry = 0u;  // 0 or ~0: parity of the crossings before this load
-        // the bits past nx stay zero (an open mesh can leave the parity odd)
-        uint last_mask = mask_upto(uint(u_dims.x) - 32u * (wpr - 1u) - 1u);
         for (uint w = 0u; w < n; ++w) {
-            WORDS c = crossings[base + w];
-            if (c != WORDS(0u)) crossings[base + w] = WORDS(0u);
+            WORDS c = grid[base + w];
+            if (c == WORDS(0u) && carry == 0u) continue;  // stays zero
             c ^= c << 1u;
             c ^= c << 2u;
             c ^= c << 4u;
@@ -73,7 +75,5 @@ void main() {
             grid[base + w] = c;
         }
     }
-    if (count != 0u) atomicAdd(group_count, count);
-    barrier();
-    if (gl_LocalInvocationIndex == 0u && group_count != 0u) atomicAdd(voxel_count, group_count);
+    if (count != 0u) atomicAdd(voxel_count, count);
 }
