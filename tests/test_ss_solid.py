@@ -332,7 +332,7 @@ def test_mesh_rows_outside_the_grid(gl_context):
     away = GridSpec((16, 8, 8), (-4.0, 10.0, -4.0), 0.5)  # y from 10 to 14: above the sphere
     assert ss_solid.mesh_rows(away, run_bufs(gl_context, mesh))[2] == 0
     g = run_method("ss-solid", mesh, away)
-    assert g.count == 0 and g.run.stats["fill_rows"] == 0
+    assert g.count == 0 and not g.words().any() and g.run.stats["fill_rows"] == 0
     # y from 0 to 4 cuts the sphere (radius 2) at its middle: rows 0 .. ceil(4 - 1/2) + 1;
     # z from -1 to 3 cuts it on both sides: every row
     cut = GridSpec((16, 8, 8), (-4.0, 0.0, -1.0), 0.5)

@@ -203,11 +203,23 @@ def dispatch_1d(ctx, prog, n: int, local_size: int) -> None:
         prog.run(max_x, (groups + max_x - 1) // max_x, 1)
 
 
-def read_grid_words(buf, spec) -> np.ndarray:
-    """The packed grid words of ``spec`` from ``buf`` (uint32, (nz, ny, words_per_row))."""
+def read_grid_words(buf, spec, slices: tuple[int, int] | None = None) -> np.ndarray:
+    """The packed grid words of ``spec`` from ``buf`` (uint32, (nz, ny, words_per_row)).
+
+    ``slices=(k0, nk)``: only z slices k0 .. k0 + nk - 1 can hold a set voxel;
+    only they are read, the rest of the array is zero (fresh zero pages).
+    """
     # read_into a preallocated array: a third of buf.read()'s time on 128 MiB here
-    words = np.empty(spec.n_words, dtype="<u4")
-    buf.read_into(words, size=spec.n_words * 4)
+    per_slice = spec.dims[1] * spec.words_per_row
+    if slices is None:
+        words = np.empty(spec.n_words, dtype="<u4")
+        k0, nk = 0, spec.dims[2]
+    else:
+        words = np.zeros(spec.n_words, dtype="<u4")
+        k0, nk = slices
+    if nk > 0:
+        part = words[k0 * per_slice:(k0 + nk) * per_slice]
+        buf.read_into(part, size=part.nbytes, offset=k0 * per_slice * 4)
     return words.reshape(spec.dims[2], spec.dims[1], spec.words_per_row)
 
 
