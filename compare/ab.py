@@ -160,30 +160,55 @@ def verdict(base_ms: Sequence[float], head_ms: Sequence[float], tolerance: float
 #: here, and ten runs per side flagged unchanged code as 17 % slower.
 MIN_SECONDS, MAX_RUNS = 1.0, 200
 
+#: A cell that looks regressed keeps alternating for this many more seconds,
+#: and the verdict is taken again over all its runs: a real slowdown stays,
+#: a burst of load on a shared machine is outvoted.  Measured: a quick
+#: preset run flagged 3 of 60 cells of methods the change had not touched
+#: (best and median 1.10-1.20); timed again, none had both above 1.10.
+CONFIRM_SECONDS = 3.0
 
-def measure_cell(sides: Sequence[Side], mesh: str, n: int, method: str, options: dict, repeat: int,
-                 budget: float, tolerance: float) -> dict[str, Any]:
-    """Warm both sides up, then alternate single runs: at least ``repeat`` each
-    (fewer, but three, once ``budget`` seconds have passed), and more while
-    the cell has taken less than :data:`MIN_SECONDS`."""
-    times: dict[str, list[float]] = {s.name: [] for s in sides}
-    for s in sides:
-        warm = s.runs(mesh, n, method, options, 1)
-        if "error" in warm:
-            return {"error": f"{s.name}: {warm['error']}"}
+
+def _alternate(sides: Sequence[Side], mesh: str, n: int, method: str, options: dict, repeat: int,
+               budget: float, min_seconds: float, times: dict[str, list[float]]) -> str | None:
+    """Alternate single runs of the sides into ``times``; an error message or None."""
     t0 = time.perf_counter()
     i = 0
     while True:
         for s in (sides if i % 2 == 0 else list(reversed(sides))):
             got = s.runs(mesh, n, method, options, 1)
             if "error" in got:
-                return {"error": f"{s.name}: {got['error']}"}
+                return f"{s.name}: {got['error']}"
             times[s.name] += got["ms"]
         i += 1
         elapsed = time.perf_counter() - t0
-        if i >= MAX_RUNS or (i >= 3 and elapsed > budget) or (i >= repeat and elapsed >= MIN_SECONDS):
-            break
-    return verdict(times["base"], times["head"], tolerance)
+        if i >= MAX_RUNS or (i >= 3 and elapsed > budget) or (i >= repeat and elapsed >= min_seconds):
+            return None
+
+
+def measure_cell(sides: Sequence[Side], mesh: str, n: int, method: str, options: dict, repeat: int,
+                 budget: float, tolerance: float) -> dict[str, Any]:
+    """Warm both sides up, then alternate single runs: at least ``repeat`` each
+    (fewer, but three, once ``budget`` seconds have passed), and more while
+    the cell has taken less than :data:`MIN_SECONDS`.  A cell that looks
+    regressed is measured :data:`CONFIRM_SECONDS` more and judged on all its
+    runs (``rechecked`` then holds the first ratios)."""
+    times: dict[str, list[float]] = {s.name: [] for s in sides}
+    for s in sides:
+        warm = s.runs(mesh, n, method, options, 1)
+        if "error" in warm:
+            return {"error": f"{s.name}: {warm['error']}"}
+    err = _alternate(sides, mesh, n, method, options, repeat, budget, MIN_SECONDS, times)
+    if err:
+        return {"error": err}
+    first = verdict(times["base"], times["head"], tolerance)
+    if not first["regressed"]:
+        return first
+    err = _alternate(sides, mesh, n, method, options, repeat, max(budget, CONFIRM_SECONDS), CONFIRM_SECONDS,
+                     times)
+    if err:
+        return {"error": err}
+    return {**verdict(times["base"], times["head"], tolerance),
+            "rechecked": (first["ratio"], first["median_ratio"])}
 
 
 def table(rows: Sequence[dict[str, Any]], rev: str, tolerance: float) -> str:
@@ -192,14 +217,17 @@ def table(rows: Sequence[dict[str, Any]], rev: str, tolerance: float) -> str:
            "",
            "Each timed run is one `run_method` call; the two sides take turns run by run in two processes "
            f"(after a warm-up each). A cell regresses when head's best and median both exceed base's by more "
-           f"than {tolerance:.0%}.",
+           f"than {tolerance:.0%}; a cell that does is measured {CONFIRM_SECONDS:g} s more and judged again on "
+           "all its runs.",
            "",
            "| method | mesh | N | runs | base best ms | head best ms | best ratio | median ratio | |",
            "|---|---|---|---|---|---|---|---|---|"]
     for r in ok:
+        note = "**REGRESSED**" if r["regressed"] else ""
+        if r.get("rechecked"):
+            note = (note + " " if note else "") + "measured again (first: {:.2f} / {:.2f})".format(*r["rechecked"])
         out.append(f"| {r['key']} | {r['mesh']} | {r['n']} | {r['runs']} | {r['base_ms']:.1f} | "
-                   f"{r['head_ms']:.1f} | {r['ratio']:.2f} | {r['median_ratio']:.2f} | "
-                   f"{'**REGRESSED**' if r['regressed'] else ''} |")
+                   f"{r['head_ms']:.1f} | {r['ratio']:.2f} | {r['median_ratio']:.2f} | {note} |")
     for r in rows:
         if "error" in r:
             out.append(f"\nnot compared: {r['key']} on {r['mesh']} {r['n']}^3 ({r['error']})")

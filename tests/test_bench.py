@@ -413,11 +413,32 @@ class _FakeSide:
         return {"error": self.error} if self.error else {"ms": [self.ms] * runs}
 
 
+class _BurstSide(_FakeSide):
+    """Slow for its first ``slow_calls`` calls (a burst of load), then ``ms``."""
+
+    def __init__(self, name, ms, slow_ms, slow_calls):
+        super().__init__(name, ms)
+        self.slow_ms, self.slow_calls = slow_ms, slow_calls
+
+    def runs(self, mesh, n, method, options, runs):
+        self.calls += 1
+        return {"ms": [self.slow_ms if self.calls <= self.slow_calls else self.ms] * runs}
+
+
 def test_ab_cells_alternate_and_flag_a_slower_head(monkeypatch):
     monkeypatch.setattr(ab, "MIN_SECONDS", 0.0)
+    monkeypatch.setattr(ab, "CONFIRM_SECONDS", 0.0)
     base, head = _FakeSide("base", 10.0), _FakeSide("head", 13.0)
     r = ab.measure_cell([base, head], "gen:torus", 16, "ss-solid", {}, 5, 60.0, 0.10)
-    assert r["regressed"] and r["runs"] == 5 and base.calls == head.calls == 6  # warm-up + 5
+    # flagged, measured again (5 more runs), still slower on all 10
+    assert r["regressed"] and r["runs"] == 10 and base.calls == head.calls == 11  # warm-up + 5 + 5
+    assert r["rechecked"] == (1.3, 1.3)
+    # a burst of load over the head's first runs: flagged, then outvoted by the runs after it
+    base, head = _FakeSide("base", 10.0), _BurstSide("head", 10.0, 13.0, 7)
+    r = ab.measure_cell([base, head], "gen:torus", 16, "ss-solid", {}, 5, 60.0, 0.10)
+    assert not r["regressed"] and r["rechecked"] == (1.3, 1.3) and r["runs"] == 10 and r["ratio"] == 1.0
+    assert "measured again (first: 1.30 / 1.30)" in ab.table([{"key": "ss-solid", "mesh": "gen:torus", "n": 16, **r}],
+                                                             "HEAD~1", 0.10)
     r = ab.measure_cell([_FakeSide("base", 10.0), _FakeSide("head", 10.5)], "gen:torus", 16, "ss-solid", {},
                         5, 60.0, 0.10)
     assert not r["regressed"]
