@@ -63,7 +63,12 @@ class Mesh:
     @property
     def bounds(self) -> np.ndarray:
         """(2, 3) float64 min and max corner of the referenced vertices."""
-        v = self.vertices[np.unique(self.faces)] if len(self.faces) else self.vertices
+        if len(self.faces):
+            used = np.zeros(len(self.vertices), dtype=bool)
+            used[self.faces.ravel()] = True  # O(V + F), where np.unique sorts the faces
+            v = self.vertices[used]
+        else:
+            v = self.vertices
         return np.stack([v.min(axis=0), v.max(axis=0)])
 
     @property
@@ -84,9 +89,12 @@ class Mesh:
         """(F, 3, 3) float64 triangles in the voxel space of ``spec``."""
         return spec.world_to_voxel(self.triangles())
 
-    def gpu_arrays(self) -> tuple[np.ndarray, np.ndarray]:
-        """(V, 3) float32 vertices relative to :attr:`anchor`, (F, 3) uint32 faces."""
-        return ((self.vertices - self.anchor).astype(np.float32),
+    def gpu_arrays(self, anchor: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(V, 3) float32 vertices relative to :attr:`anchor` (pass it when
+        already computed), (F, 3) uint32 faces."""
+        if anchor is None:
+            anchor = self.anchor
+        return ((self.vertices - anchor).astype(np.float32),
                 self.faces.astype(np.uint32))
 
     def __repr__(self) -> str:

@@ -86,8 +86,11 @@ def test_non_finite_vertices(bad):
 
 
 def test_non_finite_unreferenced_vertex_is_ignored():
-    v = np.vstack([TET_V, [[np.nan, 0, 0]]])
-    assert load_mesh((v, TET_F)).n_triangles == 4
+    v = np.vstack([TET_V, [[np.nan, 0, 0]], [[1e6, -1e6, 0]]])
+    m = load_mesh((v, TET_F))
+    assert m.n_triangles == 4
+    # bounds (and the anchor, and the rows ss-solid fills) come from referenced vertices only
+    np.testing.assert_array_equal(m.bounds, [TET_V.min(axis=0), TET_V.max(axis=0)])
 
 
 def test_face_index_out_of_range():

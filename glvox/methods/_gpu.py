@@ -45,8 +45,9 @@ class MeshBuffers:
         World position subtracted from the vertices before the float32 cast.
     n_triangles, n_vertices : int
     bounds : (2, 3) float64
-        Min and max corner of the uploaded (anchored float32) vertices that
-        faces reference, so passes can be sized to the mesh without a readback.
+        Min and max corner of the vertices that faces reference, relative to
+        ``anchor`` (before the float32 cast: within its rounding of the
+        uploaded ones), so passes can be sized to the mesh without a readback.
     """
 
     vertices: Any
@@ -89,13 +90,13 @@ def mesh_buffers(ctx, mesh) -> MeshBuffers:
     bufs = meshes.get(key)
     if bufs is not None:
         return bufs
-    v, f = mesh.gpu_arrays()
+    bounds = mesh.bounds  # once: the anchor and the kept bounds both come from it
+    anchor = 0.5 * (bounds[0] + bounds[1])  # = mesh.anchor
+    v, f = mesh.gpu_arrays(anchor)
     check_buffer_size(ctx, v.nbytes, "mesh vertices")
     check_buffer_size(ctx, f.nbytes, "mesh faces")
-    used = v[f.ravel()] if len(f) else np.zeros((1, 3), np.float32)
-    bounds = np.stack([used.min(axis=0), used.max(axis=0)]).astype(np.float64)
-    bufs = MeshBuffers(ctx.mgl.buffer(v.tobytes()), ctx.mgl.buffer(f.tobytes()), mesh.anchor,
-                       len(f), len(v), bounds)
+    bufs = MeshBuffers(ctx.mgl.buffer(v.tobytes()), ctx.mgl.buffer(f.tobytes()), anchor,
+                       len(f), len(v), bounds - anchor)
     meshes[key] = bufs
 
     def drop(meshes=meshes, key=key):
