@@ -296,6 +296,12 @@ def test_row_fill_every_word_width(gl_context, nx):
 
 
 
+def run_bufs(ctx, mesh):
+    """The uploaded mesh, with the bounds ss_solid.mesh_rows reads."""
+    from glvox.methods._gpu import mesh_buffers
+    return mesh_buffers(ctx, mesh)
+
+
 def test_fill_visits_only_the_mesh_rows(gl_context):
     """The fill pass visits the rows of the mesh's projected bounding box
     (plus a row each side) and leaves the others to the clear: a small sphere
@@ -319,11 +325,6 @@ def test_fill_visits_only_the_mesh_rows(gl_context):
     assert nj <= 17 and nk <= 17 and j0 >= 42 and k0 >= 1
 
 
-def run_bufs(ctx, mesh):
-    from glvox.methods._gpu import mesh_buffers
-    return mesh_buffers(ctx, mesh)
-
-
 def test_mesh_rows_outside_the_grid(gl_context):
     """A mesh whose projection misses the grid's rows leaves no row to fill and
     an empty grid; one cut by the grid keeps the rectangle inside it."""
@@ -338,3 +339,4 @@ def test_mesh_rows_outside_the_grid(gl_context):
     cut = GridSpec((16, 8, 8), (-4.0, 0.0, -1.0), 0.5)
     assert ss_solid.mesh_rows(cut, run_bufs(gl_context, mesh)) == (0, 0, 6, 8)
     check_solid(mesh, cut)
+

@@ -12,13 +12,12 @@ crossing and O(N^3 / 32) word operations at most.  The fill pass visits only
 the rows inside the mesh's projected bounding box (:func:`mesh_rows`, from
 the bounds kept with the uploaded mesh: no readback), writes only the words
 that change, and counts the set voxels; only the z slices of those rows are
-read back.  The first voxelization pass sets
-each triangle up once and does its first chunk of columns; the rare
-triangles with more chunks are listed for a second, indirect pass.  Measured
-on llvmpipe (``glvox bench -m ss-solid``, bunny): word-by-word flips 15 ms at
-256^3 and 234 ms at 1024^3; one bit per crossing with a separate crossing
-grid 9 and 149 ms; in place over the mesh's rows 8 and 95-104 ms (dragon at
-512^3 in the full bench: 24.8 -> 17.8 ms; at 1024^3 alone: 127 -> 45 ms).
+read back.  The first voxelization pass sets each triangle up once and does
+its first chunk of columns; the rare triangles with more chunks are listed
+for a second, indirect pass.  Measured on llvmpipe (``glvox bench``, bunny):
+word-by-word flips 15 ms at 256^3 and 234 ms at 1024^3; one bit per crossing
+with a separate crossing grid 9 and 149 ms; in place over the mesh's rows 7
+and 106 ms (dragon at 512^3 and 1024^3: 24.8 -> 16.7 ms, 130 -> 56 ms).
 
 ``ss-solid-tiled`` (Sec. 4.2) assigns triangles to tiles of 4 x 4 columns
 instead and processes each tile's triangles without atomics:
@@ -96,17 +95,19 @@ FILL_ROWS = 4
 def mesh_rows(spec, bufs) -> tuple[int, int, int, int]:
     """The rows (j, k) of ``spec`` that can hold a crossing of the mesh of
     ``bufs``: ``(j0, k0, nj, nk)``, the mesh's (y, z) bounding box widened by
-    a row on each side (the GPU rounds the voxel-space vertices to float32,
-    the bounds here are float64); ``nj * nk`` may be 0.
+    a row on each side, for the GPU's float32 rounding of the voxel-space
+    vertices (the bounds here are float64; a bound that matters lies within
+    the grid, at most 65536 voxels from its origin, where float32 is exact to
+    1/128 voxel); ``nj * nk`` may be 0.
 
     A row holds a crossing only when its center (j + 1/2, k + 1/2) lies in a
     triangle's projection, hence inside the mesh's projected bounding box.
     """
     origin = np.asarray(spec.origin, np.float64) - bufs.anchor
-    lo = (bufs.bounds[0] - origin) / spec.voxel_size
-    hi = (bufs.bounds[1] - origin) / spec.voxel_size
-    first = np.maximum(np.floor(lo[1:] - 0.5) - 1, 0)
-    last = np.minimum(np.ceil(hi[1:] - 0.5) + 1, np.asarray(spec.dims[1:]) - 1)
+    lo = (bufs.bounds[0, 1:] - origin[1:]) / spec.voxel_size
+    hi = (bufs.bounds[1, 1:] - origin[1:]) / spec.voxel_size
+    first = np.maximum(np.floor(lo - 0.5) - 1, 0)
+    last = np.minimum(np.ceil(hi - 0.5) + 1, np.asarray(spec.dims[1:]) - 1)
     if not (np.all(np.isfinite(first)) and np.all(np.isfinite(last))) or np.any(last < first):
         return 0, 0, 0, 0
     (j0, k0), (j1, k1) = first.astype(np.int64), last.astype(np.int64)
