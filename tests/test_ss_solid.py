@@ -294,8 +294,6 @@ def test_row_fill_every_word_width(gl_context, nx):
         assert g.count == int(np.bitwise_count(g.words()).sum())
 
 
-
-
 def run_bufs(ctx, mesh):
     """The uploaded mesh, with the bounds ss_solid.mesh_rows reads."""
     from glvox.methods._gpu import mesh_buffers
@@ -312,7 +310,6 @@ def test_fill_visits_only_the_mesh_rows(gl_context):
     big = trimesh.creation.box(bounds=[[3.3, 2.6, 4.1], [60.2, 61.7, 59.4]])
     small = trimesh.creation.icosphere(subdivisions=3, radius=6.3)
     small.apply_translation([30.2, 50.7, 9.4])
-    j0, k0, nj, nk = None, None, None, None
     for m in (big, small):
         mesh = load_mesh((m.vertices, m.faces))
         out = check_solid(mesh, spec)
