@@ -277,6 +277,13 @@ def cmd_bench(args) -> int:
     return bench_main(args)
 
 
+def _add_output_arguments(p, json_help: str, quiet_help: str = "no progress messages") -> None:
+    """--backend, --json and --quiet, shared by the commands that run a GL job."""
+    p.add_argument("--backend", choices=["egl", "osmesa", "auto"], default=None)
+    p.add_argument("--json", action="store_true", help=json_help)
+    p.add_argument("-q", "--quiet", action="store_true", help=quiet_help)
+
+
 def _add_grid_arguments(p: argparse.ArgumentParser, bounds: bool = False) -> None:
     """The grid options beside -r shared by voxelize, batch and ldi (see glvox.grid_for)."""
     p.add_argument("--dims", type=int, nargs=3, metavar=("NX", "NY", "NZ"), help="explicit dims")
@@ -316,9 +323,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_grid_arguments(pv, bounds=True)
     pv.add_argument("--allow-open", action="store_true",
                     help="let solid methods run on meshes that are not watertight")
-    pv.add_argument("--backend", choices=["egl", "osmesa", "auto"], default=None)
-    pv.add_argument("--json", action="store_true", help="print counts and timings as JSON")
-    pv.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+    _add_output_arguments(pv, "print counts and timings as JSON")
     pv.set_defaults(func=cmd_voxelize)
 
     pb = sub.add_parser(
@@ -348,9 +353,7 @@ def build_parser() -> argparse.ArgumentParser:
     pb.add_argument("--manifest", help="manifest CSV path (default OUTPUT/manifest.csv)")
     pb.add_argument("--suffix", action="append", metavar="SUFFIX",
                     help="mesh suffix to search for (repeatable; default: every format trimesh loads)")
-    pb.add_argument("--backend", choices=["egl", "osmesa", "auto"], default=None)
-    pb.add_argument("--json", action="store_true", help="print the summary as JSON")
-    pb.add_argument("-q", "--quiet", action="store_true", help="no progress bar, messages or summary")
+    _add_output_arguments(pb, "print the summary as JSON", "no progress bar, messages or summary")
     pb.set_defaults(func=cmd_batch)
 
     pl = sub.add_parser(
@@ -372,9 +375,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="method option (repeatable), e.g. -O targets=4")
     _add_grid_arguments(pl)
     pl.add_argument("--allow-open", action="store_true", help="sample meshes that are not watertight (parity)")
-    pl.add_argument("--backend", choices=["egl", "osmesa", "auto"], default=None)
-    pl.add_argument("--json", action="store_true", help="print counts and timings as JSON")
-    pl.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+    _add_output_arguments(pl, "print counts and timings as JSON")
     pl.set_defaults(func=cmd_ldi)
 
     pvol = sub.add_parser(
@@ -391,9 +392,7 @@ def build_parser() -> argparse.ArgumentParser:
     pvol.add_argument("--voxel-size", type=float, help="explicit voxel size (world units)")
     pvol.add_argument("-o", "--output", help="also write the overlap's LDI (.npz)")
     pvol.add_argument("--allow-open", action="store_true", help="meshes that are not watertight (parity)")
-    pvol.add_argument("--backend", choices=["egl", "osmesa", "auto"], default=None)
-    pvol.add_argument("--json", action="store_true", help="print the volume, counts and timings as JSON")
-    pvol.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+    _add_output_arguments(pvol, "print the volume, counts and timings as JSON")
     pvol.set_defaults(func=cmd_volume)
 
     pc = sub.add_parser(

@@ -224,20 +224,29 @@ def read_grid_words(buf, spec, slices: tuple[int, int] | None = None) -> np.ndar
     return words.reshape(spec.dims[2], spec.dims[1], spec.words_per_row)
 
 
-def transform_vertices(ctx, mesh, spec, timer, pool):
-    """Stage ``transform`` (S&S Sec. 6): the mesh's vertices in voxel space.
+def transform_vertices(ctx, mesh, spec, timer, pool, *, double: bool = False, scale=None, shift=(0.0, 0.0, 0.0),
+                       name: str | None = None, stage: str = "transform"):
+    """Stage ``transform`` (S&S Sec. 6): the mesh's vertices in voxel space,
+    ``(v - origin) * scale - shift`` computed in double (``ss/transform.comp``).
 
-    Returns ``(bufs, vox)``: the mesh's :class:`MeshBuffers` and a pooled
-    buffer of float32 x, y, z per vertex in voxel space (computed in double
-    from the anchored vertices, rounded once), ready for the next stage.
+    ``scale`` defaults to ``1 / h`` on every axis; ``double`` keeps the result
+    in double instead of rounding it to float32 once.  Returns ``(bufs, vox)``:
+    the mesh's :class:`MeshBuffers` and a pooled buffer (``name``) of x, y, z
+    per vertex, ready for the next stage.
     """
     from ..shaders import compute_program
 
     bufs = mesh_buffers(ctx, mesh)
-    vox = pool.get("vox_vertices", bufs.n_vertices * 12, what="voxel-space vertices", clear=False)
-    prog = compute_program(ctx, "ss/transform.comp")
-    set_uniforms(prog, {**grid_uniforms(spec, bufs.anchor), "u_vertices": bufs.n_vertices})
-    with timer.stage("transform"):
+    size = 8 if double else 4
+    vox = pool.get(name or ("vox_vertices_d" if double else "vox_vertices"), bufs.n_vertices * 3 * size,
+                   what="voxel-space vertices" + (" (double)" if double else ""), clear=False)
+    if scale is None:
+        scale = (1.0 / spec.voxel_size,) * 3
+    prog = compute_program(ctx, "ss/transform.comp", {"VOX_DOUBLE": int(double)})
+    set_uniforms(prog, {"u_origin_d": tuple(float(x) for x in spec.origin - bufs.anchor),
+                        "u_scale_d": tuple(float(x) for x in scale), "u_shift_d": tuple(float(x) for x in shift),
+                        "u_vertices": bufs.n_vertices})
+    with timer.stage(stage):
         bufs.vertices.bind_to_storage_buffer(0)
         vox.bind_to_storage_buffer(1)
         dispatch_1d(ctx, prog, bufs.n_vertices, 256)

@@ -70,8 +70,8 @@ from ..errors import CapabilityError, LimitError
 from ..grid import VoxelGrid
 from ..shaders import compute_program, render_program
 from ._base import Method, MethodInfo, Option, Requirements, register
-from ._gpu import (LOOP_BUDGET, barrier, buffer_pool, dispatch_1d, grid_uniforms, mesh_buffers,
-                   object_cache, read_grid_words, release_object_cache, set_uniforms)
+from ._gpu import (LOOP_BUDGET, barrier, buffer_pool, dispatch_1d, grid_uniforms,
+                   object_cache, read_grid_words, release_object_cache, set_uniforms, transform_vertices)
 
 _PAPER_2008 = ("Eisemann & Decoret 2008 (Leung & Wang 2013 Sec. III-A, Alg. 1 lines 1-7; "
                "Schwarz & Seidel 2010 Sec. 2)")
@@ -332,16 +332,7 @@ def render_slice_masks(ctx, mesh, spec, op: str, *, timer, axis: int = 2, masks:
     pool = buffer_pool(ctx, owner)
     # the grid first: a grid over the SSBO limit is refused before any other work
     grid = pool.get(grid_name, spec.n_words * 4, what=f"the {spec.dims} bit grid")
-    bufs = mesh_buffers(ctx, mesh)
-    vox = pool.get("vox_vertices_d", bufs.n_vertices * 24, what="voxel-space vertices (double)",
-                   clear=False)
-    transform = compute_program(ctx, "eisemann/transform.comp")
-    set_uniforms(transform, {**grid_uniforms(spec, bufs.anchor), "u_vertices": bufs.n_vertices})
-    with timer.stage("transform"):
-        bufs.vertices.bind_to_storage_buffer(0)
-        vox.bind_to_storage_buffer(1)
-        dispatch_1d(ctx, transform, bufs.n_vertices, 256)
-        barrier(ctx)
+    bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool, double=True)
 
     kind = {"EIS_OP": OPS[op], "EIS_COVERAGE": COVERAGES.index(coverage)}
     n_tri = bufs.n_triangles

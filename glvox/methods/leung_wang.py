@@ -83,7 +83,8 @@ from ..shaders import compute_program, render_program
 from . import depth_layers, eisemann
 from ._base import Method, MethodInfo, Option, Requirements, register
 from ._gpu import (LOOP_BUDGET, barrier, buffer_pool, check_buffer_size, dispatch_1d, grid_uniforms,
-                   mesh_buffers, object_cache, release_object_cache, set_uniforms)
+                   mesh_buffers, object_cache, release_object_cache, set_uniforms,
+                   transform_vertices)
 
 _PAPER = "Leung & Wang 2013"
 
@@ -278,22 +279,14 @@ def _prepare(ctx, mesh, frame: _Frame, pool, tag: str, timer, suffix: str = "") 
     """Stages ``transform`` and ``setup``: vertices to the frame's voxel space (double),
     then Eisemann & Decoret's per-triangle setup (column box, drawn corners)."""
     spec, a = frame.spec, frame.axis
-    bufs = mesh_buffers(ctx, mesh)
-    vox = pool.get(f"vox_{tag}", bufs.n_vertices * 24, what="voxel-space vertices (double)", clear=False)
+    # across the rays the grid's voxels; along them LOD-C cells, shifted by half a cell
     h = spec.voxel_size
     scale = [1.0 / h] * 3
     scale[a] = frame.cells / (frame.n_a * h)
     shift = [0.0] * 3
     shift[a] = 0.5
-    transform = compute_program(ctx, "ldi/transform.comp")
-    set_uniforms(transform, {"u_origin_d": tuple(float(x) for x in spec.origin - bufs.anchor),
-                             "u_scale_d": tuple(scale), "u_shift_d": tuple(shift),
-                             "u_vertices": bufs.n_vertices})
-    with timer.stage(f"transform{suffix}"):
-        bufs.vertices.bind_to_storage_buffer(0)
-        vox.bind_to_storage_buffer(1)
-        dispatch_1d(ctx, transform, bufs.n_vertices, 256)
-        barrier(ctx)
+    bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool, double=True, scale=scale, shift=shift,
+                                   name=f"vox_{tag}", stage=f"transform{suffix}")
     setup = pool.get(f"setup_{tag}", bufs.n_triangles * 48, what="per-triangle setup", clear=False)
     prog = compute_program(ctx, "eisemann/setup.comp", {"EIS_AXIS": a, "EIS_OP": 0, "EIS_COVERAGE": 0})
     dims = list(spec.dims)
