@@ -30,8 +30,8 @@ import warnings
 from pathlib import Path
 
 import glvox
-from glvox.context import get_context
 from glvox.errors import NotWatertightWarning
+from glvox.gl.context import get_context
 from glvox.methods import run_method
 
 DEFAULT_MESHES = ["stanford_armadillo_libigl_86k.obj", "stanford_bunny_bun_zipper.ply",

@@ -13,8 +13,8 @@ import time
 
 import numpy as np
 
-import glvox.gpu_sort as gs
-from glvox.context import get_context
+import glvox.gpu.sort as gs
+from glvox.gl.context import get_context
 
 
 def main() -> None:

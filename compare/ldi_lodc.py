@@ -34,8 +34,8 @@ from pathlib import Path
 import numpy as np
 
 import glvox
-from glvox.context import get_context
 from glvox.errors import NotWatertightWarning
+from glvox.gl.context import get_context
 from glvox.methods import run_method
 
 DEFAULT_MESHES = ["depth_reduced_diamond_lattice.stl", "stanford_armadillo_libigl_86k.obj", "gen:nest40"]

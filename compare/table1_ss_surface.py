@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 import glvox
-from glvox.context import get_context
+from glvox.gl.context import get_context
 from glvox.methods import run_method
 
 DEFAULT_MESHES = ["stanford_bunny_bun_zipper.ply", "stanford_dragon_vrip_res2.ply"]

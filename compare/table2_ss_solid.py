@@ -19,12 +19,12 @@ import argparse
 import sys
 import warnings
 
-import glvox
-from glvox.context import get_context
-from glvox.errors import NotWatertightWarning
-from glvox.methods import method_names
-
 from table1_ss_surface import mesh_dir, timed
+
+import glvox
+from glvox.errors import NotWatertightWarning
+from glvox.gl.context import get_context
+from glvox.methods import method_names
 
 DEFAULT_MESHES = ["stanford_bunny_bun_zipper.ply", "stanford_dragon_vrip_res2.ply"]
 

@@ -28,12 +28,12 @@ import sys
 import time
 import warnings
 
-import glvox
-from glvox.context import get_context
-from glvox.errors import NotWatertightWarning
-from glvox.methods import run_method
-
 from table1_ss_surface import mesh_dir
+
+import glvox
+from glvox.errors import NotWatertightWarning
+from glvox.gl.context import get_context
+from glvox.methods import run_method
 
 DEFAULT_MESHES = ["stanford_bunny_bun_zipper.ply", "stanford_dragon_vrip_res2.ply",
                   "stanford_armadillo_libigl_86k.obj"]

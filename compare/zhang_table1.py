@@ -216,7 +216,7 @@ def table3(resolutions, meshes) -> None:
 
 def timing(resolutions, meshes, repeats: int) -> None:
     import glvox
-    from glvox.context import get_context
+    from glvox.gl.context import get_context
     from glvox.methods import method_names, run_method
 
     methods = [m for m in ("ss-conservative", "scanline-rlv", "scanline-slv", "scanline-ilv")

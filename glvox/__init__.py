@@ -1,6 +1,6 @@
 """glvox: headless GPU voxelization of triangle meshes, with exact CPU references.
 
-The whole public API in one place::
+The whole public API in one place (nothing inside glvox imports this module)::
 
     import glvox
     grid = glvox.voxelize("bunny.ply", 128, method="reference-conservative")
@@ -13,40 +13,27 @@ from __future__ import annotations
 
 from typing import Any, Sequence
 
-import numpy as np
 
-from .errors import (BackendError, CapabilityError, EmptyMeshError, FaceIndexError, FormatError,
-                     GlvoxError, GLError, GridError, LimitError, MeshError, MeshLoadError,
-                     MethodError, NonFiniteVertexError, NotWatertightError, ShaderError)
-from .grid import GridSpec, VoxelGrid, fit_grid
-from .ldi import LDI
+from ._version import __version__
+from .errors import (BackendError, CapabilityError, EmptyMeshError, FaceIndexError, FormatError, GLError,
+                     GlvoxError, GridError, LimitError, MeshError, MeshLoadError, MethodError,
+                     NonFiniteVertexError, NotWatertightError, ShaderError)
+from .gl.context import get_context
+from .grid import GridSpec, fit_grid, grid_for
 from .io import load, save
 from .mesh import Mesh, load_mesh
-
-__version__ = "0.1.0"
-
-#: The method ``voxelize`` uses when none is named.
-DEFAULT_METHOD = "ss-conservative"
+from .methods import DEFAULT_METHOD, get_method, method_infos, run_method
+from .methods.leung_wang import overlap_bounds, overlap_grid, run_intersection
+from .results import LDI, SparseOctree, VoxelGrid
 
 __all__ = [
     "voxelize", "grid_for", "load_mesh", "fit_grid", "save", "load", "list_methods", "info",
     "ldi", "intersect_ldi", "intersecting_volume", "LDI",
-    "GridSpec", "VoxelGrid", "Mesh", "DEFAULT_METHOD",
+    "GridSpec", "VoxelGrid", "SparseOctree", "Mesh", "DEFAULT_METHOD", "__version__",
     "GlvoxError", "BackendError", "CapabilityError", "EmptyMeshError", "FaceIndexError",
     "FormatError", "GLError", "GridError", "LimitError", "MeshError", "MeshLoadError",
     "MethodError", "NonFiniteVertexError", "NotWatertightError", "ShaderError",
 ]
-
-
-def grid_for(mesh: Mesh, resolution: int | None = None, *, dims: Sequence[int] | None = None,
-             voxel_size: float | None = None, bounds: Any = None, padding: int = 0,
-             tight: bool = False) -> GridSpec:
-    """The grid spec for ``mesh`` (see :func:`glvox.grid.fit_grid`).
-
-    ``bounds`` (2, 3) replaces the mesh's bounding box as the region to cover.
-    """
-    b = mesh.bounds if bounds is None else np.asarray(bounds, dtype=np.float64)
-    return fit_grid(b, resolution, dims=dims, voxel_size=voxel_size, padding=padding, tight=tight)
 
 
 def voxelize(mesh: Any, resolution: int | None = None, method: str = DEFAULT_METHOD, *,
@@ -80,8 +67,6 @@ def voxelize(mesh: Any, resolution: int | None = None, method: str = DEFAULT_MET
     VoxelGrid (surface and solid methods) or the method kind's result type;
     ``.run`` holds method, grid, timings and statistics.
     """
-    from .methods import run_method
-
     m = load_mesh(mesh)
     if grid is None:
         if resolution is None and dims is None and voxel_size is None:
@@ -114,8 +99,6 @@ def ldi(mesh: Any, resolution: int | None = None, method: str = "leung-wang-ldi"
         ``.depths`` (n_p, n_q, n_max) float32 voxel units along the axis,
         ``.counts``, ``.volume``, ``.to_grid()``, ``.save(path)``.
     """
-    from .methods import get_method
-
     kind = get_method(method).info.kind
     if kind != "ldi":
         raise MethodError(f"glvox.ldi needs a method of kind 'ldi', got {method!r} (kind {kind!r}); "
@@ -150,16 +133,9 @@ def intersect_ldi(mesh_a: Any, mesh_b: Any, resolution: int | None = None, *, lo
         ``.volume`` is the intersecting volume (world units cubed); it bounds
         the overlap sampled on the rays from above.
     """
-    from .methods.leung_wang import overlap_bounds, run_intersection
-
     a, b = load_mesh(mesh_a), load_mesh(mesh_b)
     if grid is None:
-        if resolution is None and dims is None and voxel_size is None:
-            raise GridError("give a resolution (or dims, voxel_size or grid)")
-        region = overlap_bounds(a, b)
-        if region is None:
-            region = np.stack([np.minimum(a.bounds[0], b.bounds[0]), np.maximum(a.bounds[1], b.bounds[1])])
-        grid = fit_grid(region, resolution, dims=dims, voxel_size=voxel_size, padding=padding)
+        grid = overlap_grid(a, b, resolution, dims=dims, voxel_size=voxel_size, padding=padding)
     return run_intersection(a, b, grid, ctx=ctx, backend=backend, allow_open=allow_open, lod_c=lod_c,
                             axis=axis, targets=targets)
 
@@ -168,8 +144,6 @@ def intersecting_volume(mesh_a: Any, mesh_b: Any, resolution: int | None = None,
     """The intersecting volume of two closed meshes in world units cubed, from the
     conservative LDI of their overlap (:func:`intersect_ldi`, same arguments);
     0.0 when their bounding boxes do not overlap in volume."""
-    from .methods.leung_wang import overlap_bounds
-
     a, b = load_mesh(mesh_a), load_mesh(mesh_b)
     if kwargs.get("grid") is None and overlap_bounds(a, b) is None:
         return 0.0
@@ -178,13 +152,9 @@ def intersecting_volume(mesh_a: Any, mesh_b: Any, resolution: int | None = None,
 
 def list_methods(kind: str | None = None, family: str | None = None):
     """Registry entries (:class:`glvox.methods.MethodInfo`), optionally filtered."""
-    from .methods import method_infos
-
     return method_infos(kind, family)
 
 
 def info(backend: str | None = None) -> dict:
     """Backend, vendor, renderer, GL version and limits of the shared context."""
-    from .context import get_context
-
     return get_context(backend).describe()

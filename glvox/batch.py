@@ -385,7 +385,7 @@ def voxelize_one(job: Job, settings: BatchSettings) -> dict[str, Any]:
     dict
         A manifest row (keys :data:`MANIFEST_COLUMNS`), status ``done`` or ``failed``.
     """
-    from . import grid_for
+    from .grid import grid_for
     from .mesh import load_mesh
     from .methods import run_method
 

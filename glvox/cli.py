@@ -8,14 +8,24 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
-import warnings
+import threading
 import time
+import warnings
 from pathlib import Path
 from typing import Sequence
 
-from . import __version__
+import numpy as np
+
+from . import io
+from ._version import __version__
 from .errors import GlvoxError
+from .gl.context import get_context
+from .grid import grid_for
+from .mesh import load_mesh
+from .methods import DEFAULT_METHOD, get_method, method_infos, run_method
+from .methods.leung_wang import overlap_bounds, overlap_grid, run_intersection
 
 
 class _Progress:
@@ -54,8 +64,6 @@ def _parse_options(pairs: Sequence[str], extra: Sequence[str] = ()) -> dict[str,
 
 
 def cmd_info(args) -> int:
-    from .context import get_context
-
     d = get_context(args.backend).describe()
     if args.json:
         print(json.dumps(d, indent=2))
@@ -70,8 +78,6 @@ def cmd_info(args) -> int:
 
 
 def cmd_methods(args) -> int:
-    from .methods import method_infos
-
     infos = method_infos(args.kind, args.family)
     if args.json:
         print(json.dumps([i.to_dict() for i in infos], indent=2))
@@ -88,12 +94,6 @@ def cmd_methods(args) -> int:
 
 
 def cmd_voxelize(args) -> int:
-    import numpy as np
-
-    from . import grid_for, io
-    from .mesh import load_mesh
-    from .methods import get_method, run_method
-
     say = _Progress(args.quiet or args.json)
     out = Path(args.output) if args.output else None
     if out is not None:
@@ -138,9 +138,6 @@ def cmd_voxelize(args) -> int:
 
 def cmd_batch(args) -> int:
     """``glvox batch``: exit 0 when every mesh is done or skipped, 3 when some failed."""
-    import signal
-    import threading
-
     from .batch import BatchSettings, run_batch
 
     if args.scheduler and args.workers is not None:
@@ -185,10 +182,6 @@ def _axis(value: str) -> int:
 
 def cmd_ldi(args) -> int:
     """``glvox ldi``: a layered depth image (default leung-wang-ldi) into an npz."""
-    from . import grid_for
-    from .mesh import load_mesh
-    from .methods import get_method, run_method
-
     say = _Progress(args.quiet or args.json)
     out = Path(args.output) if args.output else None
     if out is not None and out.suffix.lower() != ".npz":
@@ -235,10 +228,6 @@ def cmd_ldi(args) -> int:
 
 def cmd_volume(args) -> int:
     """``glvox volume A B``: the intersecting volume of two closed meshes (Leung & Wang Sec. V-A)."""
-    from . import intersect_ldi
-    from .mesh import load_mesh
-    from .methods.leung_wang import overlap_bounds
-
     say = _Progress(args.quiet or args.json)
     a, b = load_mesh(args.mesh_a), load_mesh(args.mesh_b)
     say(f"{a.name}: {a.n_triangles} triangles; {b.name}: {b.n_triangles} triangles")
@@ -247,9 +236,10 @@ def cmd_volume(args) -> int:
     if overlap_bounds(a, b) is None:
         volume, d = 0.0, {"volume": 0.0, "note": "the bounding boxes do not overlap"}
     else:
-        res = intersect_ldi(a, b, args.resolution if args.dims is None and args.voxel_size is None else None,
-                            lod_c=args.lod_c, axis=args.axis, dims=args.dims, voxel_size=args.voxel_size,
-                            allow_open=args.allow_open, backend=args.backend)
+        spec = overlap_grid(a, b, args.resolution if args.dims is None and args.voxel_size is None else None,
+                            dims=args.dims, voxel_size=args.voxel_size)
+        res = run_intersection(a, b, spec, lod_c=args.lod_c, axis=args.axis, allow_open=args.allow_open,
+                               backend=args.backend)
         volume = res.volume
         say(f"grid {res.spec}; n_max {res.n_max}; {res.run.timings.summary()}")
         d = res.run.to_dict()
@@ -265,14 +255,14 @@ def cmd_volume(args) -> int:
 
 
 def cmd_compare(args) -> int:
-    from .compare.run import main as compare_main
+    from .study.run import main as compare_main
 
     return compare_main(args)
 
 
 def cmd_bench(args) -> int:
     """``glvox bench``: exit 0, or 3 when ``--check`` finds a regression."""
-    from .compare.bench import main as bench_main
+    from .study.bench import main as bench_main
 
     return bench_main(args)
 
@@ -400,7 +390,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Every chosen method on every mesh and grid size: timed warm runs, voxel counts, "
                     "agreement with the exact references, separability; writes results.csv/.json, "
                     "tables.md, plots/ and pictures/ into -o (rerunning resumes).")
-    from .compare.run import add_arguments
+    from .study.run import add_arguments
 
     add_arguments(pc)
     pc.set_defaults(func=cmd_compare)
@@ -411,7 +401,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "on the same mesh and grid, timed in one process (medians of interleaved warm runs), "
                     "with each one's agreement with glvox's exact references; prints the ratio of each "
                     "method to the fastest peer of its kind and the issue's targets.")
-    from .compare.bench import add_arguments as add_bench_arguments
+    from .study.bench import add_arguments as add_bench_arguments
 
     add_bench_arguments(pbe)
     pbe.set_defaults(func=cmd_bench)
@@ -425,8 +415,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(f"unrecognized arguments: {' '.join(extra)}")
     args.extra = extra
     if getattr(args, "method", "x") is None:
-        from . import DEFAULT_METHOD
-
         args.method = DEFAULT_METHOD
     try:
         return args.func(args)

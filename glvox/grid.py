@@ -1,4 +1,4 @@
-"""Grid specification (placement, fit) and the binary result type VoxelGrid.
+"""Grid specification: placement, fit, the bit-packed layout.
 
 Convention (DESIGN.md, shared by every method and reference)
 -----------------------------------------------------------
@@ -26,12 +26,13 @@ in the last word of a row are zero.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Sequence
 
 import numpy as np
 
 from .errors import GridError
+from .tolerances import FIT_CEIL_SLACK, PLACEMENT_RTOL
 
 #: Largest voxel count of a *dense* result (2^31 - 1 keeps flat indices in
 #: int32 on the GPU; the bit array of such a grid is 256 MiB).  Sparse methods
@@ -42,13 +43,8 @@ MAX_VOXELS = 2**31 - 1
 #: Largest grid size along one axis a spec accepts (voxel indices stay in
 #: int32 with room to spare).  Methods have their own, lower limits: dense
 #: grids are bounded by MAX_VOXELS and the storage-block size, ss-octree by
-#: glvox.octree.MAX_OCTREE_DIM (4096, 32-bit Morton codes).
+#: glvox.results.octree.MAX_OCTREE_DIM (4096, 32-bit Morton codes).
 MAX_DIM = 2**16
-
-#: Two placements are the same when origin and h agree within this fraction of
-#: h: text formats (binvox headers) round-trip floats to ~7 digits, far below
-#: any voxel-sized difference.
-PLACEMENT_RTOL = 1e-5
 
 
 def _as_dims(dims: Sequence[int]) -> tuple[int, int, int]:
@@ -223,7 +219,7 @@ def fit_grid(
                             "give voxel_size explicitly")
         h = max_extent / inner
         if tight:
-            inner_dims = np.maximum(1, np.ceil(extent / h - 1e-9)).astype(int)
+            inner_dims = np.maximum(1, np.ceil(extent / h - FIT_CEIL_SLACK)).astype(int)
             d = tuple(int(x) + 2 * padding for x in inner_dims)
         else:
             d = (n, n, n)
@@ -240,15 +236,34 @@ def fit_grid(
         h = float(voxel_size)  # type: ignore[arg-type]
         if not (math.isfinite(h) and h > 0):
             raise GridError(f"voxel_size must be a finite positive number, got {voxel_size!r}")
-        inner_dims = np.maximum(1, np.ceil(extent / h - 1e-9)).astype(int)
+        inner_dims = np.maximum(1, np.ceil(extent / h - FIT_CEIL_SLACK)).astype(int)
         d = tuple(int(x) + 2 * padding for x in inner_dims)
     origin = center - 0.5 * np.asarray(d, dtype=np.float64) * h
     return GridSpec(dims=_as_dims(d), origin=origin, voxel_size=h)
 
 
+def grid_for(mesh, resolution: int | None = None, *, dims: Sequence[int] | None = None,
+             voxel_size: float | None = None, bounds: Any = None, padding: int = 0,
+             tight: bool = False) -> GridSpec:
+    """The grid spec for ``mesh`` (a :class:`glvox.mesh.Mesh`; see :func:`fit_grid`).
+
+    ``bounds`` (2, 3) replaces the mesh's bounding box as the region to cover.
+    """
+    b = mesh.bounds if bounds is None else np.asarray(bounds, dtype=np.float64)
+    return fit_grid(b, resolution, dims=dims, voxel_size=voxel_size, padding=padding, tight=tight)
+
+
 # ---------------------------------------------------------------------------
 # packing
 # ---------------------------------------------------------------------------
+
+
+def ldi_axes(axis: int) -> tuple[int, int]:
+    """The pixel axes ``(p, q)`` of rays along ``axis``: the other two, in increasing order."""
+    if axis not in (0, 1, 2):
+        raise GridError(f"axis must be 0, 1 or 2, got {axis!r}")
+    p, q = (a for a in range(3) if a != axis)
+    return p, q
 
 
 def pack_bits(dense: np.ndarray) -> np.ndarray:
@@ -271,206 +286,3 @@ def unpack_bits(words: np.ndarray, dims: Sequence[int]) -> np.ndarray:
         raise GridError(f"expected {wpr * ny * nz} words for dims {tuple(dims)}, got {w.size}")
     bits = np.unpackbits(w.view(np.uint8).reshape(nz, ny, wpr * 4), axis=2, bitorder="little")
     return bits[:, :, :nx].astype(bool).transpose(2, 1, 0)
-
-
-# ---------------------------------------------------------------------------
-# the result type
-# ---------------------------------------------------------------------------
-
-
-@dataclass
-class Comparison:
-    """Differences of a grid against a reference on the same placement.
-
-    ``missing`` are voxels the reference sets and the grid does not,
-    ``extra`` the reverse; both (M, 3) int64 voxel indices.
-    """
-
-    missing: np.ndarray
-    extra: np.ndarray
-    count: int
-    reference_count: int
-    iou: float
-
-    @property
-    def n_missing(self) -> int:
-        return int(len(self.missing))
-
-    @property
-    def n_extra(self) -> int:
-        return int(len(self.extra))
-
-    @property
-    def equal(self) -> bool:
-        return self.n_missing == 0 and self.n_extra == 0
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"missing": self.n_missing, "extra": self.n_extra, "count": self.count,
-                "reference_count": self.reference_count, "iou": self.iou}
-
-
-class VoxelGrid:
-    """A binary voxel grid on a :class:`GridSpec`.
-
-    Built from a dense bool array indexed [i, j, k] (i along x) or from the
-    bit-packed words the GPU methods write; either form is made from the
-    other on demand.
-
-    Attributes
-    ----------
-    spec : GridSpec
-    run : RunInfo or None
-        Method name, kind, timings and statistics of the run that made it.
-    extras : dict of str to VoxelGrid
-        Named masks a method returns beside its result on the same spec
-        (e.g. ``'unclassifiable'`` of passalis-stencil); saved in npz as
-        ``extra_<name>``.
-    """
-
-    def __init__(self, occupancy: np.ndarray | None = None, spec: GridSpec | None = None, *,
-                 words: np.ndarray | None = None, run: Any = None,
-                 extras: dict[str, "VoxelGrid"] | None = None, count: int | None = None):
-        if spec is None:
-            raise GridError("a VoxelGrid needs its GridSpec")
-        if (occupancy is None) == (words is None):
-            raise GridError("give exactly one of occupancy (dense bool) or words (bit-packed)")
-        self.spec = spec
-        self.run = run
-        self.extras: dict[str, VoxelGrid] = {}
-        for name, g in (extras or {}).items():
-            if not name.isidentifier():
-                raise GridError(f"extra mask names must be identifiers, got {name!r}")
-            if not isinstance(g, VoxelGrid) or not g.spec.same_placement(spec):
-                raise GridError(f"extra mask {name!r} must be a VoxelGrid on {spec}")
-            self.extras[name] = g
-        self._dense: np.ndarray | None = None
-        self._words: np.ndarray | None = None
-        self._count = None if count is None else int(count)
-        if occupancy is not None:
-            occ = np.asarray(occupancy)
-            if occ.shape != spec.dims:
-                raise GridError(f"occupancy must have shape {spec.dims} (nx, ny, nz), got {occ.shape}")
-            if occ.dtype != bool:
-                raise GridError(f"occupancy must be a bool array, got dtype {occ.dtype}")
-            self._dense = occ
-        else:
-            w = np.asarray(words)
-            if w.size != spec.n_words:
-                raise GridError(f"expected {spec.n_words} packed words for dims {spec.dims}, got {w.size}")
-            self._words = w.reshape(spec.dims[2], spec.dims[1], spec.words_per_row).astype("<u4", copy=False)
-
-    # -- placement ---------------------------------------------------------
-    @property
-    def dims(self) -> tuple[int, int, int]:
-        return self.spec.dims
-
-    @property
-    def shape(self) -> tuple[int, int, int]:
-        return self.spec.dims
-
-    @property
-    def origin(self) -> np.ndarray:
-        return self.spec.origin
-
-    @property
-    def voxel_size(self) -> float:
-        return self.spec.voxel_size
-
-    # -- data ---------------------------------------------------------------
-    def dense(self) -> np.ndarray:
-        """Occupancy as bool (nx, ny, nz), indexed [i, j, k]; read-only view."""
-        if self._dense is None:
-            self._dense = unpack_bits(self._words, self.spec.dims)
-        v = self._dense.view()
-        v.setflags(write=False)
-        return v
-
-    def words(self) -> np.ndarray:
-        """Bit-packed occupancy, uint32 (nz, ny, words_per_row), GPU layout; read-only view."""
-        if self._words is None:
-            self._words = pack_bits(self._dense)
-        v = self._words.view()
-        v.setflags(write=False)
-        return v
-
-    @property
-    def count(self) -> int:
-        """Number of set voxels (counted once; GPU methods may give it, counted on the GPU)."""
-        if self._count is None:
-            if self._words is not None:
-                self._count = int(np.bitwise_count(self._words).sum())
-            else:
-                self._count = int(np.count_nonzero(self._dense))
-        return self._count
-
-    def __len__(self) -> int:
-        return self.count
-
-    def indices(self) -> np.ndarray:
-        """(M, 3) int64 indices of the set voxels, sorted by i, then j, then k."""
-        return np.argwhere(self.dense())
-
-    def points(self) -> np.ndarray:
-        """(M, 3) float64 world centers of the set voxels."""
-        return self.spec.centers(self.indices())
-
-    def to_trimesh(self):
-        """A ``trimesh.voxel.VoxelGrid`` with the same occupancy and placement.
-
-        trimesh's transform maps voxel indices to voxel *centers*, so it is
-        scale h and translation origin + h/2.
-        """
-        import trimesh
-
-        h = self.voxel_size
-        transform = np.eye(4)
-        transform[:3, :3] *= h
-        transform[:3, 3] = self.origin + 0.5 * h
-        return trimesh.voxel.VoxelGrid(np.array(self.dense()), transform=transform)
-
-    # -- comparison ---------------------------------------------------------
-    def _check_same(self, other: "VoxelGrid") -> None:
-        if not self.spec.same_placement(other.spec):
-            raise GridError(f"cannot compare grids on different placements: {self.spec} vs {other.spec}")
-
-    def equal(self, other: "VoxelGrid") -> bool:
-        self._check_same(other)
-        return bool(np.array_equal(self.words(), other.words()))
-
-    def compare(self, reference: "VoxelGrid") -> Comparison:
-        """Missing and extra voxels against ``reference``, and IoU."""
-        self._check_same(reference)
-        a, b = self.dense(), reference.dense()
-        inter = int(np.count_nonzero(a & b))
-        union = int(np.count_nonzero(a | b))
-        return Comparison(
-            missing=np.argwhere(b & ~a),
-            extra=np.argwhere(a & ~b),
-            count=int(np.count_nonzero(a)),
-            reference_count=int(np.count_nonzero(b)),
-            iou=1.0 if union == 0 else inter / union,
-        )
-
-    def iou(self, other: "VoxelGrid") -> float:
-        return self.compare(other).iou
-
-    def __repr__(self) -> str:
-        m = f", method={self.run.method!r}" if self.run is not None else ""
-        return f"VoxelGrid(dims={self.dims}, count={self.count}, voxel_size={self.voxel_size:.6g}{m})"
-
-
-@dataclass
-class RunInfo:
-    """How a result was made: method, kind, placement, timings, statistics."""
-
-    method: str
-    kind: str
-    spec: GridSpec
-    timings: Any
-    stats: dict[str, Any] = field(default_factory=dict)
-    options: dict[str, Any] = field(default_factory=dict)
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"method": self.method, "kind": self.kind, "grid": self.spec.to_dict(),
-                "options": dict(self.options), "stats": dict(self.stats),
-                "timings": self.timings.to_dict() if self.timings is not None else None}

@@ -1,9 +1,11 @@
-"""Reading and writing binary voxel grids: ``.npz`` and ``.binvox``.
+"""Reading and writing results by file suffix: ``.npz`` and ``.binvox``.
 
-npz keys: ``occupancy`` (bool, (nx, ny, nz), indexed [i, j, k]), ``origin``
-(float64[3], world position of voxel (0,0,0)'s minimum corner),
-``voxel_size`` (float64), ``method`` (str), ``kind`` (str), and one
-``extra_<name>`` (bool, (nx, ny, nz)) per mask in ``grid.extras``.
+npz: every result type writes its own layout on one base
+(:mod:`glvox.results.base`: ``origin``, ``voxel_size``, ``method``, ``kind``
+and the type's arrays, listed in :mod:`glvox.results.voxels`,
+:mod:`glvox.results.octree` and :mod:`glvox.results.ldi`).  A sparse octree
+stores the octree itself, never a decoded grid, so a 4096^3 result stays a
+few hundred MiB; :func:`load` returns the type the file holds.
 
 binvox placement
 ----------------
@@ -18,18 +20,9 @@ The binvox header has ``translate`` and ``scale``.  Two readings exist:
 glvox writes the trimesh reading so trimesh loads the same occupancy and
 placement; pass ``convention='binvox'`` for files made by the binvox tool.
 binvox stores cubic grids only (one scale for all axes), so non-cubic grids
-are refused: save them as npz.
-
-Sparse octrees (``ss-octree``, :class:`glvox.octree.SparseOctree`)
-------------------------------------------------------------------
-npz stores the octree itself, never a decoded grid, so a 4096^3 result
-stays a few hundred MiB: ``origin``, ``voxel_size``, ``method``, ``kind``
-('sparse'), ``octree_dims`` (int64[3]), ``octree_data`` (uint64, one 4^3
-sub-grid per level-0 node) and per level L ``octree_L<L>_morton``,
-``_parent``, ``_x_next``, ``_x_prev``, ``_count`` (uint32), ``_child``
-(uint32) and ``_inside`` (bool) above level 0.  :func:`load` returns a
-SparseOctree for such a file.  binvox is dense: an octree is decoded
-(:meth:`SparseOctree.to_grid`) when it fits, and refused otherwise.
+are refused: save them as npz.  A sparse octree is decoded
+(:meth:`SparseOctree.to_grid`) when it fits, and refused otherwise; an LDI
+is not a grid and is refused.
 """
 
 from __future__ import annotations
@@ -40,7 +33,8 @@ from pathlib import Path
 import numpy as np
 
 from .errors import FormatError
-from .grid import GridSpec, VoxelGrid
+from .grid import GridSpec
+from .results import LDI, Result, SparseOctree, VoxelGrid, read_npz
 
 CONVENTIONS = ("trimesh", "binvox")
 
@@ -52,104 +46,30 @@ def _suffix(path: Path) -> str:
     return s
 
 
-def save(grid: VoxelGrid, path: str | os.PathLike, *, convention: str = "trimesh") -> Path:
-    """Write ``grid`` (a VoxelGrid or a SparseOctree) to ``path`` (.npz or .binvox, by suffix)."""
-    from .ldi import LDI
-    from .octree import SparseOctree
-
+def save(result: Result, path: str | os.PathLike, *, convention: str = "trimesh") -> Path:
+    """Write ``result`` (a VoxelGrid, SparseOctree or LDI) to ``path`` (.npz or .binvox, by suffix)."""
     path = Path(path)
-    suffix = _suffix(path)
-    if isinstance(grid, LDI):
-        if suffix == ".binvox":
-            raise FormatError(f"an LDI is saved as .npz (depths per ray), not binvox: {path}")
-        return grid.save(path)
-    if isinstance(grid, SparseOctree):
-        if suffix == ".binvox":
-            dense = grid.to_grid()
-            path.write_bytes(binvox_bytes(dense, convention=convention))
-            return path
-        run = grid.run
-        np.savez_compressed(
-            path, origin=np.asarray(grid.origin, dtype=np.float64), voxel_size=np.float64(grid.voxel_size),
-            method=np.str_(run.method if run is not None else ""), kind=np.str_("sparse"),
-            **grid.to_arrays(),
-        )
-        return path
     if _suffix(path) == ".npz":
-        run = grid.run
-        np.savez_compressed(
-            path,
-            occupancy=np.asarray(grid.dense(), dtype=bool),
-            origin=np.asarray(grid.origin, dtype=np.float64),
-            voxel_size=np.float64(grid.voxel_size),
-            method=np.str_(run.method if run is not None else ""),
-            kind=np.str_(run.kind if run is not None else ""),
-            **{f"extra_{k}": np.asarray(g.dense(), dtype=bool) for k, g in grid.extras.items()},
-        )
-    else:
-        path.write_bytes(binvox_bytes(grid, convention=convention))
+        return result.save(path)
+    if isinstance(result, LDI):
+        raise FormatError(f"an LDI is saved as .npz (depths per ray), not binvox: {path}")
+    grid = result.to_grid() if isinstance(result, SparseOctree) else result
+    path.write_bytes(binvox_bytes(grid, convention=convention))
     return path
 
 
 def load(path: str | os.PathLike, *, convention: str = "trimesh"):
-    """Read a grid written by :func:`save` (or any conforming npz / binvox).
+    """Read a result written by :func:`save` (or any conforming npz / binvox).
 
-    Returns a VoxelGrid, or a :class:`glvox.octree.SparseOctree` or a
-    :class:`glvox.ldi.LDI` for an npz holding one.
+    Returns a VoxelGrid, or a :class:`~glvox.results.SparseOctree` or an
+    :class:`~glvox.results.LDI` for an npz holding one.
     """
     path = Path(path)
     if not path.is_file():
         raise FormatError(f"voxel file not found: {path}")
     if _suffix(path) == ".npz":
-        return _load_npz(path)
+        return read_npz(path)
     return _load_binvox(path.read_bytes(), path, convention)
-
-
-def _load_npz(path: Path):
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            if "octree_dims" in z.files:
-                return _load_octree(path, z)
-            if "depths" in z.files and "counts" in z.files:
-                from .ldi import LDI
-
-                return LDI.load(path)
-            missing = {"occupancy", "origin", "voxel_size"} - set(z.files)
-            if missing:
-                raise FormatError(f"{path} lacks the npz keys {sorted(missing)}")
-            occ = np.asarray(z["occupancy"])
-            origin = np.asarray(z["origin"], dtype=np.float64)
-            h = float(z["voxel_size"])
-            extras = {k[len("extra_"):]: np.asarray(z[k]) for k in z.files if k.startswith("extra_")}
-    except FormatError:
-        raise
-    except Exception as exc:  # noqa: BLE001 - zip/pickle errors vary
-        raise FormatError(f"cannot read {path} as npz: {exc}") from None
-    if occ.ndim != 3:
-        raise FormatError(f"{path}: occupancy must be 3D (nx, ny, nz), got shape {occ.shape}")
-    spec = GridSpec(occ.shape, origin, h)
-    for k, e in extras.items():
-        if e.shape != occ.shape:
-            raise FormatError(f"{path}: extra_{k} must have the occupancy's shape {occ.shape}, got {e.shape}")
-    return VoxelGrid(occ.astype(bool), spec,
-                     extras={k: VoxelGrid(e.astype(bool), spec) for k, e in extras.items()})
-
-
-def _load_octree(path: Path, z):
-    from .octree import SparseOctree
-
-    missing = {"origin", "voxel_size"} - set(z.files)
-    if missing:
-        raise FormatError(f"{path} lacks the npz keys {sorted(missing)}")
-    dims = np.asarray(z["octree_dims"])
-    if dims.shape != (3,):
-        raise FormatError(f"{path}: octree_dims must hold 3 integers, got shape {dims.shape}")
-    spec = GridSpec(tuple(int(d) for d in dims), np.asarray(z["origin"], dtype=np.float64),
-                    float(z["voxel_size"]))
-    try:
-        return SparseOctree.from_arrays({k: z[k] for k in z.files}, spec)
-    except FormatError as exc:
-        raise FormatError(f"{path}: {exc}") from None
 
 
 def binvox_bytes(grid: VoxelGrid, *, convention: str = "trimesh") -> bytes:

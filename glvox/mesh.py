@@ -18,15 +18,8 @@ from typing import Any, Union
 
 import numpy as np
 
-from .errors import (EmptyMeshError, FaceIndexError, MeshError, MeshLoadError,
-                     NonFiniteVertexError)
-
-#: A triangle is degenerate (dropped) when twice its area is at most this
-#: fraction of the squared longest bounding-box extent.  1e-14 is ~100 ulps of
-#: float64 relative to the model size: only triangles that are zero-area up to
-#: rounding (repeated or exactly collinear vertices) are dropped; needles and
-#: slivers stay.
-DEGENERATE_AREA_RTOL = 1e-14
+from .errors import EmptyMeshError, FaceIndexError, MeshError, MeshLoadError, NonFiniteVertexError
+from .tolerances import DEGENERATE_AREA_RTOL
 
 MeshLike = Union[str, os.PathLike, "Mesh", Any, tuple]
 

@@ -14,16 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from .grid import Comparison, VoxelGrid
-from .methods import get_method, run_method
-from .reference import TIE_EPS, mismatch_is_tie, solid_ties, surface_ties
-
-_TIES = {
-    "reference-conservative": lambda t, d, e: surface_ties(t, d, "conservative", e),
-    "reference-6sep": lambda t, d, e: surface_ties(t, d, "6sep", e),
-    "reference-solid": lambda t, d, e: solid_ties(t, d, e),
-}
-
+from .methods import get_method, method_infos, run_method
+from .reference import TIE_EPS, mismatch_is_tie
+from .results.voxels import Comparison, VoxelGrid
 
 @dataclass
 class ReferenceCheck:
@@ -57,11 +50,11 @@ class ReferenceCheck:
 
 def tie_set(reference: str, mesh, spec, eps: float = TIE_EPS) -> np.ndarray:
     """Dense (nx, ny, nz) bool tie set of ``reference`` for ``mesh`` on ``spec``."""
-    try:
-        f = _TIES[reference]
-    except KeyError:
-        raise ValueError(f"no tie set is defined for {reference!r}; known: {sorted(_TIES)}") from None
-    return f(mesh.triangles_voxel(spec), spec.dims, eps)
+    method = get_method(reference)
+    if not method.has_ties:
+        known = sorted(i.name for i in method_infos() if get_method(i.name).has_ties)
+        raise ValueError(f"no tie set is defined for {reference!r}; known: {known}")
+    return method.tie_set(mesh, spec, eps)
 
 
 def check_against_reference(result: VoxelGrid, mesh, reference: str | None = None,
@@ -88,7 +81,7 @@ def check_against_reference(result: VoxelGrid, mesh, reference: str | None = Non
         reference_grid = run_method(reference, mesh, spec, allow_open=True)
     if ties is None:
         ties = tie_set(reference, mesh, spec)
-    ok, unexplained = mismatch_is_tie(result.dense(), reference_grid.dense(), ties)
+    _, unexplained = mismatch_is_tie(result.dense(), reference_grid.dense(), ties)
     return ReferenceCheck(reference, result.compare(reference_grid), int(ties.sum()), unexplained)
 
 

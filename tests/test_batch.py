@@ -26,8 +26,8 @@ import numpy as np
 import pytest
 
 from glvox import cli
-from glvox.batch import (BROKEN, MANIFEST_COLUMNS, LOCK_NAME, BatchSettings, Progress, find_meshes,
-                         plan_jobs, read_manifest, run_batch, synthetic_dataset)
+from glvox.batch import (BROKEN, LOCK_NAME, MANIFEST_COLUMNS, BatchSettings, Progress, find_meshes, plan_jobs,
+                         read_manifest, run_batch, synthetic_dataset)
 from glvox.errors import GlvoxError, GridError, MeshLoadError, MethodError
 from glvox.methods import method_names
 

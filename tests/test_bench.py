@@ -18,12 +18,12 @@ import pytest
 
 import glvox
 from glvox.cli import main as cli_main
-from glvox.compare import ab, bench
-from glvox.compare.peers import PEERS, _from_indices, get_peer
 from glvox.errors import GlvoxError
 from glvox.grid import GridSpec, pack_bits
 from glvox.methods import run_method
 from glvox.metrics import tie_set
+from glvox.study import ab, bench
+from glvox.study.peers import PEERS, _from_indices, get_peer
 
 #: Closed generated meshes on grids that exercise every axis differently:
 #: non-cubic dims (the mesh centered, so the origin is not the mesh's corner)

@@ -10,9 +10,10 @@ import pytest
 
 import glvox
 from glvox.cli import main as cli_main
-from glvox.compare import harness, render
-from glvox.grid import GridSpec, VoxelGrid
+from glvox.grid import GridSpec
 from glvox.methods import method_names
+from glvox.results.voxels import VoxelGrid
+from glvox.study import harness, render
 
 
 def run_cli(*args):
@@ -98,7 +99,7 @@ def test_unknown_method_and_missing_mesh_are_one_line_errors(tmp_path, capsys):
 
 
 def test_presets_cover_the_registry():
-    from glvox.compare.run import PRESETS
+    from glvox.study.run import PRESETS
 
     assert PRESETS["quick"]["sizes"][-1] == 128 and len(PRESETS["quick"]["meshes"]) == 2
     assert PRESETS["paper"]["sizes"] == [128, 256, 512, 1024]

@@ -10,8 +10,8 @@ import sys
 import numpy as np
 import pytest
 
-from glvox.context import close_context, create_context, get_context
 from glvox.errors import BackendError
+from glvox.gl.context import close_context, create_context, get_context
 from glvox.testing import run_compute, run_fragment
 
 
@@ -125,7 +125,7 @@ def test_unknown_logic_op_is_refused(gl_context):
 
 def test_close_context_then_get_context_makes_a_new_one():
     # run in a subprocess so the session's shared context is untouched
-    code = ("from glvox.context import get_context, close_context\n"
+    code = ("from glvox.gl.context import get_context, close_context\n"
             "a = get_context(); close_context(); b = get_context()\n"
             "assert a is not b and a.released and not b.released\n"
             "print(b.mgl.buffer(b'abcd').read().decode())\n")
@@ -138,7 +138,7 @@ def test_loop_budget_of_the_driver_is_known(gl_context):
     """Mesa's llvmpipe ends an invocation's loops after about 65535 iterations in
     total, silently; glvox's shaders split their work to stay below
     LOOP_BUDGET.  This measures the driver so a change in Mesa is noticed."""
-    from glvox.methods._gpu import LOOP_BUDGET
+    from glvox.gpu.dispatch import LOOP_BUDGET
 
     out = run_compute(gl_context, "testing/loop_count.comp", 1, buffers={0: (1, np.uint32)}, read=[0],
                       uniforms={"u_n": 100})[0]
@@ -159,7 +159,7 @@ def test_releasing_private_contexts_leaves_the_shared_one_current(gl_context):
         except BackendError as exc:
             pytest.skip(f"backend {backend} unavailable: {exc}")
         private.release()
-    from glvox.shaders import compute_program
+    from glvox.gl.shaders import compute_program
 
     # a program not compiled before: glCreateProgram must reach a current context
     assert compute_program(gl_context, "testing/bits.comp", {"GLVOX_TEST_FRESH": 1}) is not None

@@ -20,8 +20,9 @@ import pytest
 import trimesh
 
 import glvox
-from glvox import gl as rawgl
 from glvox.errors import LimitError, MethodError, NotWatertightError, NotWatertightWarning
+from glvox.gpu.buffers import buffer_pool
+from glvox.gl import raw as rawgl
 from glvox.grid import GridSpec
 from glvox.mesh import load_mesh
 from glvox.methods import depth_layers, get_method, run_method
@@ -29,7 +30,6 @@ from glvox.metrics import check_against_reference, tie_set
 from glvox.reference import mismatch_is_tie, solid
 from glvox.reference._candidates import column_candidates, normals
 from glvox.reference.solid import _edge_function
-
 
 WATERTIGHT = ("cad_fandisk.off", "cad_featuretype.stl", "cad_rocker_arm.obj", "cad_wingnut.obj",
               "depth_reduced_diamond_lattice.stl", "stanford_armadillo_libigl_86k.obj")
@@ -540,7 +540,7 @@ def test_stages_stats_state_and_reuse(gl_context):
     assert all(s.gpu_s is not None and s.gpu_s >= 0 for s in first.run.timings.stages[:-1])
     assert first.run.stats["passes"] == {"x": 4, "y": 4, "z": 4}
     assert not gl_context.raw.fn("glIsEnabled")(rawgl.GL_STENCIL_TEST)
-    pool = gl_context._glvox_caches["pools"]["passalis-stencil"]
+    pool = buffer_pool(gl_context, "passalis-stencil")
     ids = {k: b.glo for k, b in pool._bufs.items()}
     again = run_method("passalis-stencil", mesh, spec)
     assert again.equal(first) and again.extras["unclassifiable"].equal(first.extras["unclassifiable"])

@@ -15,19 +15,17 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 import trimesh
+from conftest import SHARED_MESHES
 
 import glvox
-from glvox.errors import (CapabilityError, LimitError, MethodError, NotWatertightError,
-                          NotWatertightWarning)
+from glvox.errors import CapabilityError, LimitError, MethodError, NotWatertightError, NotWatertightWarning
+from glvox.gl.timing import StageTimer
+from glvox.gpu.buffers import buffer_pool, object_cache
 from glvox.grid import GridSpec
 from glvox.mesh import load_mesh
 from glvox.methods import eisemann, run_method
-from glvox.methods._gpu import object_cache
 from glvox.metrics import check_against_reference, tie_set
 from glvox.reference import TIE_EPS
-from glvox.timing import StageTimer
-
-from conftest import SHARED_MESHES
 
 WATERTIGHT = ("cad_fandisk.off", "cad_featuretype.stl", "cad_rocker_arm.obj", "cad_wingnut.obj",
               "depth_reduced_diamond_lattice.stl", "stanford_armadillo_libigl_86k.obj")
@@ -493,7 +491,7 @@ def test_masks_texture_and_bits_agree_and_runs_reuse_buffers(gl_context):
     spec = glvox.grid_for(mesh, dims=(48, 40, 1100))  # two passes
     for name in ("eisemann-solid", "eisemann-surface"):
         bits = run_method(name, mesh, spec, masks="bits")
-        pool = gl_context._glvox_caches["pools"][name]
+        pool = buffer_pool(gl_context, name)
         ids = {k: b.glo for k, b in pool._bufs.items()}
         targets = object_cache(gl_context, "eisemann", None)["targets"].textures[0].glo
         assert run_method(name, mesh, spec, masks="texture").equal(bits)

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import glvox.gpu_sort as gs
+import glvox.gpu.sort as gs
 from glvox.errors import LimitError
-from glvox.methods._gpu import buffer_pool
-from glvox.shaders import compute_program
+from glvox.gl.shaders import compute_program
+from glvox.gpu.buffers import buffer_pool
 
 #: Written after the n elements of every buffer: the primitives must leave it alone.
 SENTINEL = np.uint32(0xDEADBEEF)

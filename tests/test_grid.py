@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from glvox.errors import GridError
-from glvox.grid import GridSpec, VoxelGrid, fit_grid, pack_bits, unpack_bits
+from glvox.grid import GridSpec, fit_grid, pack_bits, unpack_bits
+from glvox.results.voxels import VoxelGrid
 
 BOX = np.array([[0.0, 0.0, 0.0], [2.0, 1.0, 1.0]])
 

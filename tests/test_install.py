@@ -15,8 +15,8 @@ ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = """
 import numpy as np, glvox
 from pathlib import Path
-from glvox.context import get_context
-from glvox.shaders import builtin_shader_dir
+from glvox.gl.context import get_context
+from glvox.gl.shaders import builtin_shader_dir
 from glvox.testing import run_compute
 root = builtin_shader_dir()
 assert glvox.__file__.startswith(TARGET), glvox.__file__
@@ -52,8 +52,10 @@ def test_regular_install_finds_shaders_from_another_directory(tmp_path):
     assert inst.returncode == 0, inst.stdout + inst.stderr
     assert (target / "glvox" / "_shaders" / "common" / "bits.glsl").is_file()
     assert (target / "glvox" / "_shaders" / "render" / "cubes.vert").is_file()
-    assert (target / "glvox" / "compare" / "harness.py").is_file()
-    assert (target / "glvox" / "compare" / "bench_baseline.json").is_file()
+    assert (target / "glvox" / "study" / "harness.py").is_file()
+    # the study's scripts and one machine's timings stay in the checkout's compare/
+    assert not (target / "glvox" / "compare").exists()
+    assert not list(target.rglob("bench_baseline.json"))
     work = tmp_path / "elsewhere"
     work.mkdir()
     env = {k: v for k, v in os.environ.items() if k != "GLVOX_SHADER_PATH"}

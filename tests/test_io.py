@@ -9,7 +9,8 @@ import trimesh
 import glvox
 from glvox import io
 from glvox.errors import FormatError
-from glvox.grid import GridSpec, VoxelGrid
+from glvox.grid import GridSpec
+from glvox.results.voxels import VoxelGrid
 
 
 def random_grid(dims=(9, 9, 9), origin=(1.0, -2.0, 0.5), h=0.25, seed=0):

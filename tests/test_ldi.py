@@ -24,20 +24,20 @@ import sys
 import numpy as np
 import pytest
 import trimesh
+from conftest import SLOW
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 import glvox
-from glvox.errors import FormatError, GridError, LimitError, MethodError, NotWatertightError, NotWatertightWarning
-from glvox.grid import GridSpec
-from glvox.ldi import LDI, close_odd
+from glvox.errors import (FormatError, GridError, LimitError, MethodError, NotWatertightError,
+                          NotWatertightWarning)
+from glvox.grid import GridSpec, ldi_axes
 from glvox.mesh import load_mesh
 from glvox.methods import depth_layers, leung_wang, run_method
 from glvox.metrics import check_against_reference, tie_set
-from glvox.reference.ldi import crossing_tolerance, crossings, ldi_axes, ray_ties
+from glvox.reference.ldi import crossing_tolerance, crossings, ray_ties
+from glvox.results.ldi import LDI, close_odd
 from glvox.testing.leaks import live_gl_objects
-
-from conftest import SLOW
 
 WATERTIGHT = ("cad_fandisk.off", "cad_featuretype.stl", "cad_rocker_arm.obj", "cad_wingnut.obj",
               "depth_reduced_diamond_lattice.stl", "stanford_armadillo_libigl_86k.obj")

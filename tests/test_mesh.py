@@ -7,8 +7,8 @@ import pytest
 import trimesh
 
 import glvox
-from glvox.errors import (EmptyMeshError, FaceIndexError, MeshError, MeshLoadError,
-                          NonFiniteVertexError, NotWatertightError)
+from glvox.errors import (EmptyMeshError, FaceIndexError, MeshError, MeshLoadError, NonFiniteVertexError,
+                          NotWatertightError)
 from glvox.mesh import DEGENERATE_AREA_RTOL, generated_mesh, load_mesh
 
 TET_V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)

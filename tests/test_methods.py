@@ -12,11 +12,12 @@ import pytest
 
 import glvox
 from glvox.errors import LimitError, MethodError
-from glvox.grid import GridSpec, VoxelGrid
+from glvox.grid import GridSpec
 from glvox.mesh import load_mesh
-from glvox.methods import (FAMILIES, KINDS, Method, MethodInfo, get_method, method_infos,
-                           method_names, register, run_method)
+from glvox.methods import (FAMILIES, KINDS, Method, MethodInfo, get_method, method_infos, method_names,
+                           register, run_method)
 from glvox.metrics import check_against_reference, separation_leaks, tie_set
+from glvox.results.voxels import VoxelGrid
 
 VOXEL_KINDS = ("surface", "solid")
 

@@ -20,8 +20,8 @@ from hypothesis import strategies as st
 from scipy.spatial import ConvexHull
 
 from glvox.metrics import separation_leaks
-from glvox.reference import (TIE_EPS, float32_motion, short_edges, conservative_surface, conservative_surface_sat,
-                             mismatch_is_tie, orientation_ambiguous, point_triangle_distance,
+from glvox.reference import (TIE_EPS, conservative_surface, conservative_surface_sat, float32_motion,
+                             mismatch_is_tie, orientation_ambiguous, point_triangle_distance, short_edges,
                              six_separating_surface, solid, solid_ties, surface_ties)
 
 MESHES = Path(os.environ.get("GLVOX_MESHES",

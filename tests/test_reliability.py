@@ -17,19 +17,19 @@ import warnings
 import numpy as np
 import pytest
 import trimesh
+from conftest import SLOW
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 import glvox
-from glvox.context import create_context
 from glvox.errors import GlvoxError, LimitError, MeshError, NotWatertightWarning
-from glvox.grid import GridSpec, VoxelGrid
+from glvox.gl.context import create_context
+from glvox.grid import GridSpec
 from glvox.mesh import load_mesh
 from glvox.methods import get_method, method_infos, method_names, run_method
 from glvox.metrics import check_against_reference, tie_set
+from glvox.results.voxels import VoxelGrid
 from glvox.testing.leaks import live_gl_objects, rss_bytes
-
-from conftest import SLOW
 
 ALL = method_names()
 GL = [i.name for i in method_infos() if i.uses_gl]

@@ -38,6 +38,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
+from conftest import SHARED_MESHES
 from scipy import ndimage
 
 import glvox
@@ -48,10 +49,8 @@ from glvox.methods import get_method, run_method, validate_options
 from glvox.methods.scanline import gpu_voxel_coords
 from glvox.metrics import check_against_reference, separation_leaks
 from glvox.reference import TIE_EPS, conservative_surface, solid, surface_ties
-from glvox.reference.scanline import (OpCounts, float_variant_ties, ilv_line, lattice_points,
-                                      rlv_line, scanline_surface, slv_line)
-
-from conftest import SHARED_MESHES
+from glvox.reference.scanline import (OpCounts, float_variant_ties, ilv_line, lattice_points, rlv_line,
+                                      scanline_surface, slv_line)
 
 MODES = ("rlv", "slv", "ilv")
 TUNNELS = (26, 18, 6)

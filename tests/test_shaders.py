@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 
 from glvox.errors import ShaderError
-from glvox.grid import GridSpec, VoxelGrid, pack_bits
-from glvox.shaders import (LINE_BASE, MAX_INCLUDE_DEPTH, builtin_shader_dir, compute_program,
-                           preprocess, render_program)
+from glvox.gl.shaders import (LINE_BASE, MAX_INCLUDE_DEPTH, builtin_shader_dir, compute_program, preprocess,
+                              render_program)
+from glvox.grid import GridSpec, pack_bits
+from glvox.results.voxels import VoxelGrid
 from glvox.testing import run_compute
 
 

@@ -14,6 +14,7 @@ import warnings
 import numpy as np
 import pytest
 import trimesh
+from conftest import SHARED_MESHES
 
 import glvox
 from glvox.cli import main as cli_main
@@ -22,9 +23,7 @@ from glvox.grid import GridSpec
 from glvox.mesh import Mesh, load_mesh
 from glvox.methods import run_method
 from glvox.metrics import check_against_reference, tie_set
-from glvox.octree import NONE, SparseOctree, morton_encode, top_level
-
-from conftest import SHARED_MESHES
+from glvox.results.octree import NONE, SparseOctree, morton_encode, top_level
 
 #: The shared meshes that are closed (tests/conftest.py lists them all).
 WATERTIGHT = ("cad_fandisk.off", "cad_featuretype.stl", "cad_rocker_arm.obj", "cad_wingnut.obj",

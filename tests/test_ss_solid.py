@@ -13,18 +13,16 @@ import warnings
 import numpy as np
 import pytest
 import trimesh
+from conftest import SHARED_MESHES
 
 import glvox
 from glvox.errors import LimitError, NotWatertightError, NotWatertightWarning
 from glvox.grid import GridSpec
 from glvox.mesh import load_mesh
-from glvox.methods import run_method
-from glvox.methods import ss_solid
+from glvox.methods import run_method, ss_solid
 from glvox.metrics import check_against_reference, tie_set
 from glvox.reference._candidates import column_candidates, normals
 from glvox.reference.solid import _edge_function
-
-from conftest import SHARED_MESHES
 
 SOLID = ("ss-solid", "ss-solid-tiled")
 
@@ -296,7 +294,7 @@ def test_row_fill_every_word_width(gl_context, nx):
 
 def run_bufs(ctx, mesh):
     """The uploaded mesh, with the bounds ss_solid.mesh_rows reads."""
-    from glvox.methods._gpu import mesh_buffers
+    from glvox.gpu.buffers import mesh_buffers
     return mesh_buffers(ctx, mesh)
 
 

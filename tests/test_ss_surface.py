@@ -12,6 +12,7 @@ import trimesh
 
 import glvox
 from glvox.errors import LimitError
+from glvox.gpu.buffers import buffer_pool
 from glvox.grid import GridSpec
 from glvox.mesh import Mesh, load_mesh
 from glvox.methods import run_method
@@ -188,7 +189,7 @@ def test_runs_are_deterministic_and_reuse_buffers(gl_context, shared_mesh):
     mesh = load_mesh(shared_mesh("stanford_dragon_vrip_res3.ply"))
     spec = glvox.grid_for(mesh, 96)
     first = run_method("ss-conservative", mesh, spec)
-    pool = gl_context._glvox_caches["pools"]["ss-conservative"]
+    pool = buffer_pool(gl_context, "ss-conservative")
     ids = {k: b.glo for k, b in pool._bufs.items()}
     again = run_method("ss-conservative", mesh, spec)
     assert again.equal(first)

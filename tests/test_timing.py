@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from glvox.errors import GLError
-from glvox.shaders import compute_program
-from glvox.timing import StageTimer
+from glvox.gl.shaders import compute_program
+from glvox.gl.timing import StageTimer
 
 
 def _dispatch(ctx, defines):

@@ -8,20 +8,19 @@ True
 from __future__ import annotations
 
 import importlib
-import os
 import pkgutil
-import warnings
 from typing import Any
 
-from ..context import get_context
-from ..errors import CapabilityError, LimitError, MethodError, NotWatertightError, NotWatertightWarning
-from ..grid import MAX_VOXELS, GridSpec, RunInfo
+from ..errors import MethodError
+from ..grid import GridSpec
 from ..mesh import Mesh
-from ..timing import StageTimer
-from ._base import (FAMILIES, KINDS, Method, MethodInfo, Option, Requirements, _REGISTRY,
-                    register)
+from .base import _REGISTRY, FAMILIES, KINDS, Method, MethodInfo, Option, Requirements, register
+from .envelope import run_in_envelope
 
-__all__ = ["FAMILIES", "KINDS", "Method", "MethodInfo", "Option", "Requirements", "register",
+#: The method :func:`glvox.voxelize` and ``glvox voxelize`` use when none is named.
+DEFAULT_METHOD = "ss-conservative"
+
+__all__ = ["DEFAULT_METHOD", "FAMILIES", "KINDS", "Method", "MethodInfo", "Option", "Requirements", "register",
            "get_method", "method_infos", "method_names", "run_method", "validate_options"]
 
 _discovered = False
@@ -91,7 +90,7 @@ def run_method(name: str, mesh: Mesh, spec: GridSpec, *, ctx=None, backend: str 
         From :func:`glvox.mesh.load_mesh`.
     spec : GridSpec
     ctx : GLContext, optional
-        For GL methods; default the shared context (:func:`glvox.context.get_context`).
+        For GL methods; default the shared context (:func:`glvox.gl.context.get_context`).
     backend : str, optional
         Backend of the shared context when ``ctx`` is not given.
     allow_open : bool
@@ -105,48 +104,13 @@ def run_method(name: str, mesh: Mesh, spec: GridSpec, *, ctx=None, backend: str 
     Returns
     -------
     The method's result (VoxelGrid for surface and solid methods), with
-    ``result.run`` a :class:`~glvox.grid.RunInfo` holding timings and stats.
+    ``result.run`` a :class:`~glvox.results.RunInfo` holding timings and stats.
     """
     method = get_method(name)
-    info = method.info
-    opts = validate_options(info, options)
-    if info.kind != "sparse" and spec.n_voxels > MAX_VOXELS:
-        raise LimitError(
-            f"method {name!r} returns a dense grid, and {spec.dims} has {spec.n_voxels} voxels, more "
-            f"than the {MAX_VOXELS} glvox keeps dense; use a smaller grid or the sparse ss-octree"
-        )
-    if info.kind in ("solid", "sparse", "ldi") and not mesh.watertight and not allow_open:
-        raise NotWatertightError(
-            f"{mesh.name} is not watertight, so 'inside' is undefined for the solid method {name!r}; "
-            "repair the mesh, use a surface method, or pass allow_open=True (--allow-open) to "
-            "voxelize by parity of crossings anyway"
-        )
-    if info.kind in ("solid", "sparse", "ldi") and not mesh.watertight:
-        warnings.warn(
-            f"{mesh.name} is not watertight: {name!r} returns the parity of ray crossings, which "
-            "is 'inside' only where the rays cross a closed part of the surface; expect streaks "
-            "along the rays through holes", NotWatertightWarning, stacklevel=2)
-    if debug is None:
-        debug = os.environ.get("GLVOX_DEBUG", "") not in ("", "0")
-    if info.uses_gl:
-        ctx = ctx if ctx is not None else get_context(backend)
-        ctx.make_current()
-        missing = info.requires.missing(ctx)
-        if missing:
-            raise CapabilityError(f"method {name!r} needs {'; '.join(missing)} ({ctx.renderer})")
-        if debug:
-            ctx.check_error(f"method {name!r}, before the first stage")
-    else:
-        ctx = None
-    timer = StageTimer(ctx, debug=debug, method=name)
-    result = method.run(mesh, spec, ctx=ctx, timer=timer, **opts)
-    timings = timer.finish()
-    stats = {"triangles": mesh.n_triangles, "degenerate_dropped": mesh.n_degenerate,
-             "watertight": mesh.watertight}
-    stats.update(timer.stats)
-    count = getattr(result, "count", None)  # once: counting a 1024^3 grid costs ~40 ms
-    if count is not None:
-        stats["voxels"] = count
-    result.run = RunInfo(method=name, kind=info.kind, spec=spec, timings=timings,
-                         stats=stats, options=opts)
-    return result
+    opts = validate_options(method.info, options)
+
+    def work(ctx, timer):
+        return method.run(mesh, spec, ctx=ctx, timer=timer, **opts)
+
+    return run_in_envelope(method.info, (mesh,), spec, work, options=opts, ctx=ctx, backend=backend,
+                           allow_open=allow_open, debug=debug)

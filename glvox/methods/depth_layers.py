@@ -72,13 +72,13 @@ from typing import Any
 import moderngl
 import numpy as np
 
-from .. import gl as rawgl
 from ..errors import CapabilityError, MethodError
-from ..grid import VoxelGrid
-from ..shaders import compute_program, render_program
-from ._base import Method, MethodInfo, Option, Requirements, register
-from ._gpu import (LOOP_BUDGET, barrier, buffer_pool, dispatch_1d, grid_uniforms, mesh_buffers,
-                   read_grid_words, set_uniforms)
+from ..gl import raw as rawgl
+from ..gl.shaders import compute_program, render_program
+from ..gpu.buffers import buffer_pool, mesh_buffers, read_grid_words
+from ..gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set_uniforms
+from ..results.voxels import VoxelGrid
+from .base import Method, MethodInfo, Option, Requirements, register
 
 _PAPER = "Passalis et al. 2006"
 

@@ -64,14 +64,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Callable, Mapping
 
+import moderngl
 import numpy as np
 
 from ..errors import CapabilityError, LimitError
-from ..grid import VoxelGrid
-from ..shaders import compute_program, render_program
-from ._base import Method, MethodInfo, Option, Requirements, register
-from ._gpu import (LOOP_BUDGET, barrier, buffer_pool, dispatch_1d, grid_uniforms,
-                   object_cache, read_grid_words, release_object_cache, set_uniforms, transform_vertices)
+from ..gl.shaders import compute_program, render_program
+from ..gpu.buffers import buffer_pool, object_cache, read_grid_words, release_object_cache
+from ..gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set_uniforms
+from ..gpu.transform import transform_vertices
+from ..results.voxels import VoxelGrid
+from .base import Method, MethodInfo, Option, Requirements, register
 
 _PAPER_2008 = ("Eisemann & Decoret 2008 (Leung & Wang 2013 Sec. III-A, Alg. 1 lines 1-7; "
                "Schwarz & Seidel 2010 Sec. 2)")
@@ -177,8 +179,6 @@ def _release_cache(ctx, cache: dict) -> None:
 
 def _targets(ctx, n: int, size: tuple[int, int]) -> _Targets:
     """At least ``n`` RGBA32UI targets of at least ``size`` pixels."""
-    import moderngl
-
     cache = _cache(ctx)
     tg = cache.get("targets")
     if tg is not None and len(tg.textures) >= n and tg.size[0] >= size[0] and tg.size[1] >= size[1]:
@@ -225,8 +225,6 @@ def mask_table(op: str, targets: int = TARGETS) -> np.ndarray:
 
 
 def _mask_texture(ctx, op: str, targets: int):
-    import moderngl
-
     cache = _cache(ctx)
     key = ("masks", op, targets)
     tex = cache.get(key)
@@ -318,8 +316,6 @@ def render_slice_masks(ctx, mesh, spec, op: str, *, timer, axis: int = 2, masks:
         raise ValueError(f"coverage must be one of {list(COVERAGES)}, got {coverage!r}")
     if not 1 <= int(targets) <= TARGETS:
         raise ValueError(f"targets must be in 1..{TARGETS}, got {targets!r}")
-    import moderngl
-
     _check_stage_storage(ctx)
     side = tile_limit(ctx)
     dims = spec.dims

@@ -75,16 +75,18 @@ from typing import Any
 import moderngl
 import numpy as np
 
-from .. import gl as rawgl
-from ..errors import CapabilityError, LimitError, MethodError, NotWatertightWarning
-from ..ldi import LDI, close_odd
-from ..reference.ldi import crossings, ldi_axes
-from ..shaders import compute_program, render_program
+from ..errors import CapabilityError, GridError, LimitError, MethodError, NotWatertightWarning
+from ..gl import raw as rawgl
+from ..gl.shaders import compute_program, render_program
+from ..gpu.buffers import buffer_pool, check_buffer_size, mesh_buffers, object_cache, release_object_cache
+from ..gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set_uniforms
+from ..gpu.transform import transform_vertices
+from ..grid import GridSpec, fit_grid, ldi_axes
+from ..reference.ldi import crossings
+from ..results.ldi import LDI, close_odd
 from . import depth_layers, eisemann
-from ._base import Method, MethodInfo, Option, Requirements, register
-from ._gpu import (LOOP_BUDGET, barrier, buffer_pool, check_buffer_size, dispatch_1d, grid_uniforms,
-                   mesh_buffers, object_cache, release_object_cache, set_uniforms,
-                   transform_vertices)
+from .envelope import run_in_envelope
+from .base import Method, MethodInfo, Option, Requirements, register
 
 _PAPER = "Leung & Wang 2013"
 
@@ -861,7 +863,13 @@ class ReferenceLDI(Method):
 # the intersecting-volume application (Sec. V-A), run like a method
 # ---------------------------------------------------------------------------
 
-INTERSECTION = "leung-wang-intersection"
+#: The application's entry for the run envelope (two meshes, so not in the registry).
+INTERSECTION = MethodInfo(
+    name="leung-wang-intersection", kind="ldi", family="raster",
+    paper=f"{_PAPER}, Sec. V-A (intersecting volume of two closed meshes)",
+    summary="conservative LDI of the overlap of two closed meshes; its volume is the intersecting volume",
+    exact=False, requires=_REQUIRES,
+)
 
 
 def overlap_bounds(mesh_a, mesh_b) -> np.ndarray | None:
@@ -872,6 +880,20 @@ def overlap_bounds(mesh_a, mesh_b) -> np.ndarray | None:
     if np.any(hi <= lo):
         return None
     return np.stack([lo, hi])
+
+
+def overlap_grid(mesh_a, mesh_b, resolution: int | None = None, *, dims=None, voxel_size: float | None = None,
+                 padding: int = 0) -> GridSpec:
+    """The grid of the intersection application: fitted to :func:`overlap_bounds`, where the
+    overlap lies, or to the union of the two boxes when those do not overlap in volume (the
+    LDI is then empty)."""
+    if resolution is None and dims is None and voxel_size is None:
+        raise GridError("give a resolution (or dims, voxel_size or grid)")
+    region = overlap_bounds(mesh_a, mesh_b)
+    if region is None:
+        region = np.stack([np.minimum(mesh_a.bounds[0], mesh_b.bounds[0]),
+                           np.maximum(mesh_a.bounds[1], mesh_b.bounds[1])])
+    return fit_grid(region, resolution, dims=dims, voxel_size=voxel_size, padding=padding)
 
 
 def run_intersection(mesh_a, mesh_b, spec, *, ctx=None, backend: str | None = None, allow_open: bool = False,
@@ -895,31 +917,12 @@ def run_intersection(mesh_a, mesh_b, spec, *, ctx=None, backend: str | None = No
     LDI
         The overlap; ``.volume`` is the intersecting volume in world units cubed.
     """
-    import os
-
-    from ..context import get_context
-    from ..errors import NotWatertightError
-    from ..grid import RunInfo
-    from ..timing import StageTimer
-
     opts = {"lod_c": int(lod_c), "axis": int(axis), "targets": int(targets)}
-    for m in (mesh_a, mesh_b):
-        if not m.watertight and not allow_open:
-            raise NotWatertightError(
-                f"{m.name} is not watertight, so 'inside' is undefined for the intersecting volume; "
-                "repair the mesh or pass allow_open=True (--allow-open) to use the parity of crossings")
-    if debug is None:
-        debug = os.environ.get("GLVOX_DEBUG", "") not in ("", "0")
-    ctx = ctx if ctx is not None else get_context(backend)
-    ctx.make_current()
-    missing = _REQUIRES.missing(ctx)
-    if missing:
-        raise CapabilityError(f"the intersecting volume needs {'; '.join(missing)} ({ctx.renderer})")
-    timer = StageTimer(ctx, debug=debug, method=INTERSECTION)
-    result = intersecting_ldi(ctx, mesh_a, mesh_b, spec, timer=timer, owner=INTERSECTION, **opts)
-    timings = timer.finish()
-    stats = {"triangles": [mesh_a.n_triangles, mesh_b.n_triangles], "volume": result.volume}
-    stats.update(timer.stats)
-    result.run = RunInfo(method=INTERSECTION, kind="ldi", spec=spec, timings=timings, stats=stats,
-                         options=opts)
-    return result
+
+    def work(ctx, timer):
+        result = intersecting_ldi(ctx, mesh_a, mesh_b, spec, timer=timer, owner=INTERSECTION.name, **opts)
+        timer.stats.update({"triangles": [mesh_a.n_triangles, mesh_b.n_triangles], "volume": result.volume})
+        return result
+
+    return run_in_envelope(INTERSECTION, (mesh_a, mesh_b), spec, work, options=opts, ctx=ctx,
+                           backend=backend, allow_open=allow_open, debug=debug)

@@ -6,15 +6,25 @@ result"); the geometry lives in :mod:`glvox.reference`.
 
 from __future__ import annotations
 
-from ..grid import VoxelGrid
-from ..reference import conservative_surface, six_separating_surface, solid
-from ._base import Method, MethodInfo, Option, register
+from ..reference import conservative_surface, six_separating_surface, solid, solid_ties, surface_ties
+from ..results.voxels import VoxelGrid
+from .base import Method, MethodInfo, Option, register
 
 _SS = "Schwarz & Seidel 2010"
 
 
 class _CpuReference(Method):
-    """Voxel-space triangles in float64, then one reference function."""
+    """Voxel-space triangles in float64, then one reference function; ``ties``
+    gives the tie set of that function's definition."""
+
+    has_ties = True
+
+    @staticmethod
+    def ties(tris, dims, eps):
+        raise NotImplementedError
+
+    def tie_set(self, mesh, spec, eps):
+        return self.ties(mesh.triangles_voxel(spec), spec.dims, eps)
 
     @staticmethod
     def compute(tris, dims, **options):
@@ -37,6 +47,7 @@ class ReferenceConservative(_CpuReference):
         reference="reference-conservative",
     )
     compute = staticmethod(conservative_surface)
+    ties = staticmethod(lambda tris, dims, eps: surface_ties(tris, dims, "conservative", eps))
 
 
 @register
@@ -48,6 +59,7 @@ class Reference6Sep(_CpuReference):
         reference="reference-6sep",
     )
     compute = staticmethod(six_separating_surface)
+    ties = staticmethod(lambda tris, dims, eps: surface_ties(tris, dims, "6sep", eps))
 
 
 @register
@@ -60,3 +72,4 @@ class ReferenceSolid(_CpuReference):
         options={"axis": Option(0, "ray direction of the parity count (0=x, 1=y, 2=z)", (0, 1, 2))},
     )
     compute = staticmethod(solid)
+    ties = staticmethod(solid_ties)

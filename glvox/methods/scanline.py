@@ -50,13 +50,13 @@ import re
 import numpy as np
 
 from ..errors import LimitError
-from ..grid import VoxelGrid
+from ..gl.shaders import compute_program
+from ..gpu.buffers import buffer_pool, mesh_buffers, read_grid_words
+from ..gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set_uniforms
 from ..reference.scanline import (ILV_BOUNDARY_SNAP, ILV_COORD_LIMIT, RLV_BOUNDARY_SNAP, SCANLINE_SLACK,
                                   TUNNELS)
-from ..shaders import compute_program
-from ._base import Method, MethodInfo, Option, Requirements, register
-from ._gpu import (LOOP_BUDGET, barrier, buffer_pool, dispatch_1d, grid_uniforms, mesh_buffers,
-                   read_grid_words, set_uniforms)
+from ..results.voxels import VoxelGrid
+from .base import Method, MethodInfo, Option, Requirements, register
 
 _PAPER = "Zhang et al. 2018"
 _LOCAL = 64

@@ -56,11 +56,13 @@ import weakref
 import numpy as np
 
 from ..errors import LimitError
-from ..octree import MAX_OCTREE_DIM, NONE, OctreeLevel, SparseOctree, top_level
-from ..shaders import compute_program
-from ._base import Method, MethodInfo, Option, Requirements, register
-from ._gpu import (LOOP_BUDGET, barrier, buffer_pool, dispatch_1d, grid_uniforms, set_uniforms,
-                   transform_vertices)
+from ..gl.shaders import compute_program
+from ..gpu.buffers import buffer_pool
+from ..gpu.sort import exclusive_scan
+from ..gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set_uniforms
+from ..gpu.transform import transform_vertices
+from ..results.octree import MAX_OCTREE_DIM, NONE, OctreeLevel, SparseOctree, top_level
+from .base import Method, MethodInfo, Option, Requirements, register
 
 _PAPER = "Schwarz & Seidel 2010"
 _LOCAL = 64   # local_size_x of the per-item passes (activate*, voxelize)
@@ -136,8 +138,6 @@ class SSOctree(Method):
     )
 
     def run(self, mesh, spec, *, ctx, timer, walls):
-        from ..gpu_sort import exclusive_scan
-
         top = top_level(spec.dims)  # LimitError past MAX_OCTREE_DIM
         pool = buffer_pool(ctx, self.info.name)
         max_groups = int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])

@@ -50,11 +50,13 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import LimitError
-from ..grid import VoxelGrid
-from ..shaders import compute_program
-from ._base import Method, MethodInfo, Requirements, register
-from ._gpu import (LOOP_BUDGET, barrier, buffer_pool, dispatch_1d, grid_uniforms,
-                   read_grid_words, set_uniforms, transform_vertices)
+from ..gl.shaders import compute_program
+from ..gpu.buffers import buffer_pool, read_grid_words
+from ..gpu.sort import exclusive_scan, sort_pairs
+from ..gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set_uniforms
+from ..gpu.transform import transform_vertices
+from ..results.voxels import VoxelGrid
+from .base import Method, MethodInfo, Requirements, register
 
 _PAPER = "Schwarz & Seidel 2010"
 _LOCAL = 64  # local_size_x of ss/solid_classify.comp, ss/solid.comp, ss/tile_pairs.comp
@@ -229,8 +231,6 @@ class SSSolidTiled(Method):
     )
 
     def run(self, mesh, spec, *, ctx, timer):
-        from ..gpu_sort import exclusive_scan, sort_pairs
-
         n = mesh.n_triangles
         nx, ny, nz = spec.dims
         if spec.words_per_row > MAX_SEGMENTS:

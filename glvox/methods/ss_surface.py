@@ -28,11 +28,13 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import LimitError
-from ..grid import VoxelGrid
-from ..shaders import compute_program
-from ._base import Method, MethodInfo, Option, Requirements, register
-from ._gpu import (LOOP_BUDGET, barrier, buffer_pool, dispatch_1d, grid_uniforms,
-                   read_grid_words, set_uniforms, transform_vertices)
+from ..gl.shaders import compute_program
+from ..gpu.buffers import buffer_pool, read_grid_words
+from ..gpu.sort import sort_pairs
+from ..gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set_uniforms
+from ..gpu.transform import transform_vertices
+from ..results.voxels import VoxelGrid
+from .base import Method, MethodInfo, Option, Requirements, register
 
 _PAPER = "Schwarz & Seidel 2010"
 _LOCAL = 64  # local_size_x of ss/surface.comp and ss/classify.comp
@@ -108,8 +110,6 @@ class _SSSurface(Method):
                     prog.run_indirect(args)
                     barrier(ctx)
             return self._finish(spec, timer, grid, stats)
-        from ..gpu_sort import sort_pairs
-
         ranges = pool.get("ranges", 8 * 4)
         ranges.bind_to_storage_buffer(6)
         with timer.stage("sort"):

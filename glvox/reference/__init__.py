@@ -19,9 +19,8 @@ Ties (:mod:`.ties`)
 
 from .solid import solid
 from .surface import conservative_surface, conservative_surface_sat, six_separating_surface
-from .ties import (TIE_EPS, float32_motion, mismatch_is_tie, orientation_ambiguous,
-                   point_triangle_distance, short_edges,
-                   solid_ties, surface_ties)
+from .ties import (TIE_EPS, float32_motion, mismatch_is_tie, orientation_ambiguous, point_triangle_distance,
+                   short_edges, solid_ties, surface_ties)
 
 __all__ = [
     "TIE_EPS",

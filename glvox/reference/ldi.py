@@ -28,16 +28,10 @@ from typing import Sequence
 
 import numpy as np
 
+from ..grid import ldi_axes
 from ._candidates import check_axis, check_dims, check_tris, expand, index_range, normals
 from .solid import _edge_function
 from .ties import TIE_EPS
-
-
-def ldi_axes(axis: int) -> tuple[int, int]:
-    """The pixel axes ``(p, q)`` of an LDI along ``axis``: the other two, in increasing order."""
-    axis = check_axis(axis)
-    p, q = (a for a in range(3) if a != axis)
-    return p, q
 
 
 @dataclass

@@ -219,48 +219,17 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..errors import LimitError
+from ..tolerances import DECISION_RTOL, ILV_BOUNDARY_SNAP, RLV_BOUNDARY_SNAP, SCANLINE_SLACK, TIE_EPS
 from ._candidates import check_dims, check_tris
-from .ties import TIE_EPS
 
 MODES = ("rlv", "slv", "ilv")
 TUNNELS = (26, 18, 6)
-
-#: Scanline spacing as a fraction of the bound of Theorem 4.1.  Exactly the
-#: bound leaves no margin: a voxel between two scanlines d^ apart may touch
-#: both at corners only, and float rounding of the end points could then
-#: miss it although the triangle crosses it.  0.1 % below the bound gives
-#: every such voxel a crossing ~1e-3 voxel deep, far above float32 rounding
-#: (~1e-5 voxel at 256^3), and changes the scanline count only when a
-#: layer's width is within 0.1 % below a multiple of d^.
-SCANLINE_SLACK = 0.999
 
 #: Largest |voxel index| of a vertex of an ILV triangle that meets the grid.
 #: ILV's largest integers are L <= 2 M = 2 |dA| |dB| and the lattice normal's
 #: components, both below 2 * (2 * limit)^2 = 2.048e9 < 2^31 at 16000.
 ILV_COORD_LIMIT = 16000
 
-#: ILV snaps a vertex coordinate within this distance (voxels) outside the
-#: grid to the boundary voxel (see :func:`lattice_points`).  1/64 voxel is
-#: exact in float32 next to any grid size up to the ILV limit and covers the
-#: float32 rounding of a vertex that lies exactly on a grid face (at most
-#: 2^-9 voxel at 16000 voxels); ILV itself moves every vertex by up to a
-#: voxel, so the snap is invisible beside it.
-ILV_BOUNDARY_SNAP = 1.0 / 64.0
-
-#: RLV's voxel of a coordinate within this distance (voxels) outside the grid
-#: is the boundary voxel (see :func:`cell`): the grid's closed maximum faces
-#: belong to its last voxels.  TIE_EPS keeps RLV within the conservative set
-#: up to ties, and covers float32's rounding of a vertex lying on a grid face
-#: (below 1e-4 voxel up to ~1600 voxels).
-RLV_BOUNDARY_SNAP = TIE_EPS
-
-#: Relative size below which a float decision of the float path counts as
-#: tied in :func:`float_variant_ties`: the gap between the two largest normal
-#: components (dominant axis), |n_a| + |n_b| (parallel to the slicing plane),
-#: a layer's width in scanline intervals next to an integer (the scanline
-#: count).  float32 rounds such quantities by a few 1e-7 relative; 1e-5 keeps
-#: a wide margin and is still rare on real meshes.
-DECISION_RTOL = 1e-5
 
 
 @dataclass
@@ -315,9 +284,6 @@ class OpCounts:
         self.base_ties += 1
         self.comparisons += 1
         self.additions += 2
-
-    def as_dict(self) -> dict[str, int]:
-        return dict(self.__dict__)
 
 
 Cell = tuple  # (i, j, k) ints

@@ -16,14 +16,9 @@ from typing import Literal, Sequence
 
 import numpy as np
 
+from ..tolerances import SHORT_EDGE_MOTIONS, TIE_EPS
 from ._candidates import check_dims, check_tris, pruned_candidates, scatter
 from .surface import conservative_surface, six_separating_surface
-
-#: Tie tolerance in voxels.  float32 has a 2**-24 (6e-8) relative precision,
-#: so vertex coordinates in voxel space up to a few thousand voxels carry
-#: rounding errors below ~1e-4 voxel after the world->voxel transform and a
-#: few operations; anything beyond that is a real disagreement, not rounding.
-TIE_EPS = 1e-4
 
 
 def surface_ties(tris: np.ndarray, dims: Sequence[int],
@@ -117,11 +112,6 @@ def surface_ties(tris: np.ndarray, dims: Sequence[int],
     return ties
 
 
-#: A projected edge shorter than this many times :func:`float32_motion` can
-#: turn by more than ~0.02 rad under float32 rounding of its end points; the
-#: projection test it belongs to is then decided by rounding (an edge of
-#: 2e-5 voxel in depth_cycloidal_drive.ply turned by 10 degrees).
-SHORT_EDGE_MOTIONS = 100.0
 
 
 def float32_motion(dims: Sequence[int]) -> float:

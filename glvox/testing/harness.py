@@ -8,7 +8,7 @@ from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
-from ..shaders import compute_program, render_program
+from ..gl.shaders import compute_program, render_program
 
 
 def set_uniforms(prog, uniforms: Mapping[str, Any]) -> None:

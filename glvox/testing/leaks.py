@@ -12,8 +12,8 @@ from __future__ import annotations
 import ctypes
 import os
 
-from ..gl import GLuint, _SIGNATURES
-from ..shaders import preprocess
+from ..gl.raw import _SIGNATURES, GLuint
+from ..gl.shaders import preprocess
 
 GLboolean = ctypes.c_ubyte
 

@@ -28,8 +28,8 @@ def _require_gl(config) -> bool:
 @pytest.fixture(scope="session")
 def gl_context(request):
     """The process's shared headless GL context (glvox.context.get_context())."""
-    from glvox.context import get_context
     from glvox.errors import BackendError
+    from glvox.gl.context import get_context
 
     try:
         ctx = get_context()

@@ -8,7 +8,7 @@
 // whose center is at (i + 0.5, j + 0.5) in voxel units: pixel centers are
 // column centers.
 //
-// Precision.  Vertices arrive in voxel space as doubles (ss/transform.comp with VOX_DOUBLE),
+// Precision.  Vertices arrive in voxel space as doubles (common/transform.comp with VOX_DOUBLE),
 // computed from the float32 upload relative to the mesh's anchor: the mesh the
 // GPU sees is the true one moved by at most 2^-24 * N/2 voxel (3e-5 voxel at
 // N = 1024), below TIE_EPS (1e-4).  Everything below is evaluated in double, so

@@ -1,4 +1,4 @@
-// The voxel-space triangles of the solid passes (ss/transform.comp's output
+// The voxel-space triangles of the solid passes (common/transform.comp's output
 // and the mesh's faces), set up for ss/solid.glsl.
 layout(std430, binding = 1) readonly buffer VoxVerts { float vox[]; };
 layout(std430, binding = 2) readonly buffer Faces { uint faces[]; };

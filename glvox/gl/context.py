@@ -26,8 +26,8 @@ from typing import Any
 
 import moderngl
 
-from .errors import BackendError
-from .gl import RawGL
+from ..errors import BackendError, GLError
+from .raw import RawGL
 
 GL_VERSION_REQUIRED = 450
 BACKENDS = ("egl", "osmesa")
@@ -243,7 +243,11 @@ class GLContext:
     raw : RawGL
         Raw GL entry points on this context (logic op, stencil).
     programs : dict
-        Program cache of :mod:`glvox.shaders` (key -> moderngl program).
+        Program cache of :mod:`glvox.gl.shaders` (key -> moderngl program).
+    caches : dict
+        What higher layers keep with this context, by owner (``'gpu'``:
+        :mod:`glvox.gpu.buffers`' uploaded meshes, buffer pools and GL
+        objects); each owner registers its release in ``on_release``.
     """
 
     mgl: moderngl.Context
@@ -251,6 +255,7 @@ class GLContext:
     device: str
     raw: RawGL
     programs: dict = field(default_factory=dict)
+    caches: dict = field(default_factory=dict)
     compile_seconds: float = 0.0
     #: callbacks run (before the GL context goes) by :meth:`release`
     on_release: list = field(default_factory=list)
@@ -307,8 +312,6 @@ class GLContext:
     # -- state --------------------------------------------------------------
     def check_error(self, where: str) -> None:
         """Raise :class:`~glvox.errors.GLError` naming ``where`` if GL has an error pending."""
-        from .errors import GLError
-
         err = self.mgl.error
         if err != "GL_NO_ERROR":
             raise GLError(f"OpenGL error {err} after {where}")

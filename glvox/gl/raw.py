@@ -13,7 +13,7 @@ import contextlib
 import ctypes
 from typing import Callable, Iterator
 
-from .errors import CapabilityError
+from ..errors import CapabilityError
 
 GL_COLOR_LOGIC_OP = 0x0BF2
 GL_STENCIL_TEST = 0x0B90
@@ -41,7 +41,6 @@ _SIGNATURES: dict[str, tuple[object, tuple[object, ...]]] = {
     "glIsEnabled": (GLboolean, (GLenum,)),
     "glLogicOp": (None, (GLenum,)),
     "glGetIntegerv": (None, (GLenum, ctypes.POINTER(GLint))),
-    "glGetError": (GLenum, ()),
     "glStencilFunc": (None, (GLenum, GLint, GLuint)),
     "glStencilOp": (None, (GLenum, GLenum, GLenum)),
     "glStencilMask": (None, (GLuint,)),
@@ -90,9 +89,6 @@ class RawGL:
         out = GLint(0)
         self.fn("glGetIntegerv")(pname, ctypes.byref(out))
         return int(out.value)
-
-    def get_error(self) -> int:
-        return int(self.fn("glGetError")())
 
     # -- timestamps ---------------------------------------------------------
     def gen_queries(self, n: int) -> list[int]:
@@ -144,7 +140,7 @@ class RawGL:
             self.set_logic_op(None)
 
 
-# -- appended for the depth-buffer methods (glvox/methods/depth_layers.py) ----
+# -- for the depth-buffer methods (glvox/methods/depth_layers.py) -------------
 # Framebuffers with a depth-stencil *texture* (moderngl makes depth attachments
 # without stencil), reading its stencil in shaders, integer colour clears and
 # stencil state.  Only the entry points and enums; the helpers that use them

@@ -1,8 +1,8 @@
 """GLSL loading: recursive ``#include``, injected defines, per-context program cache.
 
 Every GLSL source lives in the top-level ``shaders/`` folder of the checkout,
-shipped in the wheel as the data package ``glvox._shaders`` (the loader
-module keeps the name ``glvox.shaders``).  Paths are relative to
+shipped in the wheel as the data package ``glvox._shaders`` (this loader is
+``glvox.gl.shaders``).  Paths are relative to
 that folder (``"common/bits.glsl"``); users can add their own folders.
 
 Preprocessing
@@ -30,7 +30,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
-from .errors import ShaderError
+from ..errors import ShaderError
 
 MAX_INCLUDE_DEPTH = 16
 LINE_BASE = 100000
@@ -52,7 +52,7 @@ def builtin_shader_dir() -> Path:
             return path
     except (ModuleNotFoundError, TypeError):
         pass
-    path = Path(__file__).resolve().parent.parent / "shaders"
+    path = Path(__file__).resolve().parents[2] / "shaders"
     if (path / "common").is_dir():
         return path
     raise ShaderError(

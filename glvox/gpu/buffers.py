@@ -1,4 +1,4 @@
-"""GPU plumbing shared by the compute and raster methods.
+"""GPU buffers shared by the compute and raster methods.
 
 * :func:`mesh_buffers`: a mesh is uploaded once per context (vertices as
   float32 relative to the mesh's anchor, faces as uint32) and reused by every
@@ -6,9 +6,14 @@
   or the context is released.
 * :class:`BufferPool`: named scratch buffers per context, grown when needed
   and reused across runs (no allocation per run once warm).
+* :func:`object_cache`: other GL objects (render targets, framebuffers,
+  queries) an owner keeps per context between runs.
 * :func:`check_buffer_size`: refuse a buffer over GL_MAX_SHADER_STORAGE_BLOCK_SIZE
   before allocating, naming the size, the limit and what to do instead.
-* :func:`grid_uniforms`: the voxel-space uniforms of ``common/voxel_space.glsl``.
+* :func:`read_grid_words`: a packed grid read back into numpy.
+
+All of it lives in the context's declared ``caches`` dict
+(:class:`glvox.gl.context.GLContext`) and is released with the context.
 """
 
 from __future__ import annotations
@@ -20,14 +25,6 @@ from typing import Any
 import numpy as np
 
 from ..errors import LimitError
-
-#: Loop iterations one shader invocation may run, all loops together, on the
-#: software renderer.  Mesa's llvmpipe (gallivm's loop limiter,
-#: LP_MAX_TGSI_LOOP_ITERATIONS) silently ends an invocation's loops after
-#: 65535 iterations in total, which would drop work without any error; every
-#: glvox shader splits its work so that one invocation stays well below this
-#: (tests/test_context.py measures it).
-LOOP_BUDGET = 65535
 
 
 @dataclass(eq=False)
@@ -63,12 +60,24 @@ class MeshBuffers:
 
 
 def _caches(ctx) -> dict:
-    caches = getattr(ctx, "_glvox_caches", None)
+    caches = ctx.caches.get("gpu")
     if caches is None:
-        caches = {"meshes": {}, "pools": {}, "objects": {}}
-        ctx._glvox_caches = caches
+        caches = ctx.caches["gpu"] = {"meshes": {}, "pools": {}, "objects": {}}
         ctx.on_release.append(lambda: _release_all(caches))
     return caches
+
+
+def gpu_bytes(ctx, owners=None) -> int:
+    """Bytes of the GPU buffers glvox keeps in ``ctx``: the uploaded meshes and
+    the buffer pools of ``owners`` (method names; all pools when None)."""
+    caches = ctx.caches.get("gpu")
+    if not caches:
+        return 0
+    total = sum(b.vertices.size + b.faces.size for b in caches["meshes"].values())
+    for owner, pool in caches["pools"].items():
+        if owners is None or owner in owners:
+            total += pool.nbytes
+    return int(total)
 
 
 def _release_all(caches: dict) -> None:
@@ -129,6 +138,11 @@ class BufferPool:
             buf.clear(size=nbytes)
         return buf
 
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the buffers the pool holds."""
+        return sum(buf.size for buf in self._bufs.values())
+
     def release(self) -> None:
         for b in self._bufs.values():
             b.release()
@@ -172,38 +186,6 @@ def check_buffer_size(ctx, nbytes: int, what: str) -> None:
         )
 
 
-def grid_uniforms(spec, anchor: np.ndarray) -> dict[str, Any]:
-    """Uniforms of ``common/voxel_space.glsl`` for ``spec``, vertices relative to ``anchor``."""
-    origin = tuple(float(x) for x in (spec.origin - anchor))
-    return {
-        "u_origin": origin,
-        "u_inv_h": 1.0 / spec.voxel_size,
-        "u_origin_d": origin,  # the same in double, for transforms done in double
-        "u_inv_h_d": 1.0 / spec.voxel_size,
-        "u_dims": tuple(int(d) for d in spec.dims),
-    }
-
-
-def set_uniforms(prog, values: dict[str, Any]) -> None:
-    """Set the uniforms the program uses; ones optimized out of it are skipped."""
-    for name, value in values.items():
-        if name in prog:
-            prog[name].value = value
-
-
-def dispatch_1d(ctx, prog, n: int, local_size: int) -> None:
-    """Run ``prog`` over ``n`` invocations in groups of ``local_size``, split along y
-    when the x group count would exceed GL_MAX_COMPUTE_WORK_GROUP_COUNT."""
-    groups = (int(n) + local_size - 1) // local_size
-    if groups == 0:
-        return
-    max_x = int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])
-    if groups <= max_x:
-        prog.run(groups, 1, 1)
-    else:
-        prog.run(max_x, (groups + max_x - 1) // max_x, 1)
-
-
 def read_grid_words(buf, spec, slices: tuple[int, int] | None = None) -> np.ndarray:
     """The packed grid words of ``spec`` from ``buf`` (uint32, (nz, ny, words_per_row)).
 
@@ -222,42 +204,3 @@ def read_grid_words(buf, spec, slices: tuple[int, int] | None = None) -> np.ndar
         part = words[k0 * per_slice:(k0 + nk) * per_slice]
         buf.read_into(part, size=part.nbytes, offset=k0 * per_slice * 4)
     return words.reshape(spec.dims[2], spec.dims[1], spec.words_per_row)
-
-
-def transform_vertices(ctx, mesh, spec, timer, pool, *, double: bool = False, scale=None, shift=(0.0, 0.0, 0.0),
-                       name: str | None = None, stage: str = "transform"):
-    """Stage ``transform`` (S&S Sec. 6): the mesh's vertices in voxel space,
-    ``(v - origin) * scale - shift`` computed in double (``ss/transform.comp``).
-
-    ``scale`` defaults to ``1 / h`` on every axis; ``double`` keeps the result
-    in double instead of rounding it to float32 once.  Returns ``(bufs, vox)``:
-    the mesh's :class:`MeshBuffers` and a pooled buffer (``name``) of x, y, z
-    per vertex, ready for the next stage.
-    """
-    from ..shaders import compute_program
-
-    bufs = mesh_buffers(ctx, mesh)
-    size = 8 if double else 4
-    vox = pool.get(name or ("vox_vertices_d" if double else "vox_vertices"), bufs.n_vertices * 3 * size,
-                   what="voxel-space vertices" + (" (double)" if double else ""), clear=False)
-    if scale is None:
-        scale = (1.0 / spec.voxel_size,) * 3
-    prog = compute_program(ctx, "ss/transform.comp", {"VOX_DOUBLE": int(double)})
-    set_uniforms(prog, {"u_origin_d": tuple(float(x) for x in spec.origin - bufs.anchor),
-                        "u_scale_d": tuple(float(x) for x in scale), "u_shift_d": tuple(float(x) for x in shift),
-                        "u_vertices": bufs.n_vertices})
-    with timer.stage(stage):
-        bufs.vertices.bind_to_storage_buffer(0)
-        vox.bind_to_storage_buffer(1)
-        dispatch_1d(ctx, prog, bufs.n_vertices, 256)
-        barrier(ctx)
-    return bufs, vox
-
-
-def barrier(ctx) -> None:
-    """Make SSBO writes of earlier dispatches visible to later dispatches,
-    indirect-dispatch argument reads and buffer reads."""
-    import moderngl
-
-    ctx.mgl.memory_barrier(moderngl.SHADER_STORAGE_BARRIER_BIT | moderngl.COMMAND_BARRIER_BIT
-                           | moderngl.BUFFER_UPDATE_BARRIER_BIT)

@@ -13,12 +13,11 @@ grid's near face, ``n_axis`` its far face (``depths_world`` gives world
 coordinates).  The solid is clipped to the grid along the axis as every glvox
 result is: a ray whose solid extends past the far face is closed there.
 
-npz layout (:meth:`LDI.save`, :meth:`LDI.load`): ``depths`` (float32,
+npz layout (:meth:`LDI.save`, :meth:`LDI.load`; beside the common keys of
+:mod:`glvox.results.base`, ``kind`` being ``'ldi'``): ``depths`` (float32,
 ``(n_p, n_q, n_max)``, voxel units along the axis, NaN past each ray's count),
-``counts`` (int32, ``(n_p, n_q)``), ``origin`` (float64[3], world position of
-the grid's minimum corner), ``voxel_size`` (float64), ``axis`` (int), and
-``dims`` (int64[3], the grid), ``lod_c`` (int, 0 when not applicable),
-``method``, ``kind`` (``'ldi'``).
+``counts`` (int32, ``(n_p, n_q)``), ``axis`` (int), ``dims`` (int64[3], the
+grid) and ``lod_c`` (int, 0 when not applicable).
 """
 
 from __future__ import annotations
@@ -28,9 +27,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import FormatError, GridError
-from .grid import PLACEMENT_RTOL, GridSpec, VoxelGrid
-from .reference.ldi import ldi_axes
+from ..errors import FormatError, GridError
+from ..grid import PLACEMENT_RTOL, GridSpec, ldi_axes
+from .base import Result, npz_type, read_npz, require_keys
+from .voxels import VoxelGrid
 
 AXIS_NAMES = "xyz"
 
@@ -46,7 +46,8 @@ def _first_beyond(samples: np.ndarray, offset: float, scale: float, n: int) -> n
     return np.clip(k, 0, n).astype(np.int64)
 
 
-class LDI:
+@npz_type("depths")
+class LDI(Result):
     """A layered depth image on a grid's pixel plane.
 
     Parameters
@@ -87,26 +88,17 @@ class LDI:
         if c.size and (c.min() < 0 or c.max() > d.shape[2]):
             raise GridError(f"counts must lie in [0, {d.shape[2]}] (the layers of depths), "
                             f"got [{c.min()}, {c.max()}]")
+        super().__init__(spec, run)
         self.depths = d.astype(np.float32, copy=False)
         self.counts = c.astype(np.int32, copy=False)
-        self.spec = spec
         self.axis = int(axis)
         self.lod_c = None if lod_c is None else int(lod_c)
-        self.run = run
 
     # -- placement ----------------------------------------------------------
     @property
     def pixel_axes(self) -> tuple[int, int]:
         """``(p, q)``: the axes of the pixel grid (the other two, increasing)."""
         return ldi_axes(self.axis)
-
-    @property
-    def origin(self) -> np.ndarray:
-        return self.spec.origin
-
-    @property
-    def voxel_size(self) -> float:
-        return self.spec.voxel_size
 
     @property
     def n_max(self) -> int:
@@ -226,18 +218,29 @@ class LDI:
         return self._to_xyz(self._fill(nz, 0.0, nz / n_a))
 
     # -- files ----------------------------------------------------------------
+    file_kind = "ldi"
+
+    def npz_arrays(self) -> dict[str, np.ndarray]:
+        return {"depths": self.depths, "counts": self.counts, "axis": np.int64(self.axis),
+                "dims": np.asarray(self.spec.dims, dtype=np.int64), "lod_c": np.int64(self.lod_c or 0)}
+
     def save(self, path: str | os.PathLike) -> Path:
         """Write the npz layout of the module docstring to ``path`` (suffix .npz)."""
-        path = Path(path)
-        if path.suffix.lower() != ".npz":
+        if Path(path).suffix.lower() != ".npz":
             raise FormatError(f"an LDI is saved as .npz, got {path}")
-        np.savez_compressed(
-            path, depths=self.depths, counts=self.counts,
-            origin=np.asarray(self.origin, dtype=np.float64), voxel_size=np.float64(self.voxel_size),
-            axis=np.int64(self.axis), dims=np.asarray(self.spec.dims, dtype=np.int64),
-            lod_c=np.int64(self.lod_c or 0),
-            method=np.str_(self.run.method if self.run is not None else ""), kind=np.str_("ldi"))
-        return path
+        return super().save(path)
+
+    @classmethod
+    def from_npz(cls, z, path: Path) -> "LDI":
+        require_keys(z, path, {"depths", "counts", "origin", "voxel_size", "axis", "dims"}, "LDI ")
+        spec = GridSpec(tuple(int(x) for x in z["dims"]), np.asarray(z["origin"], dtype=np.float64),
+                        float(z["voxel_size"]))
+        lod_c = int(z["lod_c"]) if "lod_c" in z.files else 0
+        try:
+            return cls(np.asarray(z["depths"]), np.asarray(z["counts"]), spec, int(z["axis"]),
+                       lod_c=lod_c or None)
+        except GridError as exc:
+            raise FormatError(f"{path}: {exc}") from None
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "LDI":
@@ -245,23 +248,7 @@ class LDI:
         path = Path(path)
         if not path.is_file():
             raise FormatError(f"LDI file not found: {path}")
-        need = {"depths", "counts", "origin", "voxel_size", "axis", "dims"}
-        try:
-            with np.load(path, allow_pickle=False) as z:
-                missing = need - set(z.files)
-                if missing:
-                    raise FormatError(f"{path} lacks the LDI npz keys {sorted(missing)}")
-                arrays = {k: np.asarray(z[k]) for k in need | ({"lod_c"} & set(z.files))}
-        except FormatError:
-            raise
-        except Exception as exc:  # noqa: BLE001 - zip errors vary
-            raise FormatError(f"cannot read {path} as npz: {exc}") from None
-        spec = GridSpec(tuple(int(x) for x in arrays["dims"]), arrays["origin"], float(arrays["voxel_size"]))
-        lod_c = int(arrays.get("lod_c", 0)) or None
-        try:
-            return cls(arrays["depths"], arrays["counts"], spec, int(arrays["axis"]), lod_c=lod_c)
-        except GridError as exc:
-            raise FormatError(f"{path}: {exc}") from None
+        return read_npz(path, expect=cls)
 
     def __repr__(self) -> str:
         m = f", method={self.run.method!r}" if self.run is not None else ""

@@ -48,11 +48,12 @@ sys.meta_path[:] = [f for f in sys.meta_path
 sys.path.insert(0, src)
 import glvox
 glvox.__path__.append(src)  # glvox.compare lives in src/compare (pyproject's package-dir)
-import glvox.shaders
+try:  # the shader loader's module moved with the renovation of issue 17
+    from glvox.gl.shaders import builtin_shader_dir
+except ImportError:
+    from glvox.shaders import builtin_shader_dir
 from pathlib import Path
-where = [Path(glvox.__file__).resolve()]
-if hasattr(glvox.shaders, "builtin_shader_dir"):
-    where.append(Path(glvox.shaders.builtin_shader_dir()).resolve())
+where = [Path(glvox.__file__).resolve(), Path(builtin_shader_dir()).resolve()]
 bad = [str(p) for p in where if Path(src).resolve() not in p.parents]
 if bad:
     sys.exit(f"imported {bad} from outside {src}")

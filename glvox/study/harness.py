@@ -28,9 +28,10 @@ from typing import Any, Callable, Iterable, Sequence
 import numpy as np
 
 import glvox
+from glvox.gpu.buffers import gpu_bytes
 from glvox.errors import GlvoxError, NotWatertightWarning
-from glvox.grid import VoxelGrid
 from glvox.methods import get_method, method_names, run_method
+from glvox.results.voxels import VoxelGrid
 
 #: Largest grid on which results are checked against the CPU references by
 #: default: the float64 references take seconds per mesh at 256^3 and minutes
@@ -95,7 +96,7 @@ def machine() -> dict[str, Any]:
     import moderngl
     import trimesh
 
-    from glvox.context import get_context
+    from glvox.gl.context import get_context
 
     ctx = get_context()
     return {"glvox": glvox.__version__, "python": platform.python_version(),
@@ -103,17 +104,6 @@ def machine() -> dict[str, Any]:
             "platform": platform.platform(), "cpu_count": os.cpu_count(),
             "gl": {"vendor": ctx.vendor, "renderer": ctx.renderer, "version": ctx.version,
                    "backend": ctx.backend, "device": ctx.device}}
-
-
-def gpu_bytes(ctx) -> int:
-    """Bytes of GPU buffers glvox keeps in ``ctx`` (method pools and uploaded meshes)."""
-    caches = getattr(ctx, "_glvox_caches", None)
-    if not caches:
-        return 0
-    total = sum(b.vertices.size + b.faces.size for b in caches["meshes"].values())
-    for pool in caches["pools"].values():
-        total += sum(buf.size for buf in pool._bufs.values())
-    return int(total)
 
 
 def _spread(values: list[float]) -> float:
@@ -130,7 +120,7 @@ def _grid_of(result) -> VoxelGrid | None:
 
 def run_cell(cell: Cell, plan: Plan, meshes: dict, refs: dict) -> dict[str, Any]:
     """Run one cell and return its row (see the module docstring)."""
-    from glvox.context import get_context
+    from glvox.gl.context import get_context
     from glvox.metrics import check_against_reference, separation_leaks, tie_set
 
     info = get_method(cell.method).info

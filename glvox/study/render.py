@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from glvox.grid import VoxelGrid
-from glvox.shaders import render_program
+from glvox.gl.shaders import render_program
+from glvox.results.voxels import VoxelGrid
 
 #: Exposed voxels rendered at most; beyond, the grid is max-pooled by 2 until
 #: it fits (llvmpipe draws a few million cubes in seconds, not more).

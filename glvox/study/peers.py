@@ -31,7 +31,8 @@ from typing import Any
 import numpy as np
 
 from glvox.errors import GlvoxError
-from glvox.grid import GridSpec, VoxelGrid
+from glvox.grid import GridSpec
+from glvox.results.voxels import VoxelGrid
 
 #: Query points per call of libigl's fast winding number: large enough that
 #: rebuilding its tree per call is a small share of the time (the V, F, Q

@@ -79,7 +79,7 @@ def plan_from(args) -> harness.Plan:
 def pictures(plan: harness.Plan, rows, out: Path, log) -> list[Path]:
     """Renders of one surface and one solid result per mesh (mesh edges drawn over
     the surface), and slices where each approximate method disagrees with its reference."""
-    from glvox.context import get_context
+    from glvox.gl.context import get_context
 
     from .render import disagreement_slice, render_voxels, save_png, save_slice_png
 

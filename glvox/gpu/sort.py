@@ -33,8 +33,9 @@ from __future__ import annotations
 import operator
 from typing import Any
 
-from .methods._gpu import buffer_pool, check_buffer_size, dispatch_1d
-from .shaders import compute_program
+from ..gl.shaders import compute_program
+from .buffers import buffer_pool, check_buffer_size
+from .dispatch import dispatch_1d
 
 #: Pool owner name of the scratch buffers (``buffer_pool(ctx, POOL)``).
 POOL = "gpu_sort"

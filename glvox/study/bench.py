@@ -46,6 +46,7 @@ import numpy as np
 
 import glvox
 from glvox.errors import GlvoxError, NotWatertightWarning
+from glvox.tolerances import REGRESSION_TOLERANCE
 
 from . import harness
 from .peers import PEERS, Peer, get_peer
@@ -72,16 +73,12 @@ PRESETS: dict[str, dict[str, Any]] = {
              "sizes": [128, 256, 512, 1024], "repeat": 5, "budget": 10.0},
 }
 
-#: A method regresses when its best warm time grows by more than this
-#: fraction over the baseline's, both in absolute terms and relative to the
-#: peers measured in the same run (see :func:`check_regressions`).
-REGRESSION_TOLERANCE = 0.10
 
 #: Timed runs per side and cell of ``--against`` (the sides take turns).
 AB_REPEAT = 10
 
 #: The baseline of the quick preset, beside this module (compare/ in a checkout).
-BASELINE = Path(__file__).resolve().with_name("bench_baseline.json")
+BASELINE = Path(__file__).resolve().parents[2] / "compare" / "bench_baseline.json"
 
 #: Published figures for scale (not measured here): cuda_voxelizer, Schwarz &
 #: Seidel conservative surface voxelization of the Stanford bunny (~70k
@@ -133,7 +130,7 @@ class _Calibration:
     """
 
     def __init__(self, ctx):
-        from glvox.shaders import compute_program
+        from glvox.gl.shaders import compute_program
 
         self.ctx = ctx
         self.prog = compute_program(ctx, "testing/busy.comp")
@@ -473,7 +470,7 @@ def add_ratios(rows: list[dict[str, Any]]) -> None:
 def run_plan(plan: Plan, *, log: Callable[[str], None] = lambda s: None,
              progress: Callable[[str], None] = lambda s: None) -> list[dict[str, Any]]:
     """Every cell of ``plan``; rows in mesh, size, contender order, ratios added."""
-    from glvox.context import get_context
+    from glvox.gl.context import get_context
 
     ctx = get_context()
     rows: list[dict[str, Any]] = []
@@ -500,7 +497,7 @@ _COLD_SCRIPT = """
 import json, sys, time, warnings
 t0 = time.perf_counter()
 import glvox
-from glvox.context import get_context
+from glvox.gl.context import get_context
 from glvox.methods import run_method
 t1 = time.perf_counter()
 get_context()

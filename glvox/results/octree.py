@@ -26,12 +26,15 @@ and :meth:`SparseOctree.coverage` ignore them.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .errors import FormatError, GridError, LimitError
-from .grid import MAX_VOXELS, GridSpec, VoxelGrid
+from ..errors import FormatError, GridError, LimitError
+from ..grid import MAX_VOXELS, GridSpec
+from .base import Result, npz_type, require_keys
+from .voxels import VoxelGrid
 
 #: Pointer value meaning "no node".
 NONE = np.uint32(0xFFFFFFFF)
@@ -144,7 +147,8 @@ class OctreeLevel:
 _FIELDS = ("morton", "parent", "x_next", "x_prev", "child", "inside", "count")
 
 
-class SparseOctree:
+@npz_type("octree_dims")
+class SparseOctree(Result):
     """A sparse solid voxelization (Schwarz & Seidel 2010, Sec. 5) on a :class:`GridSpec`.
 
     Attributes
@@ -161,10 +165,9 @@ class SparseOctree:
     """
 
     def __init__(self, spec: GridSpec, levels: list[OctreeLevel], data: np.ndarray, *, run: Any = None):
-        self.spec = spec
+        super().__init__(spec, run)
         self.levels = list(levels)
         self.data = np.asarray(data, dtype=np.uint64)
-        self.run = run
         top = top_level(spec.dims)
         if len(self.levels) != top + 1:
             raise GridError(f"an octree on dims {spec.dims} has levels 0..{top}, got {len(self.levels)} levels")
@@ -174,19 +177,7 @@ class SparseOctree:
         if len(self.levels[top]) != 64:
             raise GridError(f"the top level holds all 4x4x4 nodes, got {len(self.levels[top])}")
 
-    # -- placement -----------------------------------------------------------
-    @property
-    def dims(self) -> tuple[int, int, int]:
-        return self.spec.dims
-
-    @property
-    def origin(self) -> np.ndarray:
-        return self.spec.origin
-
-    @property
-    def voxel_size(self) -> float:
-        return self.spec.voxel_size
-
+    # -- structure -----------------------------------------------------------
     @property
     def top(self) -> int:
         """The top level (all 64 nodes stored)."""
@@ -352,6 +343,22 @@ class SparseOctree:
             return cls(spec, levels, np.asarray(arrays["octree_data"], np.uint64))
         except (KeyError, TypeError, ValueError, GridError) as exc:
             raise FormatError(f"not a complete sparse octree ({exc})") from None
+
+    def npz_arrays(self) -> dict[str, np.ndarray]:
+        return self.to_arrays()
+
+    @classmethod
+    def from_npz(cls, z, path: Path) -> "SparseOctree":
+        require_keys(z, path, {"origin", "voxel_size"})
+        dims = np.asarray(z["octree_dims"])
+        if dims.shape != (3,):
+            raise FormatError(f"{path}: octree_dims must hold 3 integers, got shape {dims.shape}")
+        spec = GridSpec(tuple(int(d) for d in dims), np.asarray(z["origin"], dtype=np.float64),
+                        float(z["voxel_size"]))
+        try:
+            return cls.from_arrays({k: z[k] for k in z.files}, spec)
+        except FormatError as exc:
+            raise FormatError(f"{path}: {exc}") from None
 
     def __repr__(self) -> str:
         m = f", method={self.run.method!r}" if self.run is not None else ""

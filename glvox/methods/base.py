@@ -13,7 +13,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, Mapping
 
+import numpy as np
+
 from ..errors import MethodError
+from ..gpu.buffers import buffer_pool
 
 KINDS = ("surface", "solid", "ldi", "sparse")
 FAMILIES = ("raster", "compute", "cpu")
@@ -160,12 +163,20 @@ class Method:
         """
         raise NotImplementedError
 
+    #: True for references that define :meth:`tie_set`.
+    has_ties: ClassVar[bool] = False
+
+    def tie_set(self, mesh, spec, eps: float) -> np.ndarray:
+        """Dense (nx, ny, nz) bool: the voxels whose verdict under this method's
+        definition is a proven tie (DESIGN.md, "Ties") for ``mesh`` on ``spec``,
+        with tolerance ``eps`` voxel.  Defined by the exact references
+        (:attr:`has_ties`), which results are checked against."""
+        raise ValueError(f"no tie set is defined for {self.info.name!r}")
+
     def release(self, ctx) -> None:
         """Free GPU resources held for ``ctx``: by default the method's buffer pool
         (``buffer_pool(ctx, info.name)``); methods keeping more override this."""
         if self.info.uses_gl:
-            from ._gpu import buffer_pool
-
             buffer_pool(ctx, self.info.name).release()
 
 

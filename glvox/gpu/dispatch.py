@@ -1,0 +1,55 @@
+"""Dispatching compute work: loop budget, uniforms, 1D dispatch, barriers."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import moderngl
+import numpy as np
+
+#: Loop iterations one shader invocation may run, all loops together, on the
+#: software renderer.  Mesa's llvmpipe (gallivm's loop limiter,
+#: LP_MAX_TGSI_LOOP_ITERATIONS) silently ends an invocation's loops after
+#: 65535 iterations in total, which would drop work without any error; every
+#: glvox shader splits its work so that one invocation stays well below this
+#: (tests/test_context.py measures it).
+LOOP_BUDGET = 65535
+
+
+def grid_uniforms(spec, anchor: np.ndarray) -> dict[str, Any]:
+    """Uniforms of ``common/voxel_space.glsl`` for ``spec``, vertices relative to ``anchor``."""
+    origin = tuple(float(x) for x in (spec.origin - anchor))
+    return {
+        "u_origin": origin,
+        "u_inv_h": 1.0 / spec.voxel_size,
+        "u_origin_d": origin,  # the same in double, for transforms done in double
+        "u_inv_h_d": 1.0 / spec.voxel_size,
+        "u_dims": tuple(int(d) for d in spec.dims),
+    }
+
+
+def set_uniforms(prog, values: dict[str, Any]) -> None:
+    """Set the uniforms the program uses; ones optimized out of it are skipped."""
+    for name, value in values.items():
+        if name in prog:
+            prog[name].value = value
+
+
+def dispatch_1d(ctx, prog, n: int, local_size: int) -> None:
+    """Run ``prog`` over ``n`` invocations in groups of ``local_size``, split along y
+    when the x group count would exceed GL_MAX_COMPUTE_WORK_GROUP_COUNT."""
+    groups = (int(n) + local_size - 1) // local_size
+    if groups == 0:
+        return
+    max_x = int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])
+    if groups <= max_x:
+        prog.run(groups, 1, 1)
+    else:
+        prog.run(max_x, (groups + max_x - 1) // max_x, 1)
+
+
+def barrier(ctx) -> None:
+    """Make SSBO writes of earlier dispatches visible to later dispatches,
+    indirect-dispatch argument reads and buffer reads."""
+    ctx.mgl.memory_barrier(moderngl.SHADER_STORAGE_BARRIER_BIT | moderngl.COMMAND_BARRIER_BIT
+                           | moderngl.BUFFER_UPDATE_BARRIER_BIT)

@@ -1,0 +1,106 @@
+"""The one run envelope: what happens around every method's work.
+
+:func:`run_in_envelope` checks the grid size, the mesh (watertight where a
+solid is asked for), the GL context and its capabilities, runs the work with a
+:class:`~glvox.gl.timing.StageTimer`, and attaches a
+:class:`~glvox.results.RunInfo`.  :func:`glvox.methods.run_method` runs every
+registered method through it, and the Leung & Wang intersection application
+(two meshes, so not a registry entry) does too.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from typing import Any, Callable, Sequence
+
+from ..errors import CapabilityError, LimitError, NotWatertightError, NotWatertightWarning
+from ..gl.context import get_context
+from ..gl.timing import StageTimer
+from ..grid import MAX_VOXELS, GridSpec
+from ..results.base import Result, RunInfo
+from .base import MethodInfo
+
+#: Kinds whose result depends on an inside: undefined for an open mesh.
+INSIDE_KINDS = ("solid", "sparse", "ldi")
+
+
+def _what(info: MethodInfo) -> str:
+    return {"ldi": "LDI method", "sparse": "sparse solid method"}.get(info.kind, "solid method")
+
+
+def check_inputs(info: MethodInfo, meshes: Sequence[Any], spec: GridSpec, allow_open: bool) -> None:
+    """The checks done before any work: dense size, closed meshes for inside kinds
+    (a warning when ``allow_open`` lets an open one through)."""
+    if info.kind != "sparse" and spec.n_voxels > MAX_VOXELS:
+        raise LimitError(
+            f"method {info.name!r} returns a dense grid, and {spec.dims} has {spec.n_voxels} voxels, more "
+            f"than the {MAX_VOXELS} glvox keeps dense; use a smaller grid or the sparse ss-octree"
+        )
+    if info.kind not in INSIDE_KINDS:
+        return
+    for mesh in meshes:
+        if mesh.watertight:
+            continue
+        if not allow_open:
+            raise NotWatertightError(
+                f"{mesh.name} is not watertight, so 'inside' is undefined for the {_what(info)} "
+                f"{info.name!r}; repair the mesh, use a surface method, or pass allow_open=True "
+                "(--allow-open) to voxelize by parity of crossings anyway"
+            )
+        warnings.warn(
+            f"{mesh.name} is not watertight: {info.name!r} returns the parity of ray crossings, which "
+            "is 'inside' only where the rays cross a closed part of the surface; expect streaks "
+            "along the rays through holes", NotWatertightWarning, stacklevel=4)
+
+
+def run_in_envelope(info: MethodInfo, meshes: Sequence[Any], spec: GridSpec,
+                    work: Callable[[Any, StageTimer], Result], *, options: dict[str, Any],
+                    ctx=None, backend: str | None = None, allow_open: bool = False,
+                    debug: bool | None = None) -> Result:
+    """Run ``work(ctx, timer)`` for ``info`` on ``meshes`` and ``spec``.
+
+    Parameters
+    ----------
+    info : MethodInfo
+        Kind (for the checks), family (GL or not), requirements, name.
+    meshes : sequence of Mesh
+        The validated meshes the work reads (one for a method).
+    spec : GridSpec
+    work : callable ``(ctx, timer) -> Result``
+        ``ctx`` is the made-current GLContext for GL work, None for CPU work.
+    options : dict
+        Validated options, recorded in the run info.
+    ctx, backend, allow_open, debug
+        As :func:`glvox.methods.run_method`.
+
+    Returns
+    -------
+    The work's result with ``result.run`` set.
+    """
+    check_inputs(info, meshes, spec, allow_open)
+    if debug is None:
+        debug = os.environ.get("GLVOX_DEBUG", "") not in ("", "0")
+    if info.uses_gl:
+        ctx = ctx if ctx is not None else get_context(backend)
+        ctx.make_current()
+        missing = info.requires.missing(ctx)
+        if missing:
+            raise CapabilityError(f"method {info.name!r} needs {'; '.join(missing)} ({ctx.renderer})")
+        if debug:
+            ctx.check_error(f"method {info.name!r}, before the first stage")
+    else:
+        ctx = None
+    timer = StageTimer(ctx, debug=debug, method=info.name)
+    result = work(ctx, timer)
+    timings = timer.finish()
+    stats: dict[str, Any] = {"triangles": sum(m.n_triangles for m in meshes),
+                             "degenerate_dropped": sum(m.n_degenerate for m in meshes),
+                             "watertight": all(m.watertight for m in meshes)}
+    stats.update(timer.stats)
+    count = getattr(result, "count", None)  # once: counting a 1024^3 grid costs ~40 ms
+    if count is not None:
+        stats["voxels"] = count
+    result.run = RunInfo(method=info.name, kind=info.kind, spec=spec, timings=timings,
+                         stats=stats, options=options)
+    return result

@@ -1,0 +1,17 @@
+"""The result types every method returns, on one base (:mod:`.base`).
+
+=============  ==================  ===========================================
+kind           type                made by
+=============  ==================  ===========================================
+surface/solid  :class:`VoxelGrid`  dense bit grid (every surface and solid method)
+sparse         :class:`SparseOctree`  ``ss-octree``: a solid without a dense grid
+ldi            :class:`LDI`        layered depth images (``*-ldi`` methods)
+=============  ==================  ===========================================
+"""
+
+from .base import Result, RunInfo, read_npz
+from .ldi import LDI
+from .octree import SparseOctree
+from .voxels import Comparison, VoxelGrid
+
+__all__ = ["Comparison", "LDI", "Result", "RunInfo", "SparseOctree", "VoxelGrid", "read_npz"]

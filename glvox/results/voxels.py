@@ -1,0 +1,205 @@
+"""The binary voxel grid: the result of every surface and solid method.
+
+npz layout (beside the common keys of :mod:`glvox.results.base`):
+``occupancy`` (bool, (nx, ny, nz), indexed [i, j, k]) and one ``extra_<name>``
+(bool, (nx, ny, nz)) per mask in ``grid.extras``; ``kind`` is the run's kind
+(``'surface'`` or ``'solid'``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import FormatError, GridError
+from ..grid import GridSpec, pack_bits, unpack_bits
+from .base import Result, npz_type, require_keys
+
+
+@dataclass
+class Comparison:
+    """Differences of a grid against a reference on the same placement.
+
+    ``missing`` are voxels the reference sets and the grid does not,
+    ``extra`` the reverse; both (M, 3) int64 voxel indices.
+    """
+
+    missing: np.ndarray
+    extra: np.ndarray
+    count: int
+    reference_count: int
+    iou: float
+
+    @property
+    def n_missing(self) -> int:
+        return int(len(self.missing))
+
+    @property
+    def n_extra(self) -> int:
+        return int(len(self.extra))
+
+    @property
+    def equal(self) -> bool:
+        return self.n_missing == 0 and self.n_extra == 0
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"missing": self.n_missing, "extra": self.n_extra, "count": self.count,
+                "reference_count": self.reference_count, "iou": self.iou}
+
+
+@npz_type(None)
+class VoxelGrid(Result):
+    """A binary voxel grid on a :class:`GridSpec`.
+
+    Built from a dense bool array indexed [i, j, k] (i along x) or from the
+    bit-packed words the GPU methods write; either form is made from the
+    other on demand.
+
+    Attributes
+    ----------
+    spec : GridSpec
+    run : RunInfo or None
+        Method name, kind, timings and statistics of the run that made it.
+    extras : dict of str to VoxelGrid
+        Named masks a method returns beside its result on the same spec
+        (e.g. ``'unclassifiable'`` of passalis-stencil); saved in npz as
+        ``extra_<name>``.
+    """
+
+    def __init__(self, occupancy: np.ndarray | None = None, spec: GridSpec | None = None, *,
+                 words: np.ndarray | None = None, run: Any = None,
+                 extras: dict[str, "VoxelGrid"] | None = None, count: int | None = None):
+        if spec is None:
+            raise GridError("a VoxelGrid needs its GridSpec")
+        if (occupancy is None) == (words is None):
+            raise GridError("give exactly one of occupancy (dense bool) or words (bit-packed)")
+        super().__init__(spec, run)
+        self.extras: dict[str, VoxelGrid] = {}
+        for name, g in (extras or {}).items():
+            if not name.isidentifier():
+                raise GridError(f"extra mask names must be identifiers, got {name!r}")
+            if not isinstance(g, VoxelGrid) or not g.spec.same_placement(spec):
+                raise GridError(f"extra mask {name!r} must be a VoxelGrid on {spec}")
+            self.extras[name] = g
+        self._dense: np.ndarray | None = None
+        self._words: np.ndarray | None = None
+        self._count = None if count is None else int(count)
+        if occupancy is not None:
+            occ = np.asarray(occupancy)
+            if occ.shape != spec.dims:
+                raise GridError(f"occupancy must have shape {spec.dims} (nx, ny, nz), got {occ.shape}")
+            if occ.dtype != bool:
+                raise GridError(f"occupancy must be a bool array, got dtype {occ.dtype}")
+            self._dense = occ
+        else:
+            w = np.asarray(words)
+            if w.size != spec.n_words:
+                raise GridError(f"expected {spec.n_words} packed words for dims {spec.dims}, got {w.size}")
+            self._words = w.reshape(spec.dims[2], spec.dims[1], spec.words_per_row).astype("<u4", copy=False)
+
+    # -- data ---------------------------------------------------------------
+    def dense(self) -> np.ndarray:
+        """Occupancy as bool (nx, ny, nz), indexed [i, j, k]; read-only view."""
+        if self._dense is None:
+            self._dense = unpack_bits(self._words, self.spec.dims)
+        v = self._dense.view()
+        v.setflags(write=False)
+        return v
+
+    def words(self) -> np.ndarray:
+        """Bit-packed occupancy, uint32 (nz, ny, words_per_row), GPU layout; read-only view."""
+        if self._words is None:
+            self._words = pack_bits(self._dense)
+        v = self._words.view()
+        v.setflags(write=False)
+        return v
+
+    @property
+    def count(self) -> int:
+        """Number of set voxels (counted once; GPU methods may give it, counted on the GPU)."""
+        if self._count is None:
+            if self._words is not None:
+                self._count = int(np.bitwise_count(self._words).sum())
+            else:
+                self._count = int(np.count_nonzero(self._dense))
+        return self._count
+
+    def __len__(self) -> int:
+        return self.count
+
+    def indices(self) -> np.ndarray:
+        """(M, 3) int64 indices of the set voxels, sorted by i, then j, then k."""
+        return np.argwhere(self.dense())
+
+    def points(self) -> np.ndarray:
+        """(M, 3) float64 world centers of the set voxels."""
+        return self.spec.centers(self.indices())
+
+    def to_trimesh(self):
+        """A ``trimesh.voxel.VoxelGrid`` with the same occupancy and placement.
+
+        trimesh's transform maps voxel indices to voxel *centers*, so it is
+        scale h and translation origin + h/2.
+        """
+        import trimesh
+
+        h = self.voxel_size
+        transform = np.eye(4)
+        transform[:3, :3] *= h
+        transform[:3, 3] = self.origin + 0.5 * h
+        return trimesh.voxel.VoxelGrid(np.array(self.dense()), transform=transform)
+
+    # -- npz ----------------------------------------------------------------
+    def npz_arrays(self) -> dict[str, np.ndarray]:
+        return {"occupancy": np.asarray(self.dense(), dtype=bool),
+                **{f"extra_{k}": np.asarray(g.dense(), dtype=bool) for k, g in self.extras.items()}}
+
+    @classmethod
+    def from_npz(cls, z, path: Path) -> "VoxelGrid":
+        require_keys(z, path, {"occupancy", "origin", "voxel_size"})
+        occ = np.asarray(z["occupancy"])
+        if occ.ndim != 3:
+            raise FormatError(f"{path}: occupancy must be 3D (nx, ny, nz), got shape {occ.shape}")
+        spec = GridSpec(occ.shape, np.asarray(z["origin"], dtype=np.float64), float(z["voxel_size"]))
+        extras = {}
+        for key in z.files:
+            if key.startswith("extra_"):
+                e = np.asarray(z[key])
+                if e.shape != occ.shape:
+                    raise FormatError(f"{path}: {key} must have the occupancy's shape {occ.shape}, "
+                                      f"got {e.shape}")
+                extras[key[len("extra_"):]] = cls(e.astype(bool), spec)
+        return cls(occ.astype(bool), spec, extras=extras)
+
+    # -- comparison ---------------------------------------------------------
+    def _check_same(self, other: "VoxelGrid") -> None:
+        if not self.spec.same_placement(other.spec):
+            raise GridError(f"cannot compare grids on different placements: {self.spec} vs {other.spec}")
+
+    def equal(self, other: "VoxelGrid") -> bool:
+        self._check_same(other)
+        return bool(np.array_equal(self.words(), other.words()))
+
+    def compare(self, reference: "VoxelGrid") -> Comparison:
+        """Missing and extra voxels against ``reference``, and IoU."""
+        self._check_same(reference)
+        a, b = self.dense(), reference.dense()
+        inter = int(np.count_nonzero(a & b))
+        union = int(np.count_nonzero(a | b))
+        return Comparison(
+            missing=np.argwhere(b & ~a),
+            extra=np.argwhere(a & ~b),
+            count=int(np.count_nonzero(a)),
+            reference_count=int(np.count_nonzero(b)),
+            iou=1.0 if union == 0 else inter / union,
+        )
+
+    def iou(self, other: "VoxelGrid") -> float:
+        return self.compare(other).iou
+
+    def __repr__(self) -> str:
+        m = f", method={self.run.method!r}" if self.run is not None else ""
+        return f"VoxelGrid(dims={self.dims}, count={self.count}, voxel_size={self.voxel_size:.6g}{m})"

@@ -1,0 +1,96 @@
+"""Every tolerance glvox uses, named once, with why it is what it is.
+
+The modules that apply them import them from here (and re-export the names
+they always had, e.g. ``glvox.reference.TIE_EPS``).  Units: ``voxels`` are
+voxel-space lengths (1 = one voxel edge); ``relative`` is a fraction of the
+quantity it is compared with.
+
+The GPU methods compute in float32 (2^-24 relative precision) on vertices
+transformed into voxel space; the CPU references compute in float64.  The
+tolerances below separate the float32 rounding of a correct GPU result from
+a real disagreement.
+"""
+
+from __future__ import annotations
+
+# -- agreement with the references ---------------------------------------------
+
+#: Tie tolerance (voxels).  float32 has a 2**-24 (6e-8) relative precision,
+#: so vertex coordinates in voxel space up to a few thousand voxels carry
+#: rounding errors below ~1e-4 voxel after the world->voxel transform and a
+#: few operations; anything beyond that is a real disagreement, not rounding.
+#: A surface voxel is a tie when its verdict flips with the box half-size
+#: 0.5 +/- TIE_EPS, a solid voxel when its center lies within TIE_EPS of the
+#: surface (DESIGN.md, "Ties"; :mod:`glvox.reference.ties`).
+TIE_EPS = 1e-4
+
+#: (multiples of :func:`glvox.reference.ties.float32_motion`) A projected edge
+#: shorter than this many times the float32 motion of its end points can turn
+#: by more than ~0.02 rad under rounding; the projection test it belongs to is
+#: then decided by rounding (an edge of 2e-5 voxel in depth_cycloidal_drive.ply
+#: turned by 10 degrees).
+SHORT_EDGE_MOTIONS = 100.0
+
+# -- input ----------------------------------------------------------------------
+
+#: (relative to the squared longest bounding-box extent) A triangle is
+#: degenerate (dropped) when twice its area is at most this.  1e-14 is ~100
+#: ulps of float64 relative to the model size: only triangles that are
+#: zero-area up to rounding (repeated or exactly collinear vertices) are
+#: dropped; needles and slivers stay.
+DEGENERATE_AREA_RTOL = 1e-14
+
+# -- placement ------------------------------------------------------------------
+
+#: (relative to h) Two placements are the same when origin and h agree within
+#: this fraction of h: text formats (binvox headers) round-trip floats to ~7
+#: digits, far below any voxel-sized difference.
+PLACEMENT_RTOL = 1e-5
+
+#: (voxels) A fit's dims are ceil(extent / h - FIT_CEIL_SLACK): an extent that
+#: is a whole number of voxels up to float64 rounding of the division does not
+#: get one more, empty, voxel.
+FIT_CEIL_SLACK = 1e-9
+
+# -- the projected optimal scanline (Zhang et al. 2018) -------------------------
+
+#: Scanline spacing as a fraction of the bound of Theorem 4.1.  Exactly the
+#: bound leaves no margin: a voxel between two scanlines d^ apart may touch
+#: both at corners only, and float rounding of the end points could then
+#: miss it although the triangle crosses it.  0.1 % below the bound gives
+#: every such voxel a crossing ~1e-3 voxel deep, far above float32 rounding
+#: (~1e-5 voxel at 256^3), and changes the scanline count only when a
+#: layer's width is within 0.1 % below a multiple of d^.
+SCANLINE_SLACK = 0.999
+
+#: (voxels) ILV snaps a vertex coordinate within this distance outside the
+#: grid to the boundary voxel (:func:`glvox.reference.scanline.lattice_points`).
+#: 1/64 voxel is exact in float32 next to any grid size up to the ILV limit and
+#: covers the float32 rounding of a vertex that lies exactly on a grid face (at
+#: most 2^-9 voxel at 16000 voxels); ILV itself moves every vertex by up to a
+#: voxel, so the snap is invisible beside it.
+ILV_BOUNDARY_SNAP = 1.0 / 64.0
+
+#: (voxels) RLV's voxel of a coordinate within this distance outside the grid
+#: is the boundary voxel (:func:`glvox.reference.scanline.cell`): the grid's
+#: closed maximum faces belong to its last voxels.  TIE_EPS keeps RLV within
+#: the conservative set up to ties, and covers float32's rounding of a vertex
+#: lying on a grid face (below 1e-4 voxel up to ~1600 voxels).
+RLV_BOUNDARY_SNAP = TIE_EPS
+
+#: (relative) Size below which a float decision of the scanline's float path
+#: counts as tied (:func:`glvox.reference.scanline.float_variant_ties`): the
+#: gap between the two largest normal components (dominant axis), |n_a| +
+#: |n_b| (parallel to the slicing plane), a layer's width in scanline
+#: intervals next to an integer (the scanline count).  float32 rounds such
+#: quantities by a few 1e-7 relative; 1e-5 keeps a wide margin and is still
+#: rare on real meshes.
+DECISION_RTOL = 1e-5
+
+# -- benchmarks -------------------------------------------------------------------
+
+#: (relative) ``glvox bench --check`` / ``--against``: a method regresses when
+#: its best (and, side by side, median) warm time grows by more than this
+#: fraction.  The same code measured twice on a quiet machine stays within a
+#: few percent; a shared machine needs the recheck the bench does on a flag.
+REGRESSION_TOLERANCE = 0.10
