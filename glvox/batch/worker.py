@@ -1,0 +1,110 @@
+"""One mesh of a batch, as a worker runs it: load, voxelize, save, into one manifest row.
+
+A *task* is any function ``task(job, settings) -> row`` that handles one
+mesh and returns its manifest row (keys
+:data:`~glvox.batch.manifest.MANIFEST_COLUMNS`); :func:`voxelize_one` is the
+one glvox runs unless :func:`glvox.batch.run_batch` is given another.
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+import threading
+import time
+import warnings
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any, Callable
+
+from ..errors import GlvoxError
+from ..grid import grid_for
+from ..mesh import load_mesh
+from ..methods import run_method
+from .atomic import atomic_save
+from .jobs import BatchSettings, Job
+from .manifest import base_row, now
+
+#: What handles one mesh: ``task(job, settings)`` returns its manifest row.
+Task = Callable[[Job, BatchSettings], dict[str, Any]]
+
+_DOING = {"load": "loading", "voxelize": "voxelizing", "save": "saving"}
+
+
+def voxelize_one(job: Job, settings: BatchSettings) -> dict[str, Any]:
+    """Voxelize one mesh and write its output; never raises for a bad mesh.
+
+    What ``glvox voxelize`` does for one file (load, fit the grid, run the
+    method, save), timed, with every failure caught into the returned row.
+
+    Returns
+    -------
+    dict
+        A manifest row (keys :data:`~glvox.batch.manifest.MANIFEST_COLUMNS`),
+        status ``done`` or ``failed``.
+    """
+    row = base_row(job, settings)
+    row["worker"] = f"{socket.gethostname()}:{os.getpid()}"
+    t0 = time.perf_counter()
+    stage = "load"
+    marks = {}
+    try:
+        mesh = load_mesh(job.input)
+        row.update(triangles=mesh.n_triangles, degenerate_dropped=mesh.n_degenerate,
+                   watertight=mesh.watertight)
+        marks["load"] = time.perf_counter()
+        stage = "voxelize"
+        r = settings.resolution if settings.dims is None and settings.voxel_size is None else None
+        spec = grid_for(mesh, r, dims=settings.dims, voxel_size=settings.voxel_size,
+                        padding=settings.padding, tight=settings.tight)
+        row["dims"] = "x".join(str(d) for d in spec.dims)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            result = run_method(settings.method, mesh, spec, backend=settings.backend,
+                                allow_open=settings.allow_open, **dict(settings.options))
+        run = result.run
+        row["warnings"] = "; ".join(str(w.message) for w in caught)
+        row["voxels"] = run.stats.get("voxels", "")
+        gpu = run.timings.gpu_s
+        row["gpu_s"] = gpu if gpu is not None else ""
+        row["cold"] = run.timings.cold
+        marks["voxelize"] = time.perf_counter()
+        stage = "save"
+        atomic_save(result, job.output)
+        marks["save"] = time.perf_counter()
+        row["status"] = "done"
+    except GlvoxError as exc:
+        row.update(status="failed", reason=type(exc).__name__, error=str(exc))
+    except Exception as exc:  # noqa: BLE001 - one bad mesh must never stop the batch
+        row.update(status="failed", reason=type(exc).__name__,
+                   error=f"unexpected {type(exc).__name__} while {_DOING[stage]} {job.rel}: {exc}")
+    prev = t0
+    for name in ("load", "voxelize", "save"):
+        if name in marks:
+            row[f"{name}_s"] = marks[name] - prev
+            prev = marks[name]
+    row["total_s"] = time.perf_counter() - t0
+    row["finished"] = now()
+    return row
+
+
+_gl_lock = threading.Lock()
+_gl_executor: ThreadPoolExecutor | None = None
+
+
+def _gl_thread() -> ThreadPoolExecutor:
+    """The one thread of this process that makes GL calls.
+
+    A GL context is current in the thread that created it; Dask may run
+    successive tasks on different threads of its pool, so every task hands its
+    work to this thread instead.
+    """
+    global _gl_executor
+    with _gl_lock:
+        if _gl_executor is None:
+            _gl_executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="glvox-gl")
+        return _gl_executor
+
+
+def dask_task(job: Job, settings: BatchSettings, task: Task = voxelize_one) -> dict[str, Any]:
+    """The Dask task of one mesh: ``task(job, settings)`` on this worker's GL thread."""
+    return _gl_thread().submit(task, job, settings).result()
