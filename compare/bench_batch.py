@@ -32,7 +32,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from glvox.batch import synthetic_dataset
+from glvox.testing.datasets import synthetic_dataset
 
 
 def run_once(data: Path, out: Path, args, workers: int, env) -> dict:

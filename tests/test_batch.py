@@ -1,11 +1,11 @@
 """``glvox batch``: dataset-scale voxelization, checked against ``glvox voxelize`` file by file.
 
-The dataset is generated (:func:`glvox.batch.synthetic_dataset`: 200 small
+The dataset is generated (:func:`glvox.testing.datasets.synthetic_dataset`: 200 small
 meshes of primitives and perturbed shapes in nested folders, four suffixes,
 a few open boxes, plus deliberately broken files).  The expectation for each
 mesh is the output of the single-file command (its entry point
 ``glvox.cli.main(["voxelize", ...])``, run in this process), and for each
-broken file the reason written beside it in ``glvox.batch.BROKEN`` and the
+broken file the reason written beside it in ``glvox.testing.datasets.BROKEN`` and the
 message the single-file command prints.
 """
 
@@ -26,10 +26,12 @@ import numpy as np
 import pytest
 
 from glvox import cli
-from glvox.batch import (BROKEN, LOCK_NAME, MANIFEST_COLUMNS, BatchSettings, Progress, find_meshes, plan_jobs,
-                         read_manifest, run_batch, synthetic_dataset)
+from glvox.batch import (LOCK_NAME, MANIFEST_COLUMNS, BatchSettings, Progress, find_meshes, plan_jobs,
+                         read_manifest, run_batch)
 from glvox.errors import GlvoxError, GridError, MeshLoadError, MethodError
 from glvox.methods import method_names
+from glvox.testing.crash import CrashingTask
+from glvox.testing.datasets import BROKEN, synthetic_dataset
 
 #: Small grids and fast GPU methods keep the 200-mesh runs within seconds on llvmpipe.
 R = 32
@@ -352,13 +354,11 @@ def test_worker_crash_is_retried_once_then_recorded(dataset, references, tmp_pat
     lst = tmp_path / "meshes.txt"
     lst.write_text("\n".join(str(root / r) for r in rels) + "\n")
     log = tmp_path / "crashes.log"
-    env = dict(os.environ, _GLVOX_BATCH_TEST_CRASH="torus_0002", _GLVOX_BATCH_TEST_CRASH_LOG=str(log))
     out = tmp_path / "out"
-    p = glvox("batch", lst, "-o", out, "-r", R, "-m", "ss-conservative", "--format", "binvox",
-              "--workers", 1, "--json", env=env)
-    assert p.returncode == 3, p.stderr
-    s = json.loads(p.stdout)
-    assert (s["done"], s["failed"], s["failed_by_reason"]) == (2, 1, {"WorkerCrashed": 1})
+    # the task kills its worker process (SIGKILL, as the OOM killer would) on the torus
+    s = run_batch(lst, out, BatchSettings("ss-conservative", resolution=R, fmt="binvox"), workers=1,
+                  quiet=True, task=CrashingTask("torus_0002", str(log)))
+    assert (s.done, s.failed, s.failed_by_reason) == (2, 1, {"WorkerCrashed": 1})
     attempts = log.read_text().split("\n")[:-1]
     assert len(attempts) == 2, attempts                  # the first try and one retry
     assert len({a.split()[1] for a in attempts}) == 2     # each in its own worker process

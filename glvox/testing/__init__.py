@@ -13,6 +13,14 @@ any project's tests:
 * ``glvox_mesh_dir``: the shared meshes folder (``GLVOX_MESHES``, default
   ``../shared/meshes`` beside the checkout), skipping with its path when absent;
 * the helpers :func:`run_compute` and :func:`run_fragment` below.
+
+Support for tests of ``glvox batch`` pipelines, imported on demand (they need
+trimesh and glvox.batch, which this package does not import):
+
+* :mod:`glvox.testing.datasets`: :func:`~glvox.testing.datasets.synthetic_dataset`,
+  a folder of small meshes with deliberately broken files (:data:`~glvox.testing.datasets.BROKEN`);
+* :mod:`glvox.testing.crash`: :class:`~glvox.testing.crash.CrashingTask`, a
+  batch task that kills its own worker process on chosen meshes.
 """
 
 from .harness import run_compute, run_fragment
