@@ -34,7 +34,7 @@ DASK_CONFIG = {"distributed.scheduler.allowed-failures": 1,
 def _require_dask():
     """The dask module, after importing dask and distributed; GlvoxError says how to install them."""
     # dask and distributed are imported lazily in this module (here and below):
-    # they take about a second to import, which glvox pays only for a cluster.
+    # they are slow to import, and only a batch on a cluster needs them.
     # An interrupt during these imports can be swallowed by an import guard in
     # a dependency, hence the held signals.
     with signals_held():
