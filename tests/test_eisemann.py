@@ -310,8 +310,8 @@ def test_fewer_targets_more_passes_same_words(gl_context):
             words = {}
             for targets in (8, 3, 1):
                 timer = StageTimer(gl_context)
-                buf = eisemann.render_slice_masks(gl_context, mesh, spec, op, timer=timer, axis=axis,
-                                                  targets=targets)
+                render = eisemann.SliceRender(op, axis=axis, targets=targets)
+                buf = eisemann.render_slice_masks(gl_context, mesh, spec, render, timer=timer)
                 words[targets] = np.frombuffer(buf.read(size=spec.n_words * 4), "<u4").copy()
                 slices = 128 * targets
                 assert timer.stats["passes"] == -(-spec.dims[axis] // slices)
@@ -320,7 +320,7 @@ def test_fewer_targets_more_passes_same_words(gl_context):
 
 
 @pytest.mark.parametrize("axis", [0, 1, 2])
-def test_tiling_at_a_forced_limit_gives_identical_results(gl_context, monkeypatch, axis):
+def test_tiling_at_a_forced_limit_gives_identical_results(gl_context, axis):
     """At a forced tile limit of 64 pixels: a 64-column grid is one tile, a
     65..100-column grid several; every tiling equals the untiled render."""
     m = crumpled_sphere()
@@ -328,21 +328,18 @@ def test_tiling_at_a_forced_limit_gives_identical_results(gl_context, monkeypatc
     specs = [glvox.grid_for(mesh, dims=(64, 64, 64)), glvox.grid_for(mesh, dims=(100, 65, 90))]
     free = [(run_method("eisemann-solid", mesh, s, axis=axis),
              run_method("eisemann-surface", mesh, s, axis=axis)) for s in specs]
-    monkeypatch.setattr(eisemann, "TILE_LIMIT_OVERRIDE", 64)
     for spec, (solid, surface) in zip(specs, free):
         n_u, n_v = spec.dims[(axis + 1) % 3], spec.dims[(axis + 2) % 3]
-        g = run_method("eisemann-solid", mesh, spec, axis=axis)
+        g = run_method("eisemann-solid", mesh, spec, axis=axis, tile=64)
         assert g.run.stats["tile_limit"] == 64
         assert g.run.stats["tiles"] == [-(-n_u // 64), -(-n_v // 64)]
         assert g.equal(solid)
-        assert run_method("eisemann-surface", mesh, spec, axis=axis).equal(surface)
-    assert run_method("eisemann-solid", mesh, specs[1], axis=axis).run.stats["draws"] > 1
-    monkeypatch.setattr(eisemann, "TILE_LIMIT_OVERRIDE", 40)  # rounded down to whole words
-    assert run_method("eisemann-solid", mesh, specs[1], axis=axis).equal(free[1][0])
-    monkeypatch.setattr(eisemann, "TILE_LIMIT_OVERRIDE", 16)
-    with pytest.raises(LimitError, match=r"tiles of at least 32 x 32 pixels, but "
-                                         r"glvox.methods.eisemann.TILE_LIMIT_OVERRIDE is 16"):
-        run_method("eisemann-solid", mesh, specs[0], axis=axis)
+        assert run_method("eisemann-surface", mesh, spec, axis=axis, tile=64).equal(surface)
+    assert run_method("eisemann-solid", mesh, specs[1], axis=axis, tile=64).run.stats["draws"] > 1
+    # rounded down to whole words
+    assert run_method("eisemann-solid", mesh, specs[1], axis=axis, tile=40).equal(free[1][0])
+    with pytest.raises(LimitError, match=r"tiles of at least 32 x 32 pixels, but option tile is 16"):
+        run_method("eisemann-solid", mesh, specs[0], axis=axis, tile=16)
 
 
 def test_grid_over_the_ssbo_limit_is_refused(gl_context):
@@ -365,9 +362,9 @@ def test_bad_arguments_are_refused(gl_context):
         run_method("eisemann-surface", mesh, spec, coverage="conservative")
     timer = StageTimer(gl_context)
     with pytest.raises(ValueError, match=r"op must be one of \['or', 'xor'\], got 'and'"):
-        eisemann.render_slice_masks(gl_context, mesh, spec, "and", timer=timer)
+        eisemann.render_slice_masks(gl_context, mesh, spec, eisemann.SliceRender("and"), timer=timer)
     with pytest.raises(ValueError, match=r"targets must be in 1..8, got 9"):
-        eisemann.render_slice_masks(gl_context, mesh, spec, "xor", timer=timer, targets=9)
+        eisemann.render_slice_masks(gl_context, mesh, spec, eisemann.SliceRender("xor", targets=9), timer=timer)
 
 
 def test_missing_storage_blocks_in_the_vertex_stage_are_refused():
