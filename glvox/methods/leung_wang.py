@@ -2,7 +2,7 @@
 
 ``leung-wang-ldi`` (Leung & Wang 2013, Sec. III; Alg. 1-2, Eq. 1-6).  Rays run
 along ``axis`` through the pixel centers of the grid's other two axes
-(:mod:`glvox.ldi`); along the rays the range of the grid is cut into
+(:mod:`glvox.results.ldi`); along the rays the range of the grid is cut into
 ``lod_c`` cells (the paper's r_z, "Level of Details in Conservation").
 
 * Phase 1 (Alg. 1): T1, the XOR solid voxelization of Eisemann & Decoret on
@@ -12,10 +12,10 @@ along ``axis`` through the pixel centers of the grid's other two axes
   :data:`TARGETS` RGBA32UI targets, 128 cells each (1024 per pass; more
   passes for a larger LOD-C), with the logic op; a compute pass copies each
   pass into a mask buffer holding each ray's words consecutively.  The render
-  reuses the Eisemann & Decoret machinery (:mod:`glvox.methods.eisemann`'s
+  reuses the Eisemann & Decoret machinery (:mod:`glvox.methods.eisemann_passes`'
   shaders: per-triangle setup, the exact-coverage vertex stage, the column
   tests and mask writers); only the transform (per-axis scale to cells) and
-  the two fragment shaders are this module's.
+  the two fragment shaders are this method's.
 * The n_max pass: the samples per ray by Eq. 5 over the whole ray, the
   maximum and total reduced on the GPU by atomics; n_max (4 bytes) is the
   only value read back before the end.
@@ -30,6 +30,8 @@ along ``axis`` through the pixel centers of the grid's other two axes
 * A pass binds only the targets its cells or layers need (a LOD-C of 128 one
   target, n_max = 12 three): the passes are the paper's, and on llvmpipe each
   bound target costs about as much as a fragment's own work.
+* Views larger than the render-target limit (or the ``tile`` option's side)
+  are drawn tile by tile, with identical results.
 
 Samples are sorted by construction, counts are even, and every exact
 interior segment of a ray lies inside one of the LDI's intervals
@@ -51,7 +53,7 @@ depth pass see the same fragments.
 :func:`intersecting_ldi` is the application of Sec. V-A: T1 and T2 of two
 meshes on one grid, their AND (with a T2 for thin overlaps, see
 ``shaders/ldi/intersect.comp``), and Phase 2 drawing both meshes: the LDI of
-the overlap, whose :attr:`~glvox.ldi.LDI.volume` is the intersecting volume.
+the overlap, whose :attr:`~glvox.results.ldi.LDI.volume` is the intersecting volume.
 
 The GPU passes (render targets, the frame of rays and cells, Phase 1, the
 n_max pass, Phase 2) are in :mod:`glvox.methods.leung_wang_passes`; the
@@ -221,7 +223,7 @@ def intersecting_ldi(ctx, mesh_a, mesh_b, spec, *, timer, axis: int = 2, lod_c: 
     Returns
     -------
     LDI
-        Its :attr:`~glvox.ldi.LDI.volume` is the intersecting volume (world
+        Its :attr:`~glvox.results.ldi.LDI.volume` is the intersecting volume (world
         units cubed), an upper bound of the overlap sampled on the rays.
     """
     frame = _frame(ctx, spec, axis, lod_c, targets, tile)

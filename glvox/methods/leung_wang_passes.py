@@ -28,13 +28,12 @@ from ..gl.shaders import compute_program, render_program
 from ..gpu.buffers import check_buffer_size, object_cache, release_object_cache
 from ..gpu.dispatch import barrier, dispatch_1d, set_uniforms
 from ..gpu.transform import transform_vertices
-from . import eisemann
-from .eisemann import tile_spans
+from . import eisemann_passes
 from .ldi_common import Rays, read_chunks
 
 #: Render targets per pass (the paper's 8 MRTs): 1024 cells per Phase-1 pass, 32 layers per Phase-2 pass.
-TARGETS = eisemann.TARGETS
-CELLS_PER_TARGET = eisemann.SLICES_PER_TARGET  # 128: four 32-bit channels
+TARGETS = eisemann_passes.TARGETS
+CELLS_PER_TARGET = eisemann_passes.SLICES_PER_TARGET  # 128: four 32-bit channels
 LAYERS_PER_TARGET = 4                          # four float channels
 
 _LOCAL = 64
@@ -116,7 +115,7 @@ def _clear_targets(ctx, tg: _Targets, n: int, dtype: str) -> None:
 
 def tile_limit(ctx, tile: int = 0) -> int:
     """Largest tile side in pixels for option ``tile``: Eisemann & Decoret's for the
-    context (GL limits, memory; :func:`glvox.methods.eisemann.tile_limit`), or ``tile``
+    context (GL limits, memory; :func:`glvox.methods.eisemann_passes.tile_limit`), or ``tile``
     when smaller.  Any side of 1 pixel or more works: the store passes here copy whole
     rays, so tiles need not start at whole words of a packed grid.
 
@@ -128,7 +127,7 @@ def tile_limit(ctx, tile: int = 0) -> int:
     if tile < 0:
         raise MethodError(f"option tile must be 0 (the context's limits) or a positive number of pixels, "
                           f"got {tile}")
-    side = eisemann.tile_limit(ctx)
+    side = eisemann_passes.tile_limit(ctx)
     return side if tile == 0 else min(side, int(tile))
 
 
@@ -179,7 +178,7 @@ class Frame(Rays):
 
     def tiles(self) -> tuple[list[tuple[int, int]], list[tuple[int, int]]]:
         """(start, size) of the tiles along u and along v."""
-        return tile_spans(self.n_u, self.side), tile_spans(self.n_v, self.side)
+        return eisemann_passes.tile_spans(self.n_u, self.side), eisemann_passes.tile_spans(self.n_v, self.side)
 
 
 @dataclass(eq=False)
