@@ -360,6 +360,9 @@ def test_bad_arguments_are_refused(gl_context):
         run_method("eisemann-solid", mesh, spec, masks="lut")
     with pytest.raises(MethodError, match=r"option coverage must be one of"):
         run_method("eisemann-surface", mesh, spec, coverage="conservative")
+    with pytest.raises(MethodError, match=r"option tile must be 0 \(the context's limit\) or a positive number "
+                                          r"of pixels, got -1"):
+        run_method("eisemann-surface", mesh, spec, tile=-1)
     timer = StageTimer(gl_context)
     with pytest.raises(ValueError, match=r"op must be one of \['or', 'xor'\], got 'and'"):
         eisemann_passes.render_slice_masks(gl_context, mesh, spec, eisemann_passes.SliceRender("and"), timer=timer)

@@ -796,6 +796,9 @@ def test_options_are_checked(gl_context):
         run_method("leung-wang-ldi", mesh, spec, lod_c=0)
     with pytest.raises(MethodError, match=r"option targets must be one of"):
         run_method("leung-wang-ldi", mesh, spec, targets=9)
+    with pytest.raises(MethodError, match=r"option tile must be 0 \(the context's limit\) or a positive number "
+                                          r"of pixels, got -1"):
+        run_method("leung-wang-ldi", mesh, spec, tile=-1)
     with pytest.raises(MethodError, match="needs a method of kind 'ldi'"):
         glvox.ldi(mesh, 8, method="ss-solid")
     # a single cell: every ray through the box is an ELV, bounded by its two crossings

@@ -69,7 +69,7 @@ def tile_limit(ctx, tile: int = 0) -> int:
         When that minimum is below 32.
     """
     if tile < 0:
-        raise MethodError(f"option tile must be 0 (the context's limits) or a positive number of pixels, "
+        raise MethodError(f"option tile must be 0 (the context's limit) or a positive number of pixels, "
                           f"got {tile}")
     lim = ctx.limits()
     vp = lim.get("GL_MAX_VIEWPORT_DIMS") or (0, 0)

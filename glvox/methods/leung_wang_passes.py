@@ -125,7 +125,7 @@ def tile_limit(ctx, tile: int = 0) -> int:
         ``tile`` is negative.
     """
     if tile < 0:
-        raise MethodError(f"option tile must be 0 (the context's limits) or a positive number of pixels, "
+        raise MethodError(f"option tile must be 0 (the context's limit) or a positive number of pixels, "
                           f"got {tile}")
     side = eisemann_passes.tile_limit(ctx)
     return side if tile == 0 else min(side, int(tile))
