@@ -25,7 +25,7 @@ from glvox.gpu.buffers import buffer_pool
 from glvox.gl import raw as rawgl
 from glvox.grid import GridSpec
 from glvox.mesh import load_mesh
-from glvox.methods import depth_layers, get_method, run_method
+from glvox.methods import depth_layers, depth_raster, get_method, run_method
 from glvox.metrics import check_against_reference, tie_set
 from glvox.reference import mismatch_is_tie, solid
 from glvox.reference._candidates import column_candidates, normals
@@ -454,7 +454,7 @@ def test_tiled_views_give_identical_results(gl_context, name):
 
 
 def test_tile_larger_than_the_context_limit_is_clamped(gl_context):
-    limit = depth_layers.view_limit(gl_context)
+    limit = depth_raster.view_limit(gl_context)
     lim = gl_context.limits()
     assert limit <= lim["GL_MAX_TEXTURE_SIZE"] and limit <= min(lim["GL_MAX_VIEWPORT_DIMS"])
     mesh = load_mesh("gen:sphere")
@@ -481,7 +481,7 @@ def test_saturated_stencil_keeps_peeling(gl_context, monkeypatch):
     mesh = hollow_spheres()
     spec = glvox.grid_for(mesh, 40)
     normal = run_method("passalis-peel", mesh, spec)
-    monkeypatch.setattr(depth_layers, "STENCIL_MAX", 2)
+    monkeypatch.setattr(depth_raster, "STENCIL_MAX", 2)
     g = run_method("passalis-peel", mesh, spec)
     assert g.equal(normal)
     assert g.run.stats["max_crossings_per_class"] == {a: [2, 2] for a in "xyz"}

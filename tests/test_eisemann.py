@@ -23,7 +23,7 @@ from glvox.gl.timing import StageTimer
 from glvox.gpu.buffers import buffer_pool, object_cache
 from glvox.grid import GridSpec
 from glvox.mesh import load_mesh
-from glvox.methods import eisemann, run_method
+from glvox.methods import eisemann_passes, run_method
 from glvox.metrics import check_against_reference, tie_set
 from glvox.reference import TIE_EPS
 
@@ -91,8 +91,8 @@ def expected_box_surface(axis):
     return occ
 
 
-@pytest.mark.parametrize("coverage", eisemann.COVERAGES)
-@pytest.mark.parametrize("masks", eisemann.MASKS)
+@pytest.mark.parametrize("coverage", eisemann_passes.COVERAGES)
+@pytest.mark.parametrize("masks", eisemann_passes.MASKS)
 @pytest.mark.parametrize("axis", [0, 1, 2])
 def test_hand_worked_box(gl_context, axis, masks, coverage):
     mesh = box_mesh(BOX_LO, BOX_HI)
@@ -104,13 +104,13 @@ def test_hand_worked_box(gl_context, axis, masks, coverage):
 
 
 def test_mask_table_by_hand():
-    xor = eisemann.mask_table("xor", 8)
+    xor = eisemann_passes.mask_table("xor", 8)
     assert xor.shape == (1025, 8, 4) and xor.dtype == np.uint32
     assert (xor[0] == 0xFFFFFFFF).all() and (xor[1024] == 0).all()
     # row 200: slices 200..1023 -> target 1 (128..255), channel 2 (192..223), bits 8..31
     assert xor[200, 1, 2] == 0xFFFFFF00 and (xor[200, 1, :2] == 0).all() and xor[200, 1, 3] == 0xFFFFFFFF
     assert (xor[200, 2:] == 0xFFFFFFFF).all() and (xor[200, 0] == 0).all()
-    orr = eisemann.mask_table("or", 2)
+    orr = eisemann_passes.mask_table("or", 2)
     assert orr.shape == (257, 2, 4)
     assert orr[37, 0, 1] == 1 << 5 and np.count_nonzero(orr[37]) == 1 and not orr[256].any()
 
@@ -310,8 +310,8 @@ def test_fewer_targets_more_passes_same_words(gl_context):
             words = {}
             for targets in (8, 3, 1):
                 timer = StageTimer(gl_context)
-                buf = eisemann.render_slice_masks(gl_context, mesh, spec, op, timer=timer, axis=axis,
-                                                  targets=targets)
+                render = eisemann_passes.SliceRender(op, axis=axis, targets=targets)
+                buf = eisemann_passes.render_slice_masks(gl_context, mesh, spec, render, timer=timer)
                 words[targets] = np.frombuffer(buf.read(size=spec.n_words * 4), "<u4").copy()
                 slices = 128 * targets
                 assert timer.stats["passes"] == -(-spec.dims[axis] // slices)
@@ -320,7 +320,7 @@ def test_fewer_targets_more_passes_same_words(gl_context):
 
 
 @pytest.mark.parametrize("axis", [0, 1, 2])
-def test_tiling_at_a_forced_limit_gives_identical_results(gl_context, monkeypatch, axis):
+def test_tiling_at_a_forced_limit_gives_identical_results(gl_context, axis):
     """At a forced tile limit of 64 pixels: a 64-column grid is one tile, a
     65..100-column grid several; every tiling equals the untiled render."""
     m = crumpled_sphere()
@@ -328,21 +328,18 @@ def test_tiling_at_a_forced_limit_gives_identical_results(gl_context, monkeypatc
     specs = [glvox.grid_for(mesh, dims=(64, 64, 64)), glvox.grid_for(mesh, dims=(100, 65, 90))]
     free = [(run_method("eisemann-solid", mesh, s, axis=axis),
              run_method("eisemann-surface", mesh, s, axis=axis)) for s in specs]
-    monkeypatch.setattr(eisemann, "TILE_LIMIT_OVERRIDE", 64)
     for spec, (solid, surface) in zip(specs, free):
         n_u, n_v = spec.dims[(axis + 1) % 3], spec.dims[(axis + 2) % 3]
-        g = run_method("eisemann-solid", mesh, spec, axis=axis)
+        g = run_method("eisemann-solid", mesh, spec, axis=axis, tile=64)
         assert g.run.stats["tile_limit"] == 64
         assert g.run.stats["tiles"] == [-(-n_u // 64), -(-n_v // 64)]
         assert g.equal(solid)
-        assert run_method("eisemann-surface", mesh, spec, axis=axis).equal(surface)
-    assert run_method("eisemann-solid", mesh, specs[1], axis=axis).run.stats["draws"] > 1
-    monkeypatch.setattr(eisemann, "TILE_LIMIT_OVERRIDE", 40)  # rounded down to whole words
-    assert run_method("eisemann-solid", mesh, specs[1], axis=axis).equal(free[1][0])
-    monkeypatch.setattr(eisemann, "TILE_LIMIT_OVERRIDE", 16)
-    with pytest.raises(LimitError, match=r"tiles of at least 32 x 32 pixels, but "
-                                         r"glvox.methods.eisemann.TILE_LIMIT_OVERRIDE is 16"):
-        run_method("eisemann-solid", mesh, specs[0], axis=axis)
+        assert run_method("eisemann-surface", mesh, spec, axis=axis, tile=64).equal(surface)
+    assert run_method("eisemann-solid", mesh, specs[1], axis=axis, tile=64).run.stats["draws"] > 1
+    # rounded down to whole words
+    assert run_method("eisemann-solid", mesh, specs[1], axis=axis, tile=40).equal(free[1][0])
+    with pytest.raises(LimitError, match=r"tiles of at least 32 x 32 pixels, but option tile is 16"):
+        run_method("eisemann-solid", mesh, specs[0], axis=axis, tile=16)
 
 
 def test_grid_over_the_ssbo_limit_is_refused(gl_context):
@@ -363,11 +360,14 @@ def test_bad_arguments_are_refused(gl_context):
         run_method("eisemann-solid", mesh, spec, masks="lut")
     with pytest.raises(MethodError, match=r"option coverage must be one of"):
         run_method("eisemann-surface", mesh, spec, coverage="conservative")
+    with pytest.raises(MethodError, match=r"option tile must be 0 \(the context's limit\) or a positive number "
+                                          r"of pixels, got -1"):
+        run_method("eisemann-surface", mesh, spec, tile=-1)
     timer = StageTimer(gl_context)
     with pytest.raises(ValueError, match=r"op must be one of \['or', 'xor'\], got 'and'"):
-        eisemann.render_slice_masks(gl_context, mesh, spec, "and", timer=timer)
+        eisemann_passes.render_slice_masks(gl_context, mesh, spec, eisemann_passes.SliceRender("and"), timer=timer)
     with pytest.raises(ValueError, match=r"targets must be in 1..8, got 9"):
-        eisemann.render_slice_masks(gl_context, mesh, spec, "xor", timer=timer, targets=9)
+        eisemann_passes.render_slice_masks(gl_context, mesh, spec, eisemann_passes.SliceRender("xor", targets=9), timer=timer)
 
 
 def test_missing_storage_blocks_in_the_vertex_stage_are_refused():
@@ -377,7 +377,7 @@ def test_missing_storage_blocks_in_the_vertex_stage_are_refused():
     with pytest.raises(CapabilityError, match=r"reads the triangle setup from 1 shader storage block\(s\) "
                                               r"in its vertex shader, but GL_MAX_VERTEX_SHADER_STORAGE_BLOCKS "
                                               r"is 0 \(test renderer\)"):
-        eisemann._check_stage_storage(ctx)
+        eisemann_passes._check_stage_storage(ctx)
 
 
 # -- the paper's rasterization, measured -------------------------------------------
@@ -466,7 +466,7 @@ def test_registry_entries():
         "solid", "raster", "reference-solid", True)
     assert (surface.kind, surface.family, surface.reference, surface.exact) == (
         "surface", "raster", "reference-conservative", False)
-    assert solid.options["axis"].default == 2 and surface.options["masks"].default == eisemann.DEFAULT_MASKS
+    assert solid.options["axis"].default == 2 and surface.options["masks"].default == eisemann_passes.DEFAULT_MASKS
 
 
 def test_stages_and_stats(gl_context):
@@ -478,7 +478,7 @@ def test_stages_and_stats(gl_context):
     # 64 slices: one pass with one target of the eight
     assert (st["passes"], st["tiles"], st["draws"], st["slices_per_pass"], st["render_targets"]) == (
         1, [1, 1], 1, 1024, 1)
-    assert (st["axis"], st["coverage"], st["masks"]) == (2, "exact", eisemann.DEFAULT_MASKS)
+    assert (st["axis"], st["coverage"], st["masks"]) == (2, "exact", eisemann_passes.DEFAULT_MASKS)
     deep = run_method("eisemann-solid", mesh, glvox.grid_for(mesh, dims=(16, 16, 2100)))
     names = [s.name for s in deep.run.timings.stages]
     assert names == ["transform", "setup"] + ["render", "pack"] * 3 + ["readback"]

@@ -33,7 +33,7 @@ from glvox.errors import (FormatError, GridError, LimitError, MethodError, NotWa
                           NotWatertightWarning)
 from glvox.grid import GridSpec, ldi_axes
 from glvox.mesh import load_mesh
-from glvox.methods import depth_layers, leung_wang, run_method
+from glvox.methods import depth_raster, run_method
 from glvox.metrics import check_against_reference, tie_set
 from glvox.reference.ldi import crossing_tolerance, crossings, ray_ties
 from glvox.results.ldi import LDI, close_odd
@@ -515,14 +515,13 @@ def test_fuzzed_hulls(gl_context, solid, n, lod_c, axis):
     assert_equal_on(peel, ex, ~ex.ties)
 
 
-def test_tiles_give_the_same_ldi(gl_context, monkeypatch):
+def test_tiles_give_the_same_ldi(gl_context):
     mesh = nest_of_shells(3, gap=0.1)
     spec = glvox.grid_for(mesh, dims=(40, 36, 30))
     whole = {a: run_method("leung-wang-ldi", mesh, spec, axis=a, lod_c=300) for a in range(3)}
     peel = {a: run_method("peel-ldi", mesh, spec, axis=a) for a in range(3)}
-    monkeypatch.setattr(leung_wang, "TILE_LIMIT_OVERRIDE", 16)
     for a in range(3):
-        tiled = run_method("leung-wang-ldi", mesh, spec, axis=a, lod_c=300)
+        tiled = run_method("leung-wang-ldi", mesh, spec, axis=a, lod_c=300, tile=16)
         assert tiled.run.stats["tiles"][0] * tiled.run.stats["tiles"][1] > 1
         assert np.array_equal(tiled.depths, whole[a].depths, equal_nan=True)
         p = run_method("peel-ldi", mesh, spec, axis=a, tile=16)
@@ -554,7 +553,7 @@ def test_peeling_past_a_saturated_stencil(gl_context, monkeypatch):
     mesh = nest_of_shells(4, gap=0.1)
     spec = glvox.grid_for(mesh, 24)
     normal = run_method("peel-ldi", mesh, spec)
-    monkeypatch.setattr(depth_layers, "STENCIL_MAX", 5)
+    monkeypatch.setattr(depth_raster, "STENCIL_MAX", 5)
     saturated = run_method("peel-ldi", mesh, spec)
     assert np.array_equal(saturated.depths, normal.depths, equal_nan=True)
     assert saturated.run.stats["passes"] > normal.run.stats["passes"]
@@ -797,6 +796,9 @@ def test_options_are_checked(gl_context):
         run_method("leung-wang-ldi", mesh, spec, lod_c=0)
     with pytest.raises(MethodError, match=r"option targets must be one of"):
         run_method("leung-wang-ldi", mesh, spec, targets=9)
+    with pytest.raises(MethodError, match=r"option tile must be 0 \(the context's limit\) or a positive number "
+                                          r"of pixels, got -1"):
+        run_method("leung-wang-ldi", mesh, spec, tile=-1)
     with pytest.raises(MethodError, match="needs a method of kind 'ldi'"):
         glvox.ldi(mesh, 8, method="ss-solid")
     # a single cell: every ray through the box is an ELV, bounded by its two crossings

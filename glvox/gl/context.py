@@ -11,7 +11,7 @@ The contexts are made through moderngl/glcontext.  glcontext has no OSMesa
 backend and does not hand its function loader to moderngl's users, so glvox
 registers its own two backend names with glcontext (``glvox-egl`` wraps
 glcontext's EGL backend, ``glvox-osmesa`` drives libOSMesa through ctypes);
-both keep the loader, which :class:`glvox.gl.RawGL` needs for ``glLogicOp``
+both keep the loader, which :class:`glvox.gl.raw.RawGL` needs for ``glLogicOp``
 and stencil state on the same context.
 """
 
@@ -24,6 +24,7 @@ import threading
 from dataclasses import dataclass, field
 from typing import Any
 
+import glcontext
 import moderngl
 
 from ..errors import BackendError, GLError
@@ -108,8 +109,6 @@ def _egl_device_index() -> int:
 
 
 def _create_egl(**kwargs) -> _LoaderContext:
-    import glcontext
-
     index = _egl_device_index()
     kwargs["device_index"] = index
     inner = glcontext.get_backend_by_name("egl")(**kwargs)
@@ -183,8 +182,6 @@ def _register_backends() -> None:
     global _REGISTERED
     if _REGISTERED:
         return
-    import glcontext
-
     original = glcontext.get_backend_by_name
     ours = {"glvox-egl": _create_egl, "glvox-osmesa": _create_osmesa}
 
@@ -473,7 +470,7 @@ def get_context(backend: str | None = None) -> GLContext:
             if backend is not None and _normalize_backend(backend) not in ("auto", _shared.backend):
                 raise BackendError(
                     f"the shared context uses backend {_shared.backend!r}, asked for {backend!r}; "
-                    "call glvox.context.close_context() first or use create_context()"
+                    "call glvox.gl.context.close_context() first or use create_context()"
                 )
             _shared.make_current()
             return _shared

@@ -250,7 +250,7 @@ def compute_program(ctx, path: str, defines: Mapping[str, Any] | None = None,
 
     Parameters
     ----------
-    ctx : glvox.context.GLContext
+    ctx : glvox.gl.context.GLContext
     path : str
         Shader path relative to a search folder, e.g. ``"testing/bits.comp"``.
     defines : mapping, optional

@@ -40,22 +40,23 @@ from .dispatch import dispatch_1d
 #: Pool owner name of the scratch buffers (``buffer_pool(ctx, POOL)``).
 POOL = "gpu_sort"
 
-# The sizes below were measured on Mesa llvmpipe (2 CPU cores, 256-bit SIMD),
+# The sizes below were chosen on Mesa llvmpipe (CPU cores, 256-bit SIMD),
 # where every barrier switches between the coroutines of all SIMD chunks of a
 # work group and every shared or storage access of non-uniform address is a
 # loop over the lanes: few invocations with many items each win there (a GPU
-# would want wider groups; the shaders take any sizes as defines).
+# would want wider groups; the shaders take any sizes as defines).  Measured
+# with compare/bench_gpu_sort.py; figures in compare/README.md.
 
-#: Scan: invocations per work group, uints per invocation, uints per block.
-#: 4M uint32: 25 ms with 64 x 64, 60-80 ms with 256 x 16.
+#: Scan: invocations per work group, uints per invocation, uints per block
+#: (64 x 64 was faster than 256 x 16, as the note above leads to expect).
 SCAN_WG = 64
 SCAN_ITEMS = 64
 SCAN_BLOCK = SCAN_WG * SCAN_ITEMS
 
-#: Radix digit width used by :func:`sort_pairs` unless told otherwise.  On
-#: llvmpipe, 8-bit digits (4 passes for 32-bit keys) sorted 1M random pairs
-#: in 90 ms and 4M in 360 ms; 4-bit digits (8 passes) took 165 and 650 ms.  A
-#: pass costs about the same with either width: the scatter dominates.
+#: Radix digit width used by :func:`sort_pairs` unless told otherwise: 8-bit
+#: digits (4 passes for 32-bit keys) sort faster than 4-bit digits (8
+#: passes), as a pass costs about the same with either width: the scatter
+#: dominates.
 DIGIT_BITS = 8
 
 #: Per digit width: (invocations per work group, keys per invocation).  The
@@ -109,7 +110,7 @@ def exclusive_scan(ctx, src, dst, n: int, *, total=None) -> None:
 
     Parameters
     ----------
-    ctx : glvox.context.GLContext
+    ctx : glvox.gl.context.GLContext
     src : moderngl.Buffer
         ``n`` uint32 (little-endian, tightly packed) from offset 0; read only
         (unless it is ``dst``).  May be larger.
@@ -185,7 +186,7 @@ def sort_pairs(ctx, keys, values, n: int, *, key_bits: int = 32, digit_bits: int
 
     Parameters
     ----------
-    ctx : glvox.context.GLContext
+    ctx : glvox.gl.context.GLContext
     keys, values : moderngl.Buffer
         ``n`` uint32 each (little-endian, tightly packed) from offset 0; may
         be larger (bytes after ``4 * n`` are left untouched).
@@ -234,6 +235,12 @@ def sort_pairs(ctx, keys, values, n: int, *, key_bits: int = 32, digit_bits: int
     passes = (key_bits + bits - 1) // bits
     if n <= 1 or passes == 0:
         return
+    _radix_passes(ctx, keys, values, n, bits, passes)
+
+
+def _radix_passes(ctx, keys, values, n: int, bits: int, passes: int) -> None:
+    """``passes`` LSD passes of ``bits`` each (count, scan, scatter), ping-ponging
+    through the pool's scratch copies; the result ends in ``keys`` and ``values``."""
     wg, items = RADIX_CONFIGS[bits]
     tile = wg * items
     groups = (n + tile - 1) // tile

@@ -150,9 +150,9 @@ class Method:
         ----------
         mesh : glvox.mesh.Mesh
         spec : glvox.grid.GridSpec
-        ctx : glvox.context.GLContext or None
+        ctx : glvox.gl.context.GLContext or None
             The context for GL methods; None for CPU methods.
-        timer : glvox.timing.StageTimer
+        timer : glvox.gl.timing.StageTimer
             Wrap each stage in ``with timer.stage(name):``.
         **options
             The method's options, already validated and with defaults filled.

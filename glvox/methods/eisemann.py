@@ -2,14 +2,14 @@
 
 ``eisemann-solid`` (Eisemann & Decoret 2008, described in Leung & Wang 2013
 Sec. III-A, Alg. 1 lines 1-7, and Schwarz & Seidel 2010 Sec. 2): one
-orthographic render of the mesh along an axis (z by default) into
-:data:`TARGETS` RGBA32UI render targets, 1024 bits per pixel, one bit per
-slice.  Each fragment (a triangle crossing a voxel column) writes ones at
-every slice whose voxel center lies beyond the crossing; the logic op XOR
-combines them, so each bit ends as the parity of the crossings below its
-voxel center: the solid voxelization (a voxel is set iff its center is
-inside).  Deeper grids take one pass per 1024 slices; a pass over fewer
-slices uses only the targets it needs (one for 128 slices).
+orthographic render of the mesh along an axis (z by default) into 8 RGBA32UI
+render targets, 1024 bits per pixel, one bit per slice.  Each fragment (a
+triangle crossing a voxel column) writes ones at every slice whose voxel
+center lies beyond the crossing; the logic op XOR combines them, so each bit
+ends as the parity of the crossings below its voxel center: the solid
+voxelization (a voxel is set iff its center is inside).  Deeper grids take
+one pass per 1024 slices; a pass over fewer slices uses only the targets it
+needs (one for 128 slices).
 
 ``eisemann-surface`` (Eisemann & Decoret 2006): the same machinery with OR,
 each fragment setting only the slice that holds its crossing point: a thin
@@ -50,380 +50,46 @@ per tile and pass ``render`` (zero the targets, draw with the logic op) and
 ``pack`` (a compute pass turning the targets into glvox's packed grid: a copy
 when rendering along x, 32x32 bit transposes along y and z), ``readback``
 (the grid words only).
-:func:`render_slice_masks` is the reusable part (Leung & Wang's T1 and T2
-masks are this XOR and OR pass).
+:func:`~glvox.methods.eisemann_passes.render_slice_masks` is the reusable
+part (:mod:`glvox.methods.eisemann_passes`); Leung & Wang's T1 and T2 masks
+reuse its shaders.
 
-Limits.  A tile is at most :func:`tile_limit` pixels along u and v (GL's
-texture, renderbuffer and viewport limits, and :data:`MAX_TILE` to bound the
-targets' memory, 128 bytes per pixel); larger grids are drawn tile by tile
-with identical results.  The grid itself must fit one shader storage buffer.
+Limits.  A tile is at most :func:`~glvox.methods.eisemann_passes.tile_limit`
+pixels along u and v (GL's texture, renderbuffer and viewport limits, and
+``MAX_TILE`` to bound the targets' memory, 128 bytes per pixel), or the
+``tile`` option's side rounded down to a multiple of 32 (at least 32);
+larger grids are drawn tile by tile with identical results.  The grid itself
+must fit one shader storage buffer.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any, Callable, Mapping
-
-import moderngl
-import numpy as np
-
-from ..errors import CapabilityError, LimitError
-from ..gl.shaders import compute_program, render_program
-from ..gpu.buffers import buffer_pool, object_cache, read_grid_words, release_object_cache
-from ..gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set_uniforms
-from ..gpu.transform import transform_vertices
+from ..gpu.buffers import read_grid_words
 from ..results.voxels import VoxelGrid
 from .base import Method, MethodInfo, Option, Requirements, register
+from .eisemann_passes import COVERAGES, DEFAULT_MASKS, MASKS, TARGETS, SliceRender, release_targets, render_slice_masks
 
 _PAPER_2008 = ("Eisemann & Decoret 2008 (Leung & Wang 2013 Sec. III-A, Alg. 1 lines 1-7; "
                "Schwarz & Seidel 2010 Sec. 2)")
 _PAPER_2006 = "Eisemann & Decoret 2006 (the OR variant; Schwarz & Seidel 2010 Sec. 2)"
-
-#: Render targets per pass (RGBA32UI, 128 slices each): 8 x 128 = 1024 slices.
-TARGETS = 8
-SLICES_PER_TARGET = 128
-
-#: Largest tile side in pixels whatever GL allows: the targets take 16 bytes
-#: per pixel each, 128 bytes with 8 targets, so a 2048^2 tile is 512 MiB.
-MAX_TILE = 2048
-
-#: When set, an upper bound on the tile side below GL's limits; the tests
-#: force a small one to exercise tiling on small grids.  Must be >= 32.
-TILE_LIMIT_OVERRIDE: int | None = None
-
-#: Mask generation in the fragment shader: "bits" (shifts and selects) or
-#: "texture" (a precomputed mask table, one texel fetch per target, as the
-#: paper looks masks up in a texture).  Measured here (llvmpipe, 2 shared
-#: cores, compare/bench_eisemann_masks.py, armadillo, bunny and dragon at
-#: 128^3-512^3, the two interleaved): for XOR the table's render stage took
-#: 1.05-1.17 times as long as the bits' in the quietest run; for OR neither
-#: wins consistently (0.82-1.09).  The default is the bits, which also need
-#: no texture unit.
-MASKS = ("bits", "texture")
-DEFAULT_MASKS = "bits"
-COVERAGES = ("exact", "raster")
-OPS = {"xor": 0, "or": 1}
-
-# the pack pass: a fixed 32-iteration load, 80 swap steps and 4 x 32 stores
-assert 32 + 80 + 4 * 32 < LOOP_BUDGET
-
-_LOCAL = 64  # local_size_x of eisemann/pack.comp
 _REQUIRES = Requirements(gl_version=450, limits={
     "GL_MAX_DRAW_BUFFERS": TARGETS, "GL_MAX_COLOR_ATTACHMENTS": TARGETS,
     "GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 4})
 
 
-def tile_limit(ctx) -> int:
-    """Largest tile side (pixels) for ``ctx``: a multiple of 32.
-
-    The minimum of GL_MAX_TEXTURE_SIZE, GL_MAX_RENDERBUFFER_SIZE, both
-    GL_MAX_VIEWPORT_DIMS, :data:`MAX_TILE` and :data:`TILE_LIMIT_OVERRIDE`,
-    rounded down to a multiple of 32 so that tiles start at whole words of the
-    packed grid.
-
-    Raises
-    ------
-    LimitError
-        When that minimum is below 32.
-    """
-    lim = ctx.limits()
-    vp = lim.get("GL_MAX_VIEWPORT_DIMS") or (0, 0)
-    names = {"GL_MAX_TEXTURE_SIZE": lim.get("GL_MAX_TEXTURE_SIZE", 0),
-             "GL_MAX_RENDERBUFFER_SIZE": lim.get("GL_MAX_RENDERBUFFER_SIZE", 0),
-             "GL_MAX_VIEWPORT_DIMS": min(vp), "glvox.methods.eisemann.MAX_TILE": MAX_TILE}
-    if TILE_LIMIT_OVERRIDE is not None:
-        names["glvox.methods.eisemann.TILE_LIMIT_OVERRIDE"] = int(TILE_LIMIT_OVERRIDE)
-    which = min(names, key=lambda k: names[k])
-    side = int(names[which])
-    if side < 32:
-        raise LimitError(
-            f"the Eisemann-Decoret render needs tiles of at least 32 x 32 pixels, but {which} is "
-            f"{side} ({ctx.renderer}); use a compute method (ss-conservative, scanline-*) instead"
-        )
-    return side - side % 32
-
-
-def _tiles(n: int, side: int) -> list[tuple[int, int]]:
-    """(start, size) of the tiles covering ``n`` columns, ``side`` at a time."""
-    return [(s, min(side, n - s)) for s in range(0, n, side)]
-
-
-@dataclass(eq=False)
-class _Targets:
-    """The render targets of one context (up to :data:`TARGETS`, grown on
-    demand) and a framebuffer per number of them attached."""
-
-    textures: list
-    fbos: dict
-    size: tuple[int, int]
-
-    def release(self, ctx) -> None:
-        for fbo in self.fbos.values():
-            ctx.release_framebuffer(fbo)
-        for t in self.textures:
-            t.release()
-
-
-def _cache(ctx) -> dict:
-    return object_cache(ctx, "eisemann", lambda cache: _release_cache(ctx, cache))
-
-
-def _release_cache(ctx, cache: dict) -> None:
-    for obj in cache.values():
-        if isinstance(obj, _Targets):
-            obj.release(ctx)
-        else:
-            obj.release()
-    cache.clear()
-
-
-def _targets(ctx, n: int, size: tuple[int, int]) -> _Targets:
-    """At least ``n`` RGBA32UI targets of at least ``size`` pixels."""
-    cache = _cache(ctx)
-    tg = cache.get("targets")
-    if tg is not None and len(tg.textures) >= n and tg.size[0] >= size[0] and tg.size[1] >= size[1]:
-        return tg
-    if tg is not None:
-        size = (max(size[0], tg.size[0]), max(size[1], tg.size[1]))
-        n = max(n, len(tg.textures))
-        tg.release(ctx)
-    textures = []
-    for _ in range(n):
-        t = ctx.mgl.texture(size, 4, dtype="u4")
-        t.filter = (moderngl.NEAREST, moderngl.NEAREST)  # integer textures are incomplete otherwise
-        textures.append(t)
-    tg = _Targets(textures, {}, size)
-    cache["targets"] = tg
-    return tg
-
-
-def _framebuffer(ctx, tg: _Targets, n: int):
-    """The framebuffer of the first ``n`` targets."""
-    fbo = tg.fbos.get(n)
-    if fbo is None:
-        fbo = tg.fbos[n] = ctx.mgl.framebuffer(color_attachments=tg.textures[:n])
-    return fbo
-
-
-def mask_table(op: str, targets: int = TARGETS) -> np.ndarray:
-    """The precomputed masks of ``masks="texture"``.
-
-    Returns
-    -------
-    (slices + 1, targets, 4) uint32
-        Row ``r``: for ``op='xor'`` ones at every slice ``>= r`` of the pass,
-        for ``op='or'`` the single slice ``r`` (row ``slices`` is empty);
-        slice ``s`` is bit ``s % 32`` of channel ``(s // 32) % 4`` of target
-        ``s // 128``.
-    """
-    slices = SLICES_PER_TARGET * targets
-    r = np.arange(slices + 1)[:, None]
-    s = np.arange(slices)[None, :]
-    bits = (s >= r) if op == "xor" else (s == r)
-    packed = np.packbits(bits, axis=1, bitorder="little").view("<u4")
-    return np.ascontiguousarray(packed.reshape(slices + 1, targets, 4))
-
-
-def _mask_texture(ctx, op: str, targets: int):
-    cache = _cache(ctx)
-    key = ("masks", op, targets)
-    tex = cache.get(key)
-    if tex is None:
-        table = mask_table(op, targets)
-        tex = ctx.mgl.texture((targets, table.shape[0]), 4, table.tobytes(), dtype="u4")
-        tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        cache[key] = tex
-    return tex
-
-
-def _check_stage_storage(ctx) -> None:
-    """The vertex stage reads the per-triangle setup, the fragment stage the
-    voxel-space vertices and the faces, from shader storage blocks (GL only
-    guarantees them in fragment shaders)."""
-    info = ctx.mgl.info
-    for stage, need, what in (("VERTEX", 1, "the triangle setup"),
-                              ("FRAGMENT", 2, "the vertices and faces")):
-        name = f"GL_MAX_{stage}_SHADER_STORAGE_BLOCKS"
-        have = int(info.get(name, 0))
-        if have < need:
-            raise CapabilityError(
-                f"the Eisemann-Decoret render reads {what} from {need} shader storage block(s) in its "
-                f"{stage.lower()} shader, but {name} is {have} ({ctx.renderer})"
-            )
-
-
-def render_slice_masks(ctx, mesh, spec, op: str, *, timer, axis: int = 2, masks: str = DEFAULT_MASKS,
-                       coverage: str = "exact", targets: int = TARGETS, owner: str = "eisemann",
-                       grid_name: str = "grid", fragment: str = "eisemann/slices.frag",
-                       defines: Mapping[str, Any] | None = None,
-                       setup: Callable[[Any], None] | None = None):
-    """Render ``mesh`` along ``axis`` with logic op ``op`` into per-column slice masks,
-    and pack them into glvox's bit grid on the GPU.
-
-    Parameters
-    ----------
-    ctx : GLContext
-    mesh : glvox.mesh.Mesh
-    spec : GridSpec
-    op : {'xor', 'or'}
-        ``'xor'``: each fragment flips every slice whose voxel center lies
-        beyond its crossing (solid); ``'or'``: it sets the slice holding its
-        crossing (surface).
-    timer : StageTimer
-        Receives the stages ``transform``, ``setup``, then ``render`` and
-        ``pack`` once per tile and pass; ``timer.stats`` gets ``tiles`` ([along u, along v]),
-        ``passes`` (per tile), ``draws``, ``slices_per_pass``, ``tile_limit``.
-    axis : {0, 1, 2}
-        Render (ray) axis; the pixel grid is ``((axis+1) % 3, (axis+2) % 3)``.
-    masks : {'bits', 'texture'}
-        Mask generation in the fragment shader.
-    coverage : {'exact', 'raster'}
-        Who decides which column centers a triangle covers (module docstring).
-    targets : int
-        Render targets per pass at most, 1..8 (128 slices each); fewer means
-        more passes (the tests use it to exercise passes on small grids).
-    owner : str
-        Name of the buffer pool (see :func:`glvox.methods._gpu.buffer_pool`).
-    grid_name : str
-        Name of the result buffer in that pool; two calls with different
-        names keep both grids (e.g. Leung & Wang's T1 and T2).
-    fragment : str
-        Fragment shader.  Another one (e.g. an OR pass masked by an earlier
-        grid) includes ``eisemann/column.glsl`` and ``eisemann/masks.glsl``,
-        declares ``flat in uint v_tri; uniform ivec2 u_tile_lo; uniform int
-        u_slice_lo;`` and works as ``eisemann/slices.frag`` does; storage
-        bindings 0, 1 and 3 are taken (voxel-space vertices, faces, setup).
-    defines : mapping, optional
-        Extra defines for the vertex and fragment shaders.
-    setup : callable, optional
-        ``setup(program)`` before each draw, to set the extra shader's
-        uniforms and bind its resources.
-
-    Returns
-    -------
-    moderngl.Buffer
-        The pool's ``grid_name`` buffer holding ``spec.n_words`` uint32 words
-        in the layout of ``common/voxel_space.glsl`` (zero bits past the grid);
-        valid until the next call with the same ``owner`` and ``grid_name``.
-    """
-    if op not in OPS:
-        raise ValueError(f"op must be one of {sorted(OPS)}, got {op!r}")
-    if axis not in (0, 1, 2):
-        raise ValueError(f"axis must be 0, 1 or 2, got {axis!r}")
-    if masks not in MASKS:
-        raise ValueError(f"masks must be one of {list(MASKS)}, got {masks!r}")
-    if coverage not in COVERAGES:
-        raise ValueError(f"coverage must be one of {list(COVERAGES)}, got {coverage!r}")
-    if not 1 <= int(targets) <= TARGETS:
-        raise ValueError(f"targets must be in 1..{TARGETS}, got {targets!r}")
-    _check_stage_storage(ctx)
-    side = tile_limit(ctx)
-    dims = spec.dims
-    u_ax, v_ax = (axis + 1) % 3, (axis + 2) % 3
-    n_u, n_v, n_a = dims[u_ax], dims[v_ax], dims[axis]
-    slices = SLICES_PER_TARGET * targets
-    tiles_u, tiles_v = _tiles(n_u, side), _tiles(n_v, side)
-    passes = -(-n_a // slices)
-
-    pool = buffer_pool(ctx, owner)
-    # the grid first: a grid over the SSBO limit is refused before any other work
-    grid = pool.get(grid_name, spec.n_words * 4, what=f"the {spec.dims} bit grid")
-    bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool, double=True)
-
-    kind = {"EIS_OP": OPS[op], "EIS_COVERAGE": COVERAGES.index(coverage)}
-    n_tri = bufs.n_triangles
-    per_tri = pool.get("setup", n_tri * 48, what="per-triangle setup", clear=False)
-    setup_prog = compute_program(ctx, "eisemann/setup.comp", {"EIS_AXIS": axis, **kind})
-    set_uniforms(setup_prog, {"u_triangles": n_tri, "u_dims": tuple(dims)})
-    with timer.stage("setup"):
-        vox.bind_to_storage_buffer(0)
-        bufs.faces.bind_to_storage_buffer(1)
-        per_tri.bind_to_storage_buffer(3)
-        dispatch_1d(ctx, setup_prog, n_tri, _LOCAL)
-        barrier(ctx)
-
-    # A pass uses only the targets its slices need (a 128^3 grid: one), so
-    # shallow grids write and pack 16 bytes per fragment and pixel, not 128.
-    per_pass = [min(targets, -(-(min(n_a, lo + slices) - lo) // SLICES_PER_TARGET))
-                for lo in range(0, n_a, slices)]
-    tg = _targets(ctx, max(per_pass), (tiles_u[0][1], tiles_v[0][1]))
-    mask_unit = TARGETS  # the targets take image units 0..7 in the pack pass
-    programs = {}
-    for used in set(per_pass):
-        base = {"EIS_AXIS": axis, "EIS_TARGETS": used}
-        prog = render_program(ctx, "eisemann/slices.vert", fragment,
-                              defines={**base, **kind, "EIS_MASKS": MASKS.index(masks), **(defines or {})})
-        if masks == "texture":
-            set_uniforms(prog, {"u_mask_table": mask_unit})
-        clear = render_program(ctx, "eisemann/clear.vert", "eisemann/clear.frag", defines=base)
-        pack = compute_program(ctx, "eisemann/pack.comp", base)
-        set_uniforms(pack, grid_uniforms(spec, bufs.anchor))
-        programs[used] = (prog, ctx.mgl.vertex_array(prog, []), ctx.mgl.vertex_array(clear, []), pack,
-                          _mask_texture(ctx, op, used) if masks == "texture" else None,
-                          _framebuffer(ctx, tg, used))
-    # depth, culling and blending would change what the logic op sees
-    ctx.mgl.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
-    try:
-        for u0, tw in tiles_u:
-            for v0, th in tiles_v:
-                for p, used in enumerate(per_pass):
-                    prog, vao, clear_vao, pack, table, fbo = programs[used]
-                    lo, hi = p * slices, min((p + 1) * slices, n_a)
-                    tile = {"u_tile_lo": (u0, v0), "u_tile_size": (tw, th),
-                            "u_slice_lo": lo, "u_slice_hi": hi}
-                    with timer.stage("render"):
-                        fbo.viewport = (0, 0, tw, th)
-                        fbo.use()
-                        clear_vao.render(moderngl.TRIANGLES, vertices=3)
-                        set_uniforms(prog, tile)
-                        vox.bind_to_storage_buffer(0)
-                        bufs.faces.bind_to_storage_buffer(1)
-                        per_tri.bind_to_storage_buffer(3)
-                        if table is not None:
-                            table.use(mask_unit)
-                        if setup is not None:
-                            setup(prog)
-                        with ctx.logic_op(op):
-                            vao.render(moderngl.TRIANGLES, vertices=3 * n_tri)
-                    with timer.stage("pack"):
-                        for t in range(used):
-                            tg.textures[t].bind_to_image(t, read=True, write=False)
-                        grid.bind_to_storage_buffer(2)
-                        if axis == 0:
-                            count = used * tw * th
-                            words_x = 0
-                        else:
-                            x_n, other_n = (tw, th) if axis == 2 else (th, tw)
-                            words_x = -(-x_n // 32)
-                            count = words_x * other_n * used
-                        set_uniforms(pack, {**tile, "u_words_x": words_x, "u_invocations": count})
-                        dispatch_1d(ctx, pack, count, _LOCAL)
-                        barrier(ctx)
-    finally:
-        for _, vao, clear_vao, *_ in programs.values():
-            vao.release()
-            clear_vao.release()
-    timer.stats.update({
-        "axis": axis, "coverage": coverage, "masks": masks, "render_targets": max(per_pass),
-        "slices_per_pass": slices, "passes": passes, "tiles": [len(tiles_u), len(tiles_v)],
-        "draws": passes * len(tiles_u) * len(tiles_v), "tile_limit": side,
-    })
-    return grid
-
-
 class _Eisemann(Method):
     op = "xor"
 
-    def run(self, mesh, spec, *, ctx, timer, axis, masks, coverage):
-        grid = render_slice_masks(ctx, mesh, spec, self.op, timer=timer, axis=axis, masks=masks,
-                                  coverage=coverage, owner=self.info.name)
+    def run(self, mesh, spec, *, ctx, timer, axis, masks, coverage, tile):
+        render = SliceRender(self.op, axis=axis, masks=masks, coverage=coverage, tile=tile)
+        grid = render_slice_masks(ctx, mesh, spec, render, timer=timer, owner=self.info.name)
         with timer.stage("readback", gpu=False):
             words = read_grid_words(grid, spec)
         return VoxelGrid(words=words, spec=spec)
 
     def release(self, ctx) -> None:
         super().release(ctx)
-        release_object_cache(ctx, "eisemann")
+        release_targets(ctx)
 
 
 def _options(what: str) -> dict[str, Option]:
@@ -433,6 +99,8 @@ def _options(what: str) -> dict[str, Option]:
         "coverage": Option("exact", "who decides the covered column centers: the double-precision "
                                     "edge test (exact) or the rasterizer on snapped vertices (raster)",
                            COVERAGES),
+        "tile": Option(0, "largest render-target side in pixels; larger views are drawn in tiles "
+                          "(0: the context's limits); rounded down to a multiple of 32, at least 32"),
     }
 
 

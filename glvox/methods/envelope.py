@@ -98,7 +98,7 @@ def run_in_envelope(info: MethodInfo, meshes: Sequence[Any], spec: GridSpec,
                              "degenerate_dropped": sum(m.n_degenerate for m in meshes),
                              "watertight": all(m.watertight for m in meshes)}
     stats.update(timer.stats)
-    count = getattr(result, "count", None)  # once: counting a 1024^3 grid costs ~40 ms
+    count = getattr(result, "count", None)  # once: counting walks every word of the grid
     if count is not None:
         stats["voxels"] = count
     result.run = RunInfo(method=info.name, kind=info.kind, spec=spec, timings=timings,

@@ -1,14 +1,22 @@
 """The exact CPU references (float64 numpy), registered as methods.
 
 They are what every GPU method is checked against (DESIGN.md, "Kinds of
-result"); the geometry lives in :mod:`glvox.reference`.
+result"); the geometry lives in :mod:`glvox.reference`.  ``reference-ldi``
+gives the exact crossings of every pixel ray; its rays are checked with
+:func:`glvox.reference.ldi.ray_ties` rather than a voxel tie set (an LDI is
+compared ray by ray).
 """
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..reference import conservative_surface, six_separating_surface, solid, solid_ties, surface_ties
+from ..reference.ldi import crossings
+from ..results.ldi import LDI, close_odd
 from ..results.voxels import VoxelGrid
 from .base import Method, MethodInfo, Option, register
+from .ldi_common import AXIS_OPTION, warn_open
 
 _SS = "Schwarz & Seidel 2010"
 
@@ -73,3 +81,25 @@ class ReferenceSolid(_CpuReference):
     )
     compute = staticmethod(solid)
     ties = staticmethod(solid_ties)
+
+
+@register
+class ReferenceLDI(Method):
+    info = MethodInfo(
+        name="reference-ldi", kind="ldi", family="cpu",
+        paper="exact ray/mesh crossings (float64) with the fill rule of reference-solid "
+              "(Schwarz & Seidel 2010, Sec. 4.1)",
+        summary="exact LDI on the CPU: every crossing of every pixel ray, sorted, rounded to float32",
+        reference="reference-solid", exact=True,
+        options={"axis": AXIS_OPTION},
+    )
+
+    def run(self, mesh, spec, *, ctx, timer, axis):
+        warn_open(mesh, self.info.name)
+        with timer.stage("setup", gpu=False):
+            tris = mesh.triangles_voxel(spec)
+        with timer.stage("crossings", gpu=False):
+            rc = crossings(tris, spec.dims, axis)
+            depths, counts = close_odd(rc.depths, rc.counts, spec.dims[axis])
+        timer.stats.update({"axis": axis, "n_max": int(depths.shape[2]), "samples": int(counts.sum())})
+        return LDI(depths.astype(np.float32), counts, spec, axis)

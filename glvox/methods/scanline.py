@@ -34,7 +34,7 @@ stage, and ILV triangles refused for :data:`~glvox.reference.scanline.ILV_COORD_
 which raise :class:`~glvox.errors.LimitError` after the dispatch).
 
 Mesa's llvmpipe ends all loops of a SIMD batch after 65535 iterations in
-total (:data:`glvox.methods._gpu.LOOP_BUDGET`), silently.  Each invocation
+total (:data:`glvox.gpu.dispatch.LOOP_BUDGET`), silently.  Each invocation
 charges itself for its loop iterations (``shaders/scanline/budget.glsl``)
 against its share of that budget and, before running out, stops drawing and
 lists its triangle.  Listed triangles are then measured (one invocation each,

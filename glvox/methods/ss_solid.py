@@ -14,19 +14,19 @@ the bounds kept with the uploaded mesh: no readback), writes only the words
 that change, and counts the set voxels; only the z slices of those rows are
 read back.  The first voxelization pass sets each triangle up once and does
 its first chunk of columns; the rare triangles with more chunks are listed
-for a second, indirect pass.  Measured on llvmpipe (``glvox bench``, bunny):
-word-by-word flips 15 ms at 256^3 and 234 ms at 1024^3; one bit per crossing
-with a separate crossing grid 9 and 149 ms; in place over the mesh's rows 7
-and 106 ms (dragon at 512^3 and 1024^3: 24.8 -> 16.7 ms, 130 -> 56 ms).
+for a second, indirect pass.  One bit per crossing and the in-place fill
+over the mesh's rows each took less time than the paper's word-by-word flips
+(measured with ``glvox bench`` on the bunny and the dragon; figures in
+compare/README.md).
 
 ``ss-solid-tiled`` (Sec. 4.2) assigns triangles to tiles of 4 x 4 columns
 instead and processes each tile's triangles without atomics:
 
 * ``pairs``: per triangle, the tiles whose critical column center passes the
   edge tests are counted (``ss/tile_pairs.comp``), the counts are scanned
-  (:func:`glvox.gpu_sort.exclusive_scan`) and the (tile, triangle) pairs
+  (:func:`glvox.gpu.sort.exclusive_scan`) and the (tile, triangle) pairs
   written at each triangle's offset;
-* ``sort``: the pairs are sorted by tile (:func:`glvox.gpu_sort.sort_pairs`,
+* ``sort``: the pairs are sorted by tile (:func:`glvox.gpu.sort.sort_pairs`,
   only the significant key bits);
 * ``compact``: the first pair of each tile is flagged, the flags scanned and
   the active tiles compacted into a list with their ranges;
@@ -156,6 +156,70 @@ def _classify(ctx, spec, timer, bufs, vox, pool, unit, chunk):
     return stats, tri_chunks
 
 
+#: Defines of the tiled passes.
+_TILE_DEFINES = {"TILE": TILE, "SOLID_CHUNK": TILE_CHUNK}
+
+
+def _tile_pairs(ctx, pool, bufs, vox, tri_chunks, stats, common, max_groups):
+    """The (tile, triangle) work queue: per triangle the tiles whose critical column
+    center passes the edge tests are counted, the counts scanned, and the pairs written
+    at each triangle's offset.  Returns (keys, values, n_pairs): tiles and triangles."""
+    n = bufs.n_triangles
+    args = _indirect_chunks(ctx, pool, n, stats, max_groups)
+    counts = pool.get("counts", n * 4, what="per-triangle tile counts")
+    total = pool.get("total", 4, clear=False)
+    count = compute_program(ctx, "ss/tile_pairs.comp", {**_TILE_DEFINES, "EMIT": 0})
+    set_uniforms(count, common)
+    vox.bind_to_storage_buffer(1)
+    bufs.faces.bind_to_storage_buffer(2)
+    tri_chunks.bind_to_storage_buffer(5)
+    counts.bind_to_storage_buffer(6)
+    count.run_indirect(args)
+    barrier(ctx)
+    exclusive_scan(ctx, counts, counts, n, total=total)
+    barrier(ctx)
+    # the one value the CPU needs inside the pipeline: the queue length sizes the sort
+    n_pairs = int(np.frombuffer(total.read(size=4), dtype="<u4")[0])
+    keys = pool.get("keys", n_pairs * 4, what=f"{n_pairs} tile keys", clear=False)
+    values = pool.get("values", n_pairs * 4, what=f"{n_pairs} tile triangles", clear=False)
+    emit = compute_program(ctx, "ss/tile_pairs.comp", {**_TILE_DEFINES, "EMIT": 1})
+    set_uniforms(emit, common)
+    vox.bind_to_storage_buffer(1)
+    bufs.faces.bind_to_storage_buffer(2)
+    tri_chunks.bind_to_storage_buffer(5)
+    counts.bind_to_storage_buffer(6)
+    keys.bind_to_storage_buffer(7)
+    values.bind_to_storage_buffer(8)
+    emit.run_indirect(args)
+    barrier(ctx)
+    return keys, values, n_pairs
+
+
+def _compact_tiles(ctx, pool, keys, n_pairs):
+    """The active tiles with their ranges in the sorted queue: the first pair of each tile
+    flagged, the flags scanned, the tiles compacted.  Returns (active, tile_stats): the
+    list and (active tiles, the fullest tile's triangles, ...) as uint32."""
+    flags = pool.get("flags", n_pairs * 4, what="tile start flags", clear=False)
+    slots = pool.get("slots", n_pairs * 4, what="tile slots", clear=False)
+    active = pool.get("active", n_pairs * 8, what="active tile list", clear=False)
+    tstats = pool.get("tile_stats", 4 * 4)
+    for phase in (0, 1, 2):
+        if phase == 1:
+            exclusive_scan(ctx, flags, slots, n_pairs, total=tstats)
+            barrier(ctx)
+        prog = compute_program(ctx, "ss/tile_compact.comp", {"PHASE": phase})
+        set_uniforms(prog, {"u_pairs": n_pairs})
+        keys.bind_to_storage_buffer(0)
+        flags.bind_to_storage_buffer(1)
+        slots.bind_to_storage_buffer(2)
+        active.bind_to_storage_buffer(3)
+        tstats.bind_to_storage_buffer(4)
+        # phase 2 runs over active tiles, of which there are at most as many as pairs
+        dispatch_1d(ctx, prog, n_pairs, 256)
+        barrier(ctx)
+    return active, tstats
+
+
 @register
 class SSSolid(Method):
     info = MethodInfo(
@@ -245,61 +309,13 @@ class SSSolidTiled(Method):
         tiles_y, tiles_z = -(-ny // TILE), -(-nz // TILE)
         key_bits = max(1, (tiles_y * tiles_z - 1).bit_length())
         common = {**grid_uniforms(spec, bufs.anchor), "u_triangles": n}
-        defines = {"TILE": TILE, "SOLID_CHUNK": TILE_CHUNK}
         stats, tri_chunks = _classify(ctx, spec, timer, bufs, vox, pool, TILE, TILE_CHUNK)
-
         with timer.stage("pairs"):
-            args = _indirect_chunks(ctx, pool, n, stats, max_groups)
-            counts = pool.get("counts", n * 4, what="per-triangle tile counts")
-            total = pool.get("total", 4, clear=False)
-            count = compute_program(ctx, "ss/tile_pairs.comp", {**defines, "EMIT": 0})
-            set_uniforms(count, common)
-            vox.bind_to_storage_buffer(1)
-            bufs.faces.bind_to_storage_buffer(2)
-            tri_chunks.bind_to_storage_buffer(5)
-            counts.bind_to_storage_buffer(6)
-            count.run_indirect(args)
-            barrier(ctx)
-            exclusive_scan(ctx, counts, counts, n, total=total)
-            barrier(ctx)
-            # the one value the CPU needs inside the pipeline: the queue length sizes the sort
-            n_pairs = int(np.frombuffer(total.read(size=4), dtype="<u4")[0])
-            keys = pool.get("keys", n_pairs * 4, what=f"{n_pairs} tile keys", clear=False)
-            values = pool.get("values", n_pairs * 4, what=f"{n_pairs} tile triangles", clear=False)
-            emit = compute_program(ctx, "ss/tile_pairs.comp", {**defines, "EMIT": 1})
-            set_uniforms(emit, common)
-            vox.bind_to_storage_buffer(1)
-            bufs.faces.bind_to_storage_buffer(2)
-            tri_chunks.bind_to_storage_buffer(5)
-            counts.bind_to_storage_buffer(6)
-            keys.bind_to_storage_buffer(7)
-            values.bind_to_storage_buffer(8)
-            emit.run_indirect(args)
-            barrier(ctx)
-
+            keys, values, n_pairs = _tile_pairs(ctx, pool, bufs, vox, tri_chunks, stats, common, max_groups)
         with timer.stage("sort"):
             sort_pairs(ctx, keys, values, n_pairs, key_bits=key_bits)
-
         with timer.stage("compact"):
-            flags = pool.get("flags", n_pairs * 4, what="tile start flags", clear=False)
-            slots = pool.get("slots", n_pairs * 4, what="tile slots", clear=False)
-            active = pool.get("active", n_pairs * 8, what="active tile list", clear=False)
-            tstats = pool.get("tile_stats", 4 * 4)
-            for phase in (0, 1, 2):
-                if phase == 1:
-                    exclusive_scan(ctx, flags, slots, n_pairs, total=tstats)
-                    barrier(ctx)
-                prog = compute_program(ctx, "ss/tile_compact.comp", {"PHASE": phase})
-                set_uniforms(prog, {"u_pairs": n_pairs})
-                keys.bind_to_storage_buffer(0)
-                flags.bind_to_storage_buffer(1)
-                slots.bind_to_storage_buffer(2)
-                active.bind_to_storage_buffer(3)
-                tstats.bind_to_storage_buffer(4)
-                # phase 2 runs over active tiles, of which there are at most as many as pairs
-                dispatch_1d(ctx, prog, n_pairs, 256)
-                barrier(ctx)
-
+            active, tstats = _compact_tiles(ctx, pool, keys, n_pairs)
         # the second and last sizes read inside the pipeline: active tiles and the
         # fullest tile's triangles give the work groups and passes of the tile stage
         # (issuing an upper bound of passes from the pair count instead cost ~130
@@ -307,7 +323,7 @@ class SSSolidTiled(Method):
         active_tiles, most = (int(x) for x in np.frombuffer(tstats.read(size=8), dtype="<u4"))
         passes = -(-most // TILE_TRIANGLES)
         with timer.stage("tiles"):
-            proc = compute_program(ctx, "ss/tile_process.comp", {**defines, "TILE_TRIANGLES": TILE_TRIANGLES})
+            proc = compute_program(ctx, "ss/tile_process.comp", {**_TILE_DEFINES, "TILE_TRIANGLES": TILE_TRIANGLES})
             set_uniforms(proc, {**common, "u_pairs": n_pairs})
             vox.bind_to_storage_buffer(1)
             bufs.faces.bind_to_storage_buffer(2)
@@ -320,7 +336,6 @@ class SSSolidTiled(Method):
                 set_uniforms(proc, {"u_pass": p})
                 proc.run(gx, -(-active_tiles // gx), 1)
                 barrier(ctx)
-
         with timer.stage("readback", gpu=False):
             words = read_grid_words(grid, spec)
         timer.stats.update({

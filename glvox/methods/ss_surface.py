@@ -20,7 +20,7 @@ triangle), [``sort``, ``ranges`` for the sorted variant], ``voxelize``
 (indirect dispatches sized on the GPU), ``readback``.  A triangle's work is
 split into chunks of :data:`CHUNK` voxels or columns, one invocation each, so
 no invocation exceeds the loop budget of Mesa's llvmpipe (see
-:data:`glvox.methods._gpu.LOOP_BUDGET`).
+:data:`glvox.gpu.dispatch.LOOP_BUDGET`).
 """
 
 from __future__ import annotations
@@ -48,12 +48,12 @@ _VARIANTS = {"simple": 0, "specialized": 1, "sorted": 2}
 _REQUIRES = Requirements(gl_version=430, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 7,
                                                  "GL_MAX_COMPUTE_WORK_GROUP_SIZE": 256})
 
-#: The default conservative variant.  Measured here (llvmpipe, 2 cores,
-#: compare/table1_ss_surface.py on the bunny and the dragon, 128^3-1024^3):
-#: no variant wins every cell; specialized takes the least time over all
-#: eight (1.32 s against 1.50 s for simple and 1.51 s for sorted), winning at
-#: large grids, while simple wins on small grids, where bounding boxes are a
-#: few voxels and the case branches only cost divergence.
+#: The default conservative variant.  No variant wins every cell of
+#: compare/table1_ss_surface.py (bunny and dragon, 128^3-1024^3):
+#: specialized takes the least time over all of them, winning at large
+#: grids, while simple wins on small grids, where bounding boxes are a few
+#: voxels and the case branches only cost divergence (figures in
+#: compare/README.md).
 DEFAULT_VARIANT = "specialized"
 
 

@@ -77,11 +77,36 @@ def solid(tris: np.ndarray, dims: Sequence[int], axis: int = 0) -> np.ndarray:
     tris = check_tris(tris)
     dims = check_dims(dims)
     axis = check_axis(axis)
-    u = (axis + 1) % 3
-    v = (axis + 2) % 3
     n = normals(tris)
     keep = n[:, axis] != 0.0
-    tris, n = tris[keep], n[keep]
+    hits = _first_flips(tris[keep], n[keep], dims, axis)
+    flips = np.zeros(int(np.prod(dims)), dtype=np.uint8)
+    idx, counts = np.unique(hits, return_counts=True)
+    # Two crossings starting at the same voxel cancel; sorting the hits keeps
+    # memory proportional to the crossings, not to a grid of counters.
+    flips[idx[counts % 2 == 1]] = 1
+    parity = np.bitwise_xor.accumulate(flips.reshape(dims), axis=axis)
+    return parity.astype(bool)
+
+
+def _first_flips(tris: np.ndarray, n: np.ndarray, dims: tuple[int, int, int], axis: int) -> np.ndarray:
+    """The first flipped voxel of every crossing (:func:`solid`'s fill rule).
+
+    Parameters
+    ----------
+    tris : (T, 3, 3) float64
+        Voxel-space triangles not parallel to ``axis``.
+    n : (T, 3) float64
+        Their normals.
+
+    Returns
+    -------
+    (H,) int64
+        Flat indices into ``dims`` of voxel ``max(q_bar, 0)`` of each
+        crossing with ``q_bar < n_axis``; one per crossing (repeats possible).
+    """
+    u = (axis + 1) % 3
+    v = (axis + 2) % 3
     sgn = np.where(n[:, axis] > 0.0, 1.0, -1.0)
     lo_a = tris[:, :, axis].min(axis=1)
     hi_a = tris[:, :, axis].max(axis=1)
@@ -115,12 +140,4 @@ def solid(tris: np.ndarray, dims: Sequence[int], axis: int = 0) -> np.ndarray:
         idx[u] = ju[ok]
         idx[v] = jv[ok]
         hits.append(np.ravel_multi_index(tuple(idx), dims))
-
-    flips = np.zeros(int(np.prod(dims)), dtype=np.uint8)
-    idx, counts = np.unique(np.concatenate(hits) if hits else np.zeros(0, np.int64),
-                            return_counts=True)
-    # Two crossings starting at the same voxel cancel; sorting the hits keeps
-    # memory proportional to the crossings, not to a grid of counters.
-    flips[idx[counts % 2 == 1]] = 1
-    parity = np.bitwise_xor.accumulate(flips.reshape(dims), axis=axis)
-    return parity.astype(bool)
+    return np.concatenate(hits) if hits else np.zeros(0, np.int64)

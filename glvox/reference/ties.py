@@ -64,54 +64,63 @@ def surface_ties(tris: np.ndarray, dims: Sequence[int],
         raise ValueError(f"eps must be in (0, 0.5) voxel, got {eps!r}")
     f = funcs[criterion]
     ties = f(tris, dims, 0.5 + eps) ^ f(tris, dims, 0.5 - eps)
-    # Orientation ties: where a projection's orientation is ambiguous under an
-    # eps motion of the vertices, every voxel whose verdict depends on it.
     tris = check_tris(tris)
-    amb = orientation_ambiguous(tris, eps)
-    some = amb.any(axis=1)
-    if some.any():
-        sub, amb = tris[some], amb[some]
-        base = f(sub, dims, 0.5)
-        flips = [amb]
-        if (amb.sum(axis=1) > 1).any():  # also each ambiguous plane alone
-            flips += [amb & (np.arange(3) == p) for p in range(3)]
-        for flip in flips:
-            ties |= base ^ f(sub, dims, 0.5, flip=flip)
-        # Slivers whose whole normal is within rounding of zero: their plane is
-        # undefined, so every voxel they could set under any orientation is a tie.
-        free = amb.all(axis=1)
-        if free.any():
-            sliver = sub[free]
-            no_plane = np.ones(len(sliver), dtype=bool)
-            for bits in range(8):
-                flip = np.array([(bits >> p) & 1 for p in range(3)], dtype=bool)[None, :].repeat(len(sliver), 0)
-                ties |= f(sliver, dims, 0.5, flip=flip, no_plane=no_plane)
-            if criterion == "6sep":
-                # the 6-separating criterion of a segment-like triangle depends on
-                # a dominant axis that rounding picks: any voxel the sliver touches
-                # (found by the fuzz tests: a collinear triangle at a 1e6 offset)
-                ties |= conservative_surface(sliver, dims, 0.5 + eps)
-    # Projected edges too short for float32 to keep their direction: the
-    # 6-separating projection test they belong to is undecided near them.
-    # (The conservative test decides whether the triangle meets the box, a
-    # geometric question that no edge direction changes.)
-    short = short_edges(tris, dims) if criterion == "6sep" else np.zeros((len(tris), 3), bool)
-    if short.any():
-        sub = short.any(axis=1)
-        ties |= f(tris[sub], dims, 0.5, no_proj=short[sub])
-        # A triangle short in every projection is smaller than float32's
-        # spacing can shape: its plane and edges are both rounding, so every
-        # voxel its bounding box touches within eps is a tie (found by the
-        # fuzz tests: a 1e-6 triangle at y = 32 lands on the face y = 32 in
-        # float32 and sets the voxels on both sides).
-        for tri in tris[short.all(axis=1)]:
-            lo = np.maximum(np.ceil(tri.min(axis=0) - eps).astype(np.int64) - 1, 0)
-            hi = np.minimum(np.floor(tri.max(axis=0) + eps).astype(np.int64), np.array(dims) - 1)
-            if (lo <= hi).all():
-                ties[lo[0]:hi[0] + 1, lo[1]:hi[1] + 1, lo[2]:hi[2] + 1] = True
+    _add_orientation_ties(ties, f, tris, dims, criterion, eps)
+    if criterion == "6sep":
+        _add_short_edge_ties(ties, f, tris, dims, eps)
     return ties
 
 
+def _add_orientation_ties(ties: np.ndarray, f, tris: np.ndarray, dims, criterion: str, eps: float) -> None:
+    """Orientation ties, into ``ties``: where a projection's orientation is ambiguous
+    under an eps motion of the vertices, every voxel whose verdict depends on it."""
+    amb = orientation_ambiguous(tris, eps)
+    some = amb.any(axis=1)
+    if not some.any():
+        return
+    sub, amb = tris[some], amb[some]
+    base = f(sub, dims, 0.5)
+    flips = [amb]
+    if (amb.sum(axis=1) > 1).any():  # also each ambiguous plane alone
+        flips += [amb & (np.arange(3) == p) for p in range(3)]
+    for flip in flips:
+        ties |= base ^ f(sub, dims, 0.5, flip=flip)
+    # Slivers whose whole normal is within rounding of zero: their plane is
+    # undefined, so every voxel they could set under any orientation is a tie.
+    free = amb.all(axis=1)
+    if free.any():
+        sliver = sub[free]
+        no_plane = np.ones(len(sliver), dtype=bool)
+        for bits in range(8):
+            flip = np.array([(bits >> p) & 1 for p in range(3)], dtype=bool)[None, :].repeat(len(sliver), 0)
+            ties |= f(sliver, dims, 0.5, flip=flip, no_plane=no_plane)
+        if criterion == "6sep":
+            # the 6-separating criterion of a segment-like triangle depends on
+            # a dominant axis that rounding picks: any voxel the sliver touches
+            # (found by the fuzz tests: a collinear triangle at a 1e6 offset)
+            ties |= conservative_surface(sliver, dims, 0.5 + eps)
+
+
+def _add_short_edge_ties(ties: np.ndarray, f, tris: np.ndarray, dims, eps: float) -> None:
+    """6-separating ties, into ``ties``: projected edges too short for float32 to keep
+    their direction leave the projection test they belong to undecided near them.
+    (The conservative test decides whether the triangle meets the box, a geometric
+    question that no edge direction changes.)"""
+    short = short_edges(tris, dims)
+    if not short.any():
+        return
+    sub = short.any(axis=1)
+    ties |= f(tris[sub], dims, 0.5, no_proj=short[sub])
+    # A triangle short in every projection is smaller than float32's
+    # spacing can shape: its plane and edges are both rounding, so every
+    # voxel its bounding box touches within eps is a tie (found by the
+    # fuzz tests: a 1e-6 triangle at y = 32 lands on the face y = 32 in
+    # float32 and sets the voxels on both sides).
+    for tri in tris[short.all(axis=1)]:
+        lo = np.maximum(np.ceil(tri.min(axis=0) - eps).astype(np.int64) - 1, 0)
+        hi = np.minimum(np.floor(tri.max(axis=0) + eps).astype(np.int64), np.array(dims) - 1)
+        if (lo <= hi).all():
+            ties[lo[0]:hi[0] + 1, lo[1]:hi[1] + 1, lo[2]:hi[2] + 1] = True
 
 
 def float32_motion(dims: Sequence[int]) -> float:

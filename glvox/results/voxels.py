@@ -144,7 +144,7 @@ class VoxelGrid(Result):
         trimesh's transform maps voxel indices to voxel *centers*, so it is
         scale h and translation origin + h/2.
         """
-        import trimesh
+        import trimesh  # lazy: a heavy optional import, only for this conversion
 
         h = self.voxel_size
         transform = np.eye(4)
