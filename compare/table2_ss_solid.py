@@ -9,7 +9,7 @@ pairs and the average triangles per active tile.
 
 The bunny and the dragons are open meshes (the paper used them anyway): they
 run with allow_open, so the grids are parities of crossings, which costs the
-same as a closed mesh.  Meshes come from GLVOX_MESHES (default
+same as a closed mesh.  Meshes are paths or names in GLVOX_MESHES (default
 ../shared/meshes beside the checkout).  Prints a markdown table.
 """
 
@@ -19,12 +19,12 @@ import argparse
 import sys
 import warnings
 
-from table1_ss_surface import mesh_dir, timed
-
 import glvox
 from glvox.errors import NotWatertightWarning
 from glvox.gl.context import get_context
 from glvox.methods import method_names
+from glvox.study.harness import timed
+from glvox.study.meshes import resolve_mesh
 
 DEFAULT_MESHES = ["stanford_bunny_bun_zipper.ply", "stanford_dragon_vrip_res2.ply"]
 
@@ -47,20 +47,19 @@ def main(argv=None) -> int:
     print("| model | grid | pipeline | tri-parallel | tiled T_total | T_pairs | T_sort | T_tiles | #pairs | #tris |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for name in args.meshes:
-        mesh = glvox.load_mesh(mesh_dir() / name)
+        mesh = glvox.load_mesh(resolve_mesh(name))
         for n in args.sizes:
             spec = glvox.grid_for(mesh, n)
             cells = []
-            if pipeline:
-                wall, gpu, _ = timed(pipeline, mesh, spec, args.repeat, allow_open=True)
-                cells.append(f"{wall:.1f} ({gpu:.1f})")
-            else:
-                cells.append("-")
-            wall, gpu, _ = timed("ss-solid", mesh, spec, args.repeat, allow_open=True)
-            cells.append(f"{wall:.1f} ({gpu:.1f})")
-            wall, gpu, g = timed("ss-solid-tiled", mesh, spec, args.repeat, allow_open=True)
+            for method in (pipeline, "ss-solid", "ss-solid-tiled"):
+                if method is None:
+                    cells.append("-")
+                    continue
+                t = timed(method, mesh, spec, args.repeat, allow_open=True)
+                cells.append(f"{t.wall_ms:.1f} ({t.gpu_ms:.1f})")
+            g = t.result
             st = g.run.stats
-            cells += [f"{wall:.1f} ({gpu:.1f})", f"{stage_ms(g, ('classify', 'pairs')):.1f}",
+            cells += [f"{stage_ms(g, ('classify', 'pairs')):.1f}",
                       f"{stage_ms(g, ('sort',)):.1f}", f"{stage_ms(g, ('compact', 'tiles')):.1f}",
                       f"{st['pairs'] / 1e3:.0f}k", f"{st['triangles_per_active_tile']:.1f}"]
             print(f"| {name} ({mesh.n_triangles:,} tris) | {n}^3 | {' | '.join(cells)} |", flush=True)

@@ -16,45 +16,27 @@ byte of inside flag per node above), not counting the coverage counts.
 The bunny and the dragons are open meshes (the paper used them anyway): they
 run with allow_open, and by default with walls (the octree then decodes to
 ss-solid's parity result; --no-walls gives the paper's algorithm and fewer
-nodes).  Meshes come from GLVOX_MESHES (default ../shared/meshes beside the
-checkout).  Prints a markdown table.
+nodes).  Meshes are paths or names in GLVOX_MESHES (default ../shared/meshes
+beside the checkout).  Prints a markdown table.
 """
 
 from __future__ import annotations
 
 import argparse
-import statistics
 import sys
-import time
 import warnings
-
-from table1_ss_surface import mesh_dir
 
 import glvox
 from glvox.errors import NotWatertightWarning
 from glvox.gl.context import get_context
-from glvox.methods import run_method
+from glvox.study.harness import timed
+from glvox.study.meshes import resolve_mesh
 
 DEFAULT_MESHES = ["stanford_bunny_bun_zipper.ply", "stanford_dragon_vrip_res2.ply",
                   "stanford_armadillo_libigl_86k.obj"]
 STAGES = [("Determine active level-1 nodes", "active nodes"), ("Construct octree", "construct"),
           ("Voxelize into octree", "voxelize"), ("Propagate inside/outside", "propagate"),
           ("Compute coverage factor", "coverage")]
-
-
-def measure(mesh, spec, repeat, walls):
-    run_method("ss-octree", mesh, spec, allow_open=True, walls=walls)  # warm-up: compile, allocate
-    runs = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        o = run_method("ss-octree", mesh, spec, allow_open=True, walls=walls)
-        runs.append((time.perf_counter() - t0, o))
-    wall = statistics.median(w for w, _ in runs) * 1e3
-    stage = {}
-    for s in runs[0][1].run.timings.stages:
-        vals = [o.run.timings.stage(s.name) for _, o in runs]
-        stage[s.name] = statistics.median((v.gpu_s if v.gpu_s is not None else v.wall_s) for v in vals) * 1e3
-    return wall, stage, runs[-1][1]
 
 
 def main(argv=None) -> int:
@@ -72,10 +54,11 @@ def main(argv=None) -> int:
         rows.setdefault(row, []).append(value)
 
     for name in args.meshes:
-        mesh = glvox.load_mesh(mesh_dir() / name)
+        mesh = glvox.load_mesh(resolve_mesh(name))
         for n in args.sizes:
             spec = glvox.grid_for(mesh, n)
-            wall, stage, o = measure(mesh, spec, args.repeat, not args.no_walls)
+            t = timed("ss-octree", mesh, spec, args.repeat, allow_open=True, walls=not args.no_walls)
+            wall, stage, o = t.wall_ms, t.stages_ms, t.result
             mem, st = o.memory(), o.run.stats
             cols.append(f"{name.split('.')[0]} {n}^3")
             put("Scalar-valued grid size", f"{-(-n // 4)}^3")

@@ -26,6 +26,7 @@ from .grid import grid_for
 from .mesh import load_mesh
 from .methods import DEFAULT_METHOD, get_method, method_infos, run_method
 from .methods.leung_wang import overlap_bounds, overlap_grid, run_intersection
+from .study.options import add_bench_arguments, add_compare_arguments
 
 
 class _Progress:
@@ -255,14 +256,16 @@ def cmd_volume(args) -> int:
 
 
 def cmd_compare(args) -> int:
-    from .study.run import main as compare_main
+    # imported here for start-up time: the study's runner, tables and plots are
+    # needed by this command alone (its options come from the light study.options)
+    from .study.compare import main as compare_main
 
     return compare_main(args)
 
 
 def cmd_bench(args) -> int:
     """``glvox bench``: exit 0, or 3 when ``--check`` finds a regression."""
-    from .study.bench import main as bench_main
+    from .study.bench import main as bench_main  # for start-up time, as in cmd_compare
 
     return bench_main(args)
 
@@ -390,9 +393,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Every chosen method on every mesh and grid size: timed warm runs, voxel counts, "
                     "agreement with the exact references, separability; writes results.csv/.json, "
                     "tables.md, plots/ and pictures/ into -o (rerunning resumes).")
-    from .study.run import add_arguments
-
-    add_arguments(pc)
+    add_compare_arguments(pc)
     pc.set_defaults(func=cmd_compare)
 
     pbe = sub.add_parser(
@@ -401,8 +402,6 @@ def build_parser() -> argparse.ArgumentParser:
                     "on the same mesh and grid, timed in one process (medians of interleaved warm runs), "
                     "with each one's agreement with glvox's exact references; prints the ratio of each "
                     "method to the fastest peer of its kind and the issue's targets.")
-    from .study.bench import add_arguments as add_bench_arguments
-
     add_bench_arguments(pbe)
     pbe.set_defaults(func=cmd_bench)
     return p

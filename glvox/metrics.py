@@ -10,12 +10,14 @@ at most TIE_EPS voxel).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy import ndimage
 
+from .grid import pack_bits, unpack_bits
 from .methods import get_method, method_infos, run_method
-from .reference import TIE_EPS, mismatch_is_tie
+from .reference import TIE_EPS
 from .results.voxels import Comparison, VoxelGrid
 
 @dataclass
@@ -81,8 +83,63 @@ def check_against_reference(result: VoxelGrid, mesh, reference: str | None = Non
         reference_grid = run_method(reference, mesh, spec, allow_open=True)
     if ties is None:
         ties = tie_set(reference, mesh, spec)
-    _, unexplained = mismatch_is_tie(result.dense(), reference_grid.dense(), ties)
+    bad = not_tie_words(result.words(), reference_grid.words(), pack_bits(ties))
+    unexplained = np.argwhere(unpack_bits(bad, spec.dims)).astype(np.int64)
     return ReferenceCheck(reference, result.compare(reference_grid), int(ties.sum()), unexplained)
+
+
+def popcount(words: np.ndarray) -> int:
+    """Set bits in packed words (unsigned integers of any shape)."""
+    return int(np.bitwise_count(words).sum(dtype=np.int64))
+
+
+def not_tie_words(words: np.ndarray, ref_words: np.ndarray, tie_words: np.ndarray) -> np.ndarray:
+    """Packed mismatches of a result against its reference that lie outside the tie set.
+
+    Parameters
+    ----------
+    words, ref_words, tie_words : uint32 (nz, ny, words_per_row)
+        A result, its exact reference and the reference's proven tie set in
+        glvox's packed layout (:func:`glvox.grid.pack_bits`), on one GridSpec.
+
+    Returns
+    -------
+    uint32, the same shape
+        Set where ``result != reference`` and the voxel is not a tie.
+    """
+    w, r = np.asarray(words, np.uint32), np.asarray(ref_words, np.uint32)
+    return (w ^ r) & ~np.asarray(tie_words, np.uint32)
+
+
+def agreement(words: np.ndarray, ref_words: np.ndarray, tie_words: np.ndarray | None = None) -> dict[str, Any]:
+    """Counts of a result against its exact reference, on packed grids.
+
+    What ``glvox compare`` and ``glvox bench`` report per row; the same
+    verdict as :func:`check_against_reference` without unpacking to dense
+    grids or listing voxels.
+
+    Parameters
+    ----------
+    words, ref_words : uint32 (nz, ny, words_per_row)
+        A result and its reference in glvox's packed layout (same GridSpec).
+    tie_words : uint32, same shape, optional
+        The reference's proven tie set, packed; None to skip the tie counts.
+
+    Returns
+    -------
+    dict
+        ``missing`` and ``extra`` voxels, ``iou`` (1.0 when both are empty),
+        ``reference_voxels``; with ``tie_words`` also ``ties`` (size of the
+        tie set) and ``not_ties`` (mismatches outside it: 0 for an exact method).
+    """
+    w, r = np.asarray(words, np.uint32), np.asarray(ref_words, np.uint32)
+    inter, union = popcount(w & r), popcount(w | r)
+    out: dict[str, Any] = {"missing": popcount(r & ~w), "extra": popcount(w & ~r),
+                           "iou": 1.0 if union == 0 else inter / union, "reference_voxels": popcount(r)}
+    if tie_words is not None:
+        out["not_ties"] = popcount(not_tie_words(w, r, tie_words))
+        out["ties"] = popcount(tie_words)
+    return out
 
 
 _STRUCT = {6: ndimage.generate_binary_structure(3, 1), 26: ndimage.generate_binary_structure(3, 3)}

@@ -8,16 +8,10 @@ import os
 
 import pytest
 
-#: The shared meshes (../shared/meshes/SOURCES.md); tests over "every shared
-#: mesh" are parametrized by these names and skip one that is absent.
-SHARED_MESHES = (
-    "cad_fandisk.off", "cad_featuretype.stl", "cad_rocker_arm.obj", "cad_wingnut.obj",
-    "depth_cycloidal_drive.ply", "depth_gyroid_tpms_sheet.stl", "depth_reduced_diamond_lattice.stl",
-    "messy_not_convex.obj", "messy_soup_synthetic.stl", "messy_teapot_newell.obj",
-    "messy_tower_holes.obj", "messy_wallhole.obj", "stanford_armadillo_libigl_86k.obj",
-    "stanford_bunny_bun_zipper.ply", "stanford_dragon_vrip_res2.ply", "stanford_dragon_vrip_res3.ply",
-    "stanford_happy_buddha_113k.obj",
-)
+# The shared meshes (../shared/meshes/SOURCES.md), for `from conftest import
+# SHARED_MESHES`: tests over "every shared mesh" are parametrized by these
+# names and skip one that is absent.
+from glvox.study.meshes import SHARED_MESHES  # noqa: F401
 
 #: Heavier runs (large grids, every shared mesh) are opt-in.
 SLOW = os.environ.get("GLVOX_SLOW", "") not in ("", "0")

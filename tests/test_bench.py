@@ -21,9 +21,11 @@ from glvox.cli import main as cli_main
 from glvox.errors import GlvoxError
 from glvox.grid import GridSpec, pack_bits
 from glvox.methods import run_method
-from glvox.metrics import tie_set
-from glvox.study import ab, bench
+from glvox.metrics import agreement, popcount, tie_set
+from glvox.study import ab, bench, bench_report, coldstart, regression
+from glvox.study.options import BENCH_PRESETS, CHECKOUT_BASELINE, PEER_NAMES
 from glvox.study.peers import PEERS, _from_indices, get_peer
+from glvox.study.plan import CALIBRATION, CALIBRATION_KEY, Plan
 
 #: Closed generated meshes on grids that exercise every axis differently:
 #: non-cubic dims (the mesh centered, so the origin is not the mesh's corner)
@@ -51,8 +53,8 @@ def _check(grid, mesh, reference: str):
     spec = grid.spec
     ref = run_method(reference, mesh, spec).words()
     ties = pack_bits(tie_set(reference, mesh, spec))
-    out = bench.agreement(grid.words(), ref, ties)
-    out["extra_not_ties"] = bench._popcount(grid.words() & ~ref & ~ties)
+    out = agreement(grid.words(), ref, ties)
+    out["extra_not_ties"] = popcount(grid.words() & ~ref & ~ties)
     return out
 
 
@@ -89,8 +91,8 @@ def test_trimesh_fill_is_the_solid_plus_its_surface_shell(case):
     ref_solid = run_method("reference-solid", mesh, spec).words()
     cons = run_method("reference-conservative", mesh, spec).words()
     shell = pg.grid.words() & ~ref_solid
-    assert bench._popcount(shell & ~cons) == 0
-    assert bench._popcount(shell) == solid["extra"] > 0
+    assert popcount(shell & ~cons) == 0
+    assert popcount(shell) == solid["extra"] > 0
 
 
 def test_a_misaligned_peer_is_caught(case):
@@ -142,6 +144,10 @@ def test_indices_outside_the_grid_are_dropped_and_counted():
     assert sorted(map(tuple, pg.grid.indices())) == [(0, 0, 0), (1, 1, 1), (3, 2, 1)]
 
 
+def test_the_parser_names_every_peer_in_table_order():
+    assert tuple(PEERS) == PEER_NAMES
+
+
 def test_missing_peer_names_the_package(monkeypatch):
     monkeypatch.setattr(PEERS["open3d"], "module", "glvox_no_such_module_for_test")
     msg = PEERS["open3d"].missing()
@@ -167,7 +173,7 @@ def test_agreement_counts_from_packed_words():
     got[[0, 33, 35, 38], 0, 0] = True    # 1 and 39 missing, 35 and 38 extra
     got[5, 1, 0] = True                  # extra, on the second row
     ties[[1, 35], 0, 0] = True           # one missing and one extra are ties
-    a = bench.agreement(pack_bits(got), pack_bits(ref), pack_bits(ties))
+    a = agreement(pack_bits(got), pack_bits(ref), pack_bits(ties))
     assert (a["missing"], a["extra"], a["not_ties"], a["ties"], a["reference_voxels"]) == (2, 3, 3, 2, 4)
     assert a["iou"] == pytest.approx(2 / 7)
 
@@ -188,12 +194,12 @@ def test_ratios_and_targets():
     assert rows[0]["fastest_peer"] == "trimesh-subdivide" and rows[0]["ratio"] == 0.5
     assert rows[0]["ratios"] == {"open3d": 0.25, "trimesh-subdivide": 0.5}
     assert rows[3]["ratio"] == pytest.approx(1.2) and "ratio" not in rows[1]
-    (t1, met1, d1), (t2, met2, d2) = bench.targets(rows)
+    (t1, met1, d1), (t2, met2, d2) = bench_report.targets(rows)
     assert met1 is False and "m 256^3" in d1 and "NOT MET" in d1 and "m 128^3" in d1
     # the approximate karabassi is faster, but the target counts exact methods only
     assert met2 is True and "ss-solid 20 ms vs pyvista 300 ms: 15.0x" in d2
     rows[5]["wall_ms"] = 40.0
-    assert bench.targets(rows)[1][1] is False
+    assert bench_report.targets(rows)[1][1] is False
 
 
 def test_regressions_allow_for_a_busier_machine_only():
@@ -201,36 +207,36 @@ def test_regressions_allow_for_a_busier_machine_only():
             _row("peer:open3d", "m", 64, 100.0, True)]
     same_machine = [_row("ss-conservative", "m", 64, 12.0), _row("ss-solid", "m", 64, 10.5),
                     _row("peer:open3d", "m", 64, 100.0, True), _row("new-method", "m", 64, 99.0)]
-    f = bench.machine_factor(same_machine, base)
+    f = regression.machine_factor(same_machine, base)
     assert f == 1.0
-    got = bench.check_regressions(same_machine, base, f)
+    got = regression.check_regressions(same_machine, base, f)
     assert [(g["key"], round(g["raw"], 2)) for g in got] == [("ss-conservative", 1.2)]
     # a machine half as fast slows the peers too: glvox 1.3x slower is no regression there
     slow_machine = [_row("ss-conservative", "m", 64, 13.0), _row("peer:open3d", "m", 64, 200.0, True)]
-    f = bench.machine_factor(slow_machine, base)
-    assert f == 2.0 and bench.check_regressions(slow_machine, base, f) == []
+    f = regression.machine_factor(slow_machine, base)
+    assert f == 2.0 and regression.check_regressions(slow_machine, base, f) == []
     # a quieter machine (factor 0.5) is not held against glvox: methods do not all
     # speed up alike when cores free up, so only the absolute time counts then
     fast_machine = [_row("ss-conservative", "m", 64, 10.5), _row("ss-solid", "m", 64, 11.5),
                     _row("peer:open3d", "m", 64, 50.0, True)]
-    f = bench.machine_factor(fast_machine, base)
+    f = regression.machine_factor(fast_machine, base)
     assert f == 0.5
-    assert [g["key"] for g in bench.check_regressions(fast_machine, base, f)] == ["ss-solid"]
-    assert bench.machine_factor([_row("ss-solid", "m", 64, 1.0)], base) is None
+    assert [g["key"] for g in regression.check_regressions(fast_machine, base, f)] == ["ss-solid"]
+    assert regression.machine_factor([_row("ss-solid", "m", 64, 1.0)], base) is None
 
 
 def test_the_gl_calibration_is_the_machine_factor_when_the_baseline_has_it():
     """A busy machine slows llvmpipe's threads more than a single-threaded peer:
     the fixed GL workload, not the peers, says how much slower the GPU methods may be."""
-    calib = bench.CALIBRATION_KEY
+    calib = CALIBRATION_KEY
     base = [_row("ss-solid", "m", 64, 10.0), _row("peer:open3d", "m", 64, 100.0, True),
-            _row(calib, "m", 64, 17.0, group=bench.CALIBRATION)]
+            _row(calib, "m", 64, 17.0, group=CALIBRATION)]
     busy = [_row("ss-solid", "m", 64, 14.0), _row("peer:open3d", "m", 64, 100.0, True),
-            _row(calib, "m", 64, 25.5, group=bench.CALIBRATION)]
-    f = bench.machine_factor(busy, base)
-    assert f == 1.5 and bench.check_regressions(busy, base, f) == []
+            _row(calib, "m", 64, 25.5, group=CALIBRATION)]
+    f = regression.machine_factor(busy, base)
+    assert f == 1.5 and regression.check_regressions(busy, base, f) == []
     # the calibration itself is never reported as a regression
-    assert bench.check_regressions(busy, base, None) == [
+    assert regression.check_regressions(busy, base, None) == [
         {"key": "ss-solid", "mesh": "m", "n": 64, "base_ms": 10.0, "now_ms": 14.0, "raw": 1.4, "normalized": 1.4}]
 
 
@@ -261,12 +267,12 @@ def test_cli_writes_the_ratio_table(cli_run, capsys):
     rows = data["rows"]
     assert {(r["key"], r["n"]) for r in rows} == {(k, n) for k in ("ss-conservative", "ss-solid",
                                                                  "peer:trimesh-subdivide", "peer:trimesh-fill",
-                                                                 bench.CALIBRATION_KEY)
+                                                                 CALIBRATION_KEY)
                                                   for n in (12, 20)}
-    calib = [r for r in rows if r["group"] == bench.CALIBRATION]
+    calib = [r for r in rows if r["group"] == CALIBRATION]
     assert all(r["runs"] == 2 and r["min_ms"] > 0 for r in calib)
     assert "A fixed GL workload timed in every round" in text
-    rows = [r for r in rows if r["group"] != bench.CALIBRATION]
+    rows = [r for r in rows if r["group"] != CALIBRATION]
     for r in rows:
         assert r["status"] == "ok" and r["runs"] == 2 and r["min_ms"] <= r["wall_ms"], r
         assert r["reference_voxels"] > 0 and r["voxels"] > 0
@@ -276,14 +282,14 @@ def test_cli_writes_the_ratio_table(cli_run, capsys):
             peer = next(p for p in rows if p["peer"] and p["n"] == r["n"] and p["group"] == r["group"])
             assert r["ratio"] == pytest.approx(r["wall_ms"] / peer["wall_ms"])
     assert [r for r in json.loads((out / "base.json").read_text())["rows"]
-            if r["group"] != bench.CALIBRATION] == rows
+            if r["group"] != CALIBRATION] == rows
 
 
 def _doctored(out, scale: float):
     data = json.loads((out / "base.json").read_text())
     data = copy.deepcopy(data)
     for r in data["rows"]:
-        if not r["peer"] and r["group"] != bench.CALIBRATION:
+        if not r["peer"] and r["group"] != CALIBRATION:
             r["min_ms"] *= scale
     path = out / f"base_{scale}.json"
     path.write_text(json.dumps(data))
@@ -334,21 +340,21 @@ def test_cli_errors(tmp_path, capsys):
 
 
 def test_peer_limit_skips_with_the_reason(gl_context):
-    plan = bench.Plan(meshes=["gen:sphere"], sizes=[10], repeat=1, budget=1.0,
+    plan = Plan(meshes=["gen:sphere"], sizes=[10], repeat=1, budget=1.0,
                       contenders=bench.peer_contenders(["trimesh-subdivide"], print),
                       peer_max={"trimesh-subdivide": 8})
     row, calib = bench.run_plan(plan)
     assert row["status"] == "skipped" and "over this peer's limit 8" in row["error"]
-    assert calib["key"] == bench.CALIBRATION_KEY and calib["runs"] == 1
+    assert calib["key"] == CALIBRATION_KEY and calib["runs"] == 1
 
 
 def test_cold_start_in_a_fresh_process():
-    c = bench.cold_start("ss-solid", "gen:box", 8)
+    c = coldstart.cold_start("ss-solid", "gen:box", 8)
     assert "error" not in c, c
     # the first call compiles (the disk cache is off) and generates code; the second reuses both
     assert c["compile_ms"] > 0 and c["first_ms"] > c["second_ms"] > 0
     assert c["context_ms"] > 0 and c["import_ms"] > 0
-    assert "| ss-solid |" in bench.cold_table([c, {"method": "x", "error": "boom"}])
+    assert "| ss-solid |" in bench_report.cold_table([c, {"method": "x", "error": "boom"}])
 
 
 # ---------------------------------------------------------------------------
@@ -357,22 +363,31 @@ def test_cold_start_in_a_fresh_process():
 
 
 def test_baseline_covers_the_quick_preset():
-    data = bench.load_baseline(bench.BASELINE)
-    quick = bench.PRESETS["quick"]
+    data = regression.load_baseline(regression.baseline_path(CHECKOUT_BASELINE))
+    quick = BENCH_PRESETS["quick"]
     assert data["plan"]["preset"] == "quick" and data["plan"]["sizes"] == quick["sizes"]
     cells = {(r["key"], r["mesh"], r["n"]) for r in data["rows"] if r["status"] == "ok"}
     for mesh in quick["meshes"]:
         for n in quick["sizes"]:
             for key in ("ss-conservative", "ss-solid", "peer:trimesh-subdivide"):
                 assert (key, mesh, n) in cells
-    assert {(r["mesh"], r["n"]) for r in data["rows"] if r["key"] == bench.CALIBRATION_KEY} == {
+    assert {(r["mesh"], r["n"]) for r in data["rows"] if r["key"] == CALIBRATION_KEY} == {
         (m, n) for m in quick["meshes"] for n in quick["sizes"]}
     closed = [r for r in data["rows"] if r["status"] == "ok" and not r["peer"] and r["watertight"]
-              and r["group"] != bench.CALIBRATION]
+              and r["group"] != CALIBRATION]
     assert closed
     for r in closed:
         if r["exact"]:
             assert r["not_ties"] == 0, r  # the baseline was taken on a correct version
+
+
+def test_the_default_baseline_needs_a_checkout(monkeypatch, tmp_path):
+    """One machine's timings live in the checkout, not in the package: an installed
+    glvox asks for a PATH."""
+    assert regression.baseline_path(str(tmp_path / "b.json")) == tmp_path / "b.json"
+    monkeypatch.setattr(regression, "checkout_root", lambda: None)
+    with pytest.raises(GlvoxError, match="--check and --save-baseline need a PATH"):
+        regression.baseline_path(CHECKOUT_BASELINE)
 
 
 @pytest.mark.slow
@@ -380,12 +395,12 @@ def test_ss_conservative_beats_open3d_on_the_bunny(shared_mesh, gl_context):
     """The issue's first target at 256^3 and 512^3 (needs open3d): faster than
     Open3D, and exact.  Measured here 8-20x faster, so noise cannot flip it."""
     _optional("open3d", "open3d")
-    plan = bench.Plan(meshes=[str(shared_mesh("stanford_bunny_bun_zipper.ply"))], sizes=[256, 512], repeat=5,
+    plan = Plan(meshes=[str(shared_mesh("stanford_bunny_bun_zipper.ply"))], sizes=[256, 512], repeat=5,
                       budget=10.0,
                       contenders=bench.glvox_contenders(["ss-conservative"], variants=False)
                       + bench.peer_contenders(["open3d"], print))
     rows = bench.run_plan(plan)
-    name, met, detail = bench.targets(rows)[0]
+    name, met, detail = bench_report.targets(rows)[0]
     assert met, detail
     assert detail.count("0 mismatches that are not ties") == 2
 

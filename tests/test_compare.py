@@ -1,9 +1,11 @@
-"""glvox compare: the harness's rows, resumption, tables, plots and pictures."""
+"""glvox compare: the runner's rows, resumption, tables, plots and pictures."""
 
 from __future__ import annotations
 
 import csv
 import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -13,7 +15,8 @@ from glvox.cli import main as cli_main
 from glvox.grid import GridSpec
 from glvox.methods import method_names
 from glvox.results.voxels import VoxelGrid
-from glvox.study import harness, render
+from glvox.study import compare, render
+from glvox.study.options import COMPARE_PRESETS
 
 
 def run_cli(*args):
@@ -86,7 +89,7 @@ def test_rerun_resumes_and_extends(small_run):
     extended = [a if a != "20" else "20 28" for a in argv]
     extended = " ".join(extended).split()
     assert run_cli(*extended, "--no-pictures") == 0
-    rows = harness.load_rows(out)
+    rows = compare.load_rows(out)
     assert len(rows) == len(before) + 3 * 2
     assert {r["n"] for r in rows} == {12, 20, 28}
 
@@ -99,14 +102,23 @@ def test_unknown_method_and_missing_mesh_are_one_line_errors(tmp_path, capsys):
 
 
 def test_presets_cover_the_registry():
-    from glvox.study.run import PRESETS
-
+    PRESETS = COMPARE_PRESETS
     assert PRESETS["quick"]["sizes"][-1] == 128 and len(PRESETS["quick"]["meshes"]) == 2
     assert PRESETS["paper"]["sizes"] == [128, 256, 512, 1024]
-    plan = harness.Plan(methods=method_names(), meshes=["gen:box"], sizes=[128, 512], cpu_max=256)
+    plan = compare.compare_plan(method_names(), meshes=["gen:box"], sizes=[128, 512], cpu_max=256)
     cells = plan.cells()
     assert {c.method for c in cells if c.n == 128} == set(method_names())
     assert not any(c.method.startswith("reference-") for c in cells if c.n == 512)
+
+
+def test_the_command_line_does_not_import_the_study():
+    """Every subcommand's parser is built at start-up (glvox info too): only the
+    study's light options module may be imported by it."""
+    code = ("import sys, glvox.cli; glvox.cli.build_parser(); "
+            "print(sorted(m for m in sys.modules if m.startswith('glvox.study')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "['glvox.study', 'glvox.study.options']"
 
 
 def test_render_frames_a_single_voxel(gl_context):

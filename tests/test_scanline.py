@@ -31,9 +31,7 @@ from __future__ import annotations
 
 import itertools
 import math
-import sys
 from fractions import Fraction
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -51,6 +49,7 @@ from glvox.metrics import check_against_reference, separation_leaks
 from glvox.reference import TIE_EPS, conservative_surface, solid, surface_ties
 from glvox.reference.scanline import (OpCounts, float_variant_ties, ilv_line, lattice_points, rlv_line,
                                       scanline_surface, slv_line)
+from glvox.study import zhang
 
 MODES = ("rlv", "slv", "ilv")
 TUNNELS = (26, 18, 6)
@@ -630,16 +629,13 @@ def test_registry_entries_and_the_tunnel_option():
 
 
 def test_table1_scanline_needs_fewer_operations_than_schwarz_seidel():
-    """compare/zhang_table1.py, the paper's Table 1 claim: at every angle the
+    """Zhang et al.'s Table 1 claim (compare/zhang_table1.py prints the table): at every angle the
     instrumented ILV run needs fewer comparisons and additions than the S&S
     test counted in the paper's units."""
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "compare"))
-    import zhang_table1 as t1
-
     for axis in ("y", "z"):
-        for deg in t1.ANGLES:
-            tri = t1.triangle(axis, deg)
-            ss = t1.ss_counts(tri)
+        for deg in zhang.ANGLES:
+            tri = zhang.triangle(axis, deg)
+            ss = zhang.ss_counts(tri)
             ours = OpCounts()
-            scanline_surface(tri[None], (t1.N,) * 3, "ilv", counts=ours)
+            scanline_surface(tri[None], (zhang.N,) * 3, "ilv", counts=ours)
             assert 0 < ours.comparisons < ss[0] and 0 < ours.additions < ss[1], (axis, deg)

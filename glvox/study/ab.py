@@ -13,12 +13,11 @@ lands on both alike.  Every timed run is one ``run_method`` call, after one
 warm-up run per side (compilation); a cell regresses when head's best
 *and* median times both exceed base's by more than the tolerance.
 
-The children use only the library API every glvox revision has
-(``load_mesh``, ``grid_for``, ``run_method``), not the bench code of REV.
-The base child imports glvox from the archive alone: the editable-install
-finder that would resolve ``glvox._shaders`` and ``glvox.compare`` to this
-checkout is taken off ``sys.meta_path``, and the child checks where glvox
-and its shaders came from before it serves.
+The children (:mod:`glvox.study.ab_child`, run with ``python -S`` and
+``PYTHONPATH`` = their source tree + this interpreter's site-packages) use
+only the library API every glvox revision has (``load_mesh``, ``grid_for``,
+``run_method``), not the bench code of REV, and each checks that glvox and
+its shaders came from its own tree before it serves.
 """
 
 from __future__ import annotations
@@ -26,6 +25,8 @@ from __future__ import annotations
 import io
 import json
 import os
+import shutil
+import site
 import statistics
 import subprocess
 import sys
@@ -38,56 +39,14 @@ from typing import Any, Callable, Sequence
 import glvox
 from glvox.errors import GlvoxError
 
-#: The child: set up the source tree, then answer one JSON request per line
-#: ({"mesh", "n", "method", "options", "runs"}) with {"ms": [...]} or {"error"}.
-_CHILD = r"""
-import json, sys, time, warnings
-src = sys.argv[1]
-sys.meta_path[:] = [f for f in sys.meta_path
-                    if "editable" not in getattr(f, "__name__", type(f).__name__).lower()]
-sys.path.insert(0, src)
-import glvox
-glvox.__path__.append(src)  # glvox.compare lives in src/compare (pyproject's package-dir)
-try:  # the shader loader's module moved with the renovation of issue 17
-    from glvox.gl.shaders import builtin_shader_dir
-except ImportError:
-    from glvox.shaders import builtin_shader_dir
-from pathlib import Path
-where = [Path(glvox.__file__).resolve(), Path(builtin_shader_dir()).resolve()]
-bad = [str(p) for p in where if Path(src).resolve() not in p.parents]
-if bad:
-    sys.exit(f"imported {bad} from outside {src}")
-from glvox.mesh import load_mesh
-from glvox.methods import run_method
-meshes = {}
-print(json.dumps({"ready": glvox.__file__}), flush=True)
-for line in sys.stdin:
-    req = json.loads(line)
-    try:
-        mesh = meshes.get(req["mesh"])
-        if mesh is None:
-            mesh = meshes[req["mesh"]] = load_mesh(req["mesh"])
-        spec = glvox.grid_for(mesh, req["n"])
-        ms = []
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            for _ in range(req["runs"]):
-                t = time.perf_counter()
-                run_method(req["method"], mesh, spec, allow_open=True, **req["options"])
-                ms.append((time.perf_counter() - t) * 1e3)
-        out = {"ms": ms}
-    except Exception as exc:  # reported to the parent, which skips the cell
-        out = {"error": f"{type(exc).__name__}: {exc}"}
-    print(json.dumps(out), flush=True)
-"""
-
+from .meshes import checkout_root, mesh_dir
 
 def source_root() -> Path:
     """The checkout this glvox is imported from (``--against`` needs git)."""
-    root = Path(glvox.__file__).resolve().parent.parent
-    if not (root / ".git").exists() or not (root / "shaders").is_dir():
-        raise GlvoxError(f"glvox bench --against compares git revisions, but glvox is imported from {root}, "
-                         "which is not a git checkout of glvox")
+    root = checkout_root()
+    if root is None:
+        raise GlvoxError(f"glvox bench --against compares git revisions, but glvox is imported from "
+                         f"{Path(glvox.__file__).resolve().parent.parent}, which is not a git checkout of glvox")
     return root
 
 
@@ -111,17 +70,41 @@ def extract_revision(rev: str, dest: Path, root: Path | None = None) -> Path:
     return dest
 
 
+#: The child script (:mod:`glvox.study.ab_child`), copied beside the revision's tree.
+CHILD = Path(__file__).with_name("ab_child.py")
+
+
+def child_env(src: Path) -> dict[str, str]:
+    """The environment of a child serving ``src``: ``PYTHONPATH`` = ``src``, then this
+    interpreter's site-packages (numpy, moderngl, trimesh...), then the inherited
+    ``PYTHONPATH``; no ``GLVOX_SHADER_PATH`` (the shaders come from ``src``)."""
+    dirs = [str(src), *site.getsitepackages()]
+    if site.ENABLE_USER_SITE and os.path.isdir(site.getusersitepackages()):
+        dirs.append(site.getusersitepackages())
+    dirs += [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
+    env = {k: v for k, v in os.environ.items() if k != "GLVOX_SHADER_PATH"}
+    # the archive has no ../shared beside it: both find the meshes where this glvox does
+    env.update(PYTHONPATH=os.pathsep.join(dirs), GLVOX_MESHES=str(mesh_dir()))
+    return env
+
+
 class Side:
-    """A child process serving timed runs of one glvox source tree."""
+    """A child process serving timed runs of one glvox source tree.
 
-    def __init__(self, name: str, src: Path):
-        from . import harness
+    ``python -S`` skips site, and with it the editable-install finder that
+    would resolve ``glvox`` to this checkout; the script runs from ``workdir``
+    (a folder of its own), so neither the working directory nor the script's
+    folder can put another glvox first.
+    """
 
+    def __init__(self, name: str, src: Path, workdir: Path):
         self.name = name
-        # the archive has no ../shared beside it: both find the meshes where this glvox does
-        env = {**os.environ, "GLVOX_MESHES": str(harness.mesh_dir())}
-        self.proc = subprocess.Popen([sys.executable, "-c", _CHILD, str(src)], stdin=subprocess.PIPE,
-                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+        script = workdir / CHILD.name
+        if not script.is_file():
+            shutil.copyfile(CHILD, script)
+        self.proc = subprocess.Popen([sys.executable, "-S", str(script), str(src)], stdin=subprocess.PIPE,
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                     env=child_env(src), cwd=workdir)
         self._read()
 
     def _read(self) -> dict[str, Any]:
@@ -247,9 +230,11 @@ def run_against(plan, rev: str, tolerance: float,
     rows = []
     with tempfile.TemporaryDirectory(prefix="glvox-ab-") as tmp:
         base_src = extract_revision(rev, Path(tmp) / "base", root)
+        workdir = Path(tmp) / "child"
+        workdir.mkdir()
         sides = []
         try:
-            sides = [Side("base", base_src), Side("head", root)]
+            sides = [Side("base", base_src, workdir), Side("head", root, workdir)]
             for mesh in plan.meshes:
                 for n in plan.sizes:
                     for c in contenders:

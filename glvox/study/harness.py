@@ -1,15 +1,28 @@
-"""The comparison harness: registered methods x meshes x grid sizes.
+"""The one runner of ``glvox compare`` and ``glvox bench``: a :class:`~glvox.study.plan.Plan`, cell by cell.
 
-Each *cell* (method, mesh, resolution, options) is run cold once (shader
-compilation, upload, allocation), warmed, then timed ``repeat`` times; the
-row records wall and GPU medians and spreads, the per-stage GPU medians, the
-voxel count, agreement with the method's exact reference (missing / extra
-voxels, IoU, ties, mismatches that are not ties), separability on closed
-meshes, the GPU memory the method keeps, and the method's own statistics.
+Per mesh and grid size, every contender of the plan with a cell there:
 
-Rows are appended to ``results.jsonl`` in the output folder as each cell
-finishes, so an interrupted run resumes where it stopped: a cell whose key is
-already there is not recomputed (``force=True`` recomputes).
+* runs once *cold* (for glvox: the first call at this size, with shader
+  compilation when the method has not run in this process yet);
+* then in up to ``repeat`` timed warm rounds in which the contenders take
+  turns (the order rotates each round), so a burst of load from elsewhere on
+  a shared machine slows all of them alike; a contender stops repeating once
+  its warm runs in the cell add up to the plan's ``budget`` seconds;
+* its time is the median wall clock of its warm runs: for glvox, the whole
+  ``run_method`` call (validation, GPU work, readback); for a peer, the one
+  library call (:meth:`glvox.study.peers.Peer.run`), with the mesh already in
+  the library's type; converting a peer's result to glvox's grid is
+  reported apart (``convert_ms``) and not counted;
+* its last result is compared with its exact CPU reference on the same grid
+  (:func:`glvox.metrics.agreement`: missing / extra voxels, IoU, mismatches
+  that are not proven ties); references and tie sets are computed once per
+  mesh and grid.
+
+A row per cell holds the timings (median, best, spread, GPU, per stage, cold,
+compile), the voxel count, the agreement, the method's statistics and the
+GPU buffer bytes glvox held after its cold run.  The layers above add their
+own analyses through ``analyses`` (``glvox compare``: separability) and their
+own reports.
 """
 
 from __future__ import annotations
@@ -18,85 +31,39 @@ import json
 import os
 import platform
 import statistics
-import sys
 import time
 import warnings
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
 import glvox
-from glvox.gpu.buffers import gpu_bytes
 from glvox.errors import GlvoxError, NotWatertightWarning
-from glvox.methods import get_method, method_names, run_method
+from glvox.gl.context import get_context
+from glvox.gpu.buffers import gpu_bytes
+from glvox.grid import GridSpec, pack_bits
+from glvox.methods import get_method, run_method
+from glvox.methods.envelope import INSIDE_KINDS
+from glvox.metrics import agreement, popcount, tie_set
 from glvox.results.voxels import VoxelGrid
 
-#: Largest grid on which results are checked against the CPU references by
-#: default: the float64 references take seconds per mesh at 256^3 and minutes
-#: at 1024^3 here, far longer than the methods they check.
-CHECK_MAX = 256
+from .calibration import Calibration
+from .peers import get_peer
+from .plan import Contender, Plan, mesh_label
 
-#: The result file of a run (one JSON object per line, appended per cell).
-RESULTS = "results.jsonl"
+#: Errors that end a contender's cell (the row says which) rather than the run.
+RUN_ERRORS = (GlvoxError, MemoryError, ValueError, RuntimeError)
 
-
-def mesh_dir() -> Path:
-    """The shared meshes: ``GLVOX_MESHES``, else ``../shared/meshes`` beside the checkout."""
-    env = os.environ.get("GLVOX_MESHES")
-    return Path(env) if env else Path(__file__).resolve().parents[2] / "shared" / "meshes"
-
-
-def resolve_mesh(name: str) -> str:
-    """A generated mesh (``gen:...``), a path, or a file name in :func:`mesh_dir`."""
-    if name.startswith("gen:") or os.path.exists(name):
-        return name
-    path = mesh_dir() / name
-    if not path.is_file():
-        raise GlvoxError(f"mesh {name!r} is neither a path nor a file in {mesh_dir()} (GLVOX_MESHES)")
-    return str(path)
-
-
-@dataclass(frozen=True)
-class Cell:
-    method: str
-    mesh: str
-    n: int
-    options: tuple[tuple[str, Any], ...] = ()
-
-    @property
-    def key(self) -> str:
-        opts = ",".join(f"{k}={v}" for k, v in self.options)
-        return f"{self.method}[{opts}]|{Path(self.mesh).name}|{self.n}"
-
-
-@dataclass
-class Plan:
-    """What to run: every method on every mesh at every size."""
-
-    methods: Sequence[str]
-    meshes: Sequence[str]
-    sizes: Sequence[int]
-    repeat: int = 5
-    check_max: int = CHECK_MAX
-    #: CPU methods (the references) are left out of cells above this size
-    cpu_max: int | None = None
-    options: dict[str, dict[str, Any]] = field(default_factory=dict)
-
-    def cells(self) -> list[Cell]:
-        cpu = {m for m in self.methods if not get_method(m).info.uses_gl}
-        return [Cell(m, mesh, n, tuple(sorted(self.options.get(m, {}).items())))
-                for mesh in self.meshes for n in self.sizes for m in self.methods
-                if self.cpu_max is None or n <= self.cpu_max or m not in cpu]
+#: ``analyses`` hook: ``(row, grid, references)`` after the row's agreement is
+#: in; ``grid`` is the contender's last result as a VoxelGrid (None for an LDI).
+Analysis = Callable[[dict, "VoxelGrid | None", "References"], None]
 
 
 def machine() -> dict[str, Any]:
     """The GL renderer and the versions that produced a result."""
     import moderngl
     import trimesh
-
-    from glvox.gl.context import get_context
 
     ctx = get_context()
     return {"glvox": glvox.__version__, "python": platform.python_version(),
@@ -106,91 +73,244 @@ def machine() -> dict[str, Any]:
                    "backend": ctx.backend, "device": ctx.device}}
 
 
-def _spread(values: list[float]) -> float:
-    return float(max(values) - min(values)) if values else 0.0
+# ---------------------------------------------------------------------------
+# samples of one contender, and the timing helper of the compare/ scripts
+# ---------------------------------------------------------------------------
 
 
-def _grid_of(result) -> VoxelGrid | None:
-    if isinstance(result, VoxelGrid):
-        return result
-    if hasattr(result, "to_grid"):
-        return result.to_grid()
-    return None
+def _median_ms(values: Sequence[float]) -> float | None:
+    return statistics.median(values) * 1e3 if values else None
 
 
-def run_cell(cell: Cell, plan: Plan, meshes: dict, refs: dict) -> dict[str, Any]:
-    """Run one cell and return its row (see the module docstring)."""
-    from glvox.gl.context import get_context
-    from glvox.metrics import check_against_reference, separation_leaks, tie_set
+def _spread_ms(values: Sequence[float]) -> float | None:
+    return (max(values) - min(values)) * 1e3 if values else None
 
-    info = get_method(cell.method).info
-    mesh = meshes[cell.mesh]
-    spec = glvox.grid_for(mesh, cell.n)
-    opts = dict(cell.options)
-    row: dict[str, Any] = {
-        "key": cell.key, "method": cell.method, "kind": info.kind, "family": info.family,
-        "exact": info.exact, "options": opts, "mesh": Path(cell.mesh).name,
-        "triangles": mesh.n_triangles, "watertight": mesh.watertight, "n": cell.n,
-        "dims": list(spec.dims), "status": "ok", "error": None,
-    }
-    if info.kind in ("solid", "sparse", "ldi") and not mesh.watertight:
-        row.update(status="skipped", error="mesh not watertight: inside is undefined for a solid method")
-        return row
-    ctx = get_context() if info.uses_gl else None
-    try:
-        # the first run of a cell: allocation at this size, and shader
-        # compilation when the method has not run in this process before
+
+@dataclass
+class Samples:
+    """The warm runs of one contender in one cell (seconds)."""
+
+    walls: list[float] = field(default_factory=list)
+    gpus: list[float] = field(default_factory=list)
+    overheads: list[float] = field(default_factory=list)
+    stages: dict[str, list[float]] = field(default_factory=dict)
+
+    def add(self, wall: float, result: Any = None) -> None:
+        """One run's wall time, and the GPU and stage times of a glvox ``result``."""
+        self.walls.append(wall)
+        if result is None:
+            return
+        t = result.run.timings
+        if t.gpu_s is not None:
+            self.gpus.append(t.gpu_s)
+        self.overheads.append(wall - t.wall_s)
+        per_run: dict[str, float] = {}  # a stage repeated in a run (tiles, passes) counts once, summed
+        for s in t.stages:
+            per_run[s.name] = per_run.get(s.name, 0.0) + (s.gpu_s if s.gpu_s is not None else s.wall_s)
+        for name, v in per_run.items():
+            self.stages.setdefault(name, []).append(v)
+
+    def summary(self) -> dict[str, Any]:
+        """Milliseconds: median, best and spread of wall and GPU times, per-stage medians
+        (GPU where timed, else wall; a stage's parts in one run summed), wall time outside
+        the stages."""
+        return {"runs": len(self.walls), "wall_ms": _median_ms(self.walls), "min_ms": min(self.walls) * 1e3,
+                "spread_ms": _spread_ms(self.walls), "gpu_ms": _median_ms(self.gpus),
+                "gpu_min_ms": min(self.gpus) * 1e3 if self.gpus else None, "gpu_spread_ms": _spread_ms(self.gpus),
+                "overhead_ms": _median_ms(self.overheads),
+                "stages_ms": {k: statistics.median(v) * 1e3 for k, v in self.stages.items()}}
+
+
+@dataclass
+class Timed:
+    """:func:`timed`'s answer: :meth:`Samples.summary`'s milliseconds and the last result."""
+
+    wall_ms: float
+    min_ms: float
+    gpu_ms: float | None
+    gpu_min_ms: float | None
+    stages_ms: dict[str, float]
+    result: Any
+
+
+def timed(method: str, mesh, spec: GridSpec, repeat: int, **options: Any) -> Timed:
+    """Warm runs of one glvox method, the timing protocol of the ``compare/`` scripts.
+
+    One untimed run first (compilation, upload, allocation), then ``repeat``
+    timed ``run_method`` calls (``options`` go to it, ``allow_open`` too).
+    """
+    run_method(method, mesh, spec, **options)
+    samples, result = Samples(), None
+    for _ in range(repeat):
         t0 = time.perf_counter()
-        result = run_method(cell.method, mesh, spec, **opts)
-        cold_wall = time.perf_counter() - t0
-        cold = result.run.timings
-        run_method(cell.method, mesh, spec, **opts)  # warm-up
-        walls, gpus, stages = [], [], {}
-        for _ in range(plan.repeat):
+        result = run_method(method, mesh, spec, **options)
+        samples.add(time.perf_counter() - t0, result)
+    s = samples.summary()
+    return Timed(s["wall_ms"], s["min_ms"], s["gpu_ms"], s["gpu_min_ms"], s["stages_ms"], result)
+
+
+# ---------------------------------------------------------------------------
+# references of one mesh and grid
+# ---------------------------------------------------------------------------
+
+
+class References:
+    """Exact references and their tie sets for one mesh and grid, computed once, kept packed."""
+
+    def __init__(self, mesh, spec: GridSpec):
+        self.mesh, self.spec = mesh, spec
+        self._refs: dict[tuple, np.ndarray] = {}
+        self._ties: dict[str, np.ndarray] = {}
+        self.seconds = 0.0
+
+    def words(self, name: str, options: tuple = ()) -> np.ndarray:
+        """The reference ``name`` (run with ``options``), uint32 (nz, ny, words_per_row)."""
+        key = (name, options)
+        if key not in self._refs:
             t0 = time.perf_counter()
-            result = run_method(cell.method, mesh, spec, **opts)
-            walls.append(time.perf_counter() - t0)
-            t = result.run.timings
-            if t.gpu_s is not None:
-                gpus.append(t.gpu_s)
-            for s in t.stages:
-                stages.setdefault(s.name, []).append(s.gpu_s if s.gpu_s is not None else s.wall_s)
-    except GlvoxError as exc:
-        row.update(status="error", error=f"{type(exc).__name__}: {exc}")
-        return row
-    row.update({
-        "wall_ms": statistics.median(walls) * 1e3, "wall_spread_ms": _spread(walls) * 1e3,
-        "gpu_ms": statistics.median(gpus) * 1e3 if gpus else None,
-        "gpu_spread_ms": _spread(gpus) * 1e3 if gpus else None,
-        "cold_wall_ms": cold_wall * 1e3, "compile_ms": cold.compile_s * 1e3,
-        "stages_ms": {k: statistics.median(v) * 1e3 for k, v in stages.items()},
-        "gpu_bytes": gpu_bytes(ctx) if ctx is not None else 0,
-        "stats": {k: v for k, v in result.run.stats.items() if _jsonable(v)},
-    })
-    # an LDI is compared through its own checks (conservativeness), not as a grid
-    grid = _grid_of(result) if info.kind in ("surface", "solid", "sparse") else None
-    if grid is not None:
-        row["voxels"] = grid.count
-    if info.reference and grid is not None and cell.n <= plan.check_max:
-        rkey = (info.reference, cell.mesh, cell.n)
-        if rkey not in refs:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", NotWatertightWarning)
-                ref = run_method(info.reference, mesh, spec, allow_open=True)
-            refs[rkey] = (ref, tie_set(info.reference, mesh, spec))
-        ref, ties = refs[rkey]
-        c = check_against_reference(grid, mesh, info.reference, reference_grid=ref, ties=ties)
-        row.update({"reference": info.reference, "reference_voxels": ref.count,
-                    "missing": c.comparison.n_missing, "extra": c.comparison.n_extra,
-                    "iou": c.comparison.iou, "ties": c.ties, "not_ties": int(len(c.unexplained))})
-        if info.kind == "surface" and mesh.watertight:
-            skey = ("reference-solid", cell.mesh, cell.n)
-            if skey not in refs:
-                refs[skey] = (run_method("reference-solid", mesh, spec), None)
-            inside = refs[skey][0].dense() & ~grid.dense()
-            row["leaks_26"] = int(len(separation_leaks(grid.dense(), inside, 26)))
-            row["leaks_6"] = int(len(separation_leaks(grid.dense(), inside, 6)))
+                self._refs[key] = run_method(name, self.mesh, self.spec, allow_open=True,
+                                             **dict(options)).words()
+            self.seconds += time.perf_counter() - t0
+        return self._refs[key]
+
+    def ties(self, name: str) -> np.ndarray:
+        """The tie set of the reference ``name``, packed like :meth:`words`."""
+        if name not in self._ties:
+            t0 = time.perf_counter()
+            self._ties[name] = pack_bits(tie_set(name, self.mesh, self.spec))
+            self.seconds += time.perf_counter() - t0
+        return self._ties[name]
+
+
+def reference_of(c: Contender, mesh) -> tuple[str | None, tuple]:
+    """The reference a contender is checked against, with the options that make it comparable.
+
+    On an open mesh, parity of crossings depends on the ray direction: a solid
+    method with an ``axis`` option is compared with ``reference-solid`` along
+    the same axis (on a closed mesh every axis gives the same solid).
+    """
+    if c.is_peer:
+        return get_peer(c.peer).reference, ()
+    info = get_method(c.method).info
+    if info.reference == "reference-solid" and not mesh.watertight and "axis" in info.options:
+        axis = dict(c.options).get("axis", info.options["axis"].default)
+        return info.reference, (("axis", int(axis)),)
+    return info.reference, ()
+
+
+# ---------------------------------------------------------------------------
+# one contender in one cell
+# ---------------------------------------------------------------------------
+
+
+class _Contestant:
+    """Runs one contender on one mesh and grid and keeps its samples and last result."""
+
+    def __init__(self, c: Contender, mesh, spec: GridSpec, ctx):
+        self.c, self.mesh, self.spec, self.ctx = c, mesh, spec, ctx
+        self.samples = Samples()
+        self.last: Any = None
+        self.cold_s = self.compile_s = self.prep_s = 0.0
+        self.gpu_bytes: int | None = None
+        self.error: str | None = None
+        self.calib = Calibration(ctx) if c.is_calibration else None
+        self.peer = get_peer(c.peer) if c.is_peer else None
+        if self.peer is not None:
+            t0 = time.perf_counter()
+            self.prepared = self.peer.prepare(mesh, spec)
+            self.prep_s = time.perf_counter() - t0
+
+    def once(self) -> float:
+        """One run; its wall time in seconds."""
+        if self.calib is not None:
+            t0 = time.perf_counter()
+            self.calib.run()
+            return time.perf_counter() - t0
+        if self.peer is not None:
+            t0 = time.perf_counter()
+            self.last = self.peer.run(self.prepared)
+            return time.perf_counter() - t0
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", NotWatertightWarning)
+            t0 = time.perf_counter()
+            self.last = run_method(self.c.method, self.mesh, self.spec, ctx=self.ctx, allow_open=True,
+                                   **dict(self.c.options))
+            return time.perf_counter() - t0
+
+    @property
+    def is_method(self) -> bool:
+        return self.peer is None and self.calib is None
+
+    def cold(self) -> None:
+        try:
+            self.cold_s = self.once()
+        except RUN_ERRORS as exc:
+            self.error = f"{type(exc).__name__}: {exc}"
+            return
+        if self.is_method:
+            self.compile_s = self.last.run.timings.compile_s
+            self.gpu_bytes = gpu_bytes(self.ctx) if get_method(self.c.method).info.uses_gl else 0
+
+    def warm(self) -> None:
+        try:
+            wall = self.once()
+        except RUN_ERRORS as exc:
+            self.error = f"{type(exc).__name__}: {exc}"
+            return
+        self.samples.add(wall, self.last if self.is_method else None)
+
+    def release(self) -> None:
+        """Free the calibration's buffer, or the method's pools of this size before the next size."""
+        if self.calib is not None:
+            self.calib.release()
+        elif self.is_method:
+            get_method(self.c.method).release(self.ctx)
+
+
+def _rounds(plan: Plan, runners: Sequence[_Contestant]) -> None:
+    """The interleaved timed rounds (see the module docstring)."""
+    active = [r for r in runners if r.error is None]
+    for rnd in range(plan.repeat):
+        if not active:
+            return
+        k = rnd % len(active)
+        for r in active[k:] + active[:k]:
+            r.warm()
+        active = [r for r in active if r.error is None
+                  and (plan.budget is None or sum(r.samples.walls) < plan.budget)]
+
+
+# ---------------------------------------------------------------------------
+# rows
+# ---------------------------------------------------------------------------
+
+
+def _base_row(c: Contender, mesh, name: str, n: int, spec: GridSpec) -> dict[str, Any]:
+    row: dict[str, Any] = {"key": c.key, "group": c.group, "peer": c.is_peer,
+                           "method": c.method or c.peer or c.key, "options": dict(c.options)}
+    if c.method is not None:
+        info = get_method(c.method).info
+        row.update(kind=info.kind, family=info.family, exact=info.exact)
+    elif c.is_peer:
+        row.update(kind=get_peer(c.peer).kind, family="peer", exact=None)
+    row.update(mesh=name, triangles=mesh.n_triangles, watertight=mesh.watertight, n=n, dims=list(spec.dims),
+               status="ok", error=None)
     return row
+
+
+def _not_run(plan: Plan, c: Contender, mesh, n: int) -> str | None:
+    """Why a contender gives a skipped row on this mesh at this size, or None."""
+    if c.is_peer:
+        limit = plan.peer_limit(c.peer)
+        if limit is not None and n > limit:
+            return (f"N = {n} over this peer's limit {limit} (--peer-max {c.peer}=N runs it; see "
+                    "glvox/study/peers.py for why)")
+    elif c.method is not None and not plan.open_solids and not mesh.watertight \
+            and get_method(c.method).info.kind in INSIDE_KINDS:
+        return "mesh not watertight: inside is undefined for a solid method"
+    return None
 
 
 def _jsonable(v) -> bool:
@@ -201,102 +321,113 @@ def _jsonable(v) -> bool:
         return False
 
 
-def load_rows(out: Path) -> list[dict[str, Any]]:
-    path = Path(out) / RESULTS
-    if not path.is_file():
-        return []
-    rows = []
-    for line in path.read_text().splitlines():
-        if line.strip():
-            try:
-                rows.append(json.loads(line))
-            except json.JSONDecodeError:
-                continue  # a line cut by an interruption: that cell runs again
+def _result_grid(r: _Contestant, row: dict[str, Any]) -> VoxelGrid | None:
+    """The contender's last result as a VoxelGrid (None for an LDI), with the row's
+    method fields (compile, stats, GPU bytes) or peer fields (convert, outside)."""
+    if r.is_method:
+        info = get_method(r.c.method).info
+        row.update(compile_ms=r.compile_s * 1e3, gpu_bytes=r.gpu_bytes,
+                   stats={k: v for k, v in r.last.run.stats.items() if _jsonable(v)})
+        if info.kind == "ldi":  # an LDI has its own checks (conservativeness), not a grid's
+            return None
+        return r.last if isinstance(r.last, VoxelGrid) else r.last.to_grid()
+    t0 = time.perf_counter()
+    pg = r.peer.to_grid(r.last, r.spec)
+    row.update(convert_ms=(time.perf_counter() - t0) * 1e3, prepare_ms=r.prep_s * 1e3, outside=pg.outside,
+               call=r.peer.call)
+    return pg.grid
+
+
+def _finish_row(plan: Plan, row: dict[str, Any], r: _Contestant, refs: References,
+                analyses: Sequence[Analysis], progress: Callable[[str], None]) -> None:
+    """Timings, voxel count, agreement and the layers' analyses of one contender."""
+    if r.error is not None:
+        row.update(status="error", error=r.error)
+        return
+    row.update(r.samples.summary(), cold_ms=r.cold_s * 1e3)
+    if r.calib is not None:
+        return
+    grid = _result_grid(r, row)
+    r.last = None  # large results go as soon as they are counted
+    if grid is None:
+        return
+    words = grid.words()
+    row["voxels"] = popcount(words)
+    ref, ref_opts = reference_of(r.c, r.mesh)
+    if ref is not None and plan.checks(row["n"]):
+        progress(f"{row['mesh']} {row['n']}^3: checking {r.c.key} against {ref}")
+        row["reference"] = ref + (f"[{','.join(f'{k}={v}' for k, v in ref_opts)}]" if ref_opts else "")
+        row.update(agreement(words, refs.words(ref, ref_opts), refs.ties(ref)))
+    for analyse in analyses:
+        analyse(row, grid, refs)
+
+
+def run_cell(plan: Plan, mesh, mesh_path: str, n: int, contenders: Sequence[Contender], ctx,
+             progress: Callable[[str], None] = lambda s: None,
+             analyses: Sequence[Analysis] = ()) -> list[dict[str, Any]]:
+    """``contenders`` on ``mesh`` at N = ``n``: one row each, in their order."""
+    spec = glvox.grid_for(mesh, n)
+    name = mesh_label(mesh_path)
+    rows: list[dict[str, Any]] = []
+    runners: dict[str, _Contestant] = {}
+    for c in contenders:
+        row = _base_row(c, mesh, name, n, spec)
+        rows.append(row)
+        why = _not_run(plan, c, mesh, n)
+        if why is not None:
+            row.update(status="skipped", error=why)
+            continue
+        try:
+            runners[c.key] = _Contestant(c, mesh, spec, ctx)
+        except RUN_ERRORS as exc:
+            row.update(status="error", error=f"{type(exc).__name__}: {exc}")
+    for r in runners.values():
+        progress(f"{name} {n}^3: cold {r.c.key}")
+        r.cold()
+    _rounds(plan, list(runners.values()))
+    refs = References(mesh, spec)
+    for row in rows:
+        if row["key"] in runners and row["status"] == "ok":
+            _finish_row(plan, row, runners[row["key"]], refs, analyses, progress)
+    for r in runners.values():
+        r.release()
+    for row in rows:
+        row["reference_s"] = refs.seconds
     return rows
 
 
-class Progress:
-    """One line on stderr: cells done, rate, ETA, the cell being run."""
+def run_plan(plan: Plan, *, done: Iterable[str] = (), on_rows: Callable[[list[dict]], None] | None = None,
+             log: Callable[[str], None] = lambda s: None, progress: Callable[[str], None] = lambda s: None,
+             analyses: Sequence[Analysis] = ()) -> list[dict[str, Any]]:
+    """Every cell of ``plan`` whose key is not in ``done``; the new rows in plan order.
 
-    def __init__(self, total: int, quiet: bool = False):
-        self.total, self.done, self.t0 = total, 0, time.perf_counter()
-        self.quiet = quiet or not sys.stderr.isatty()
-
-    def show(self, what: str) -> None:
-        if self.quiet:
-            return
-        el = time.perf_counter() - self.t0
-        eta = el / self.done * (self.total - self.done) if self.done else float("nan")
-        bar = "#" * int(20 * self.done / max(1, self.total))
-        sys.stderr.write(f"\r[{bar:<20}] {self.done}/{self.total}  {el:6.0f} s  ETA {eta:6.0f} s  "
-                         f"{what[:60]:<60}")
-        sys.stderr.flush()
-
-    def step(self) -> None:
-        self.done += 1
-
-    def close(self) -> None:
-        if not self.quiet:
-            sys.stderr.write("\n")
-
-
-def run_plan(plan: Plan, out: str | os.PathLike, *, force: bool = False, quiet: bool = False,
-             log: Callable[[str], None] | None = None) -> list[dict[str, Any]]:
-    """Run every cell of ``plan`` missing from ``out`` and return all rows.
-
-    Writes ``out/machine.json`` and appends each row to ``out/results.jsonl``
-    as soon as its cell finishes.
+    Parameters
+    ----------
+    done : iterable of str
+        Cell keys (:attr:`glvox.study.plan.Cell.key`) already measured: not run again.
+    on_rows : callable, optional
+        Called with the rows of each mesh and size as soon as they are complete.
+    log, progress : callable
+        One-line messages: notes about the meshes, and each step as it starts.
+    analyses : sequence of callable
+        Per row, after its agreement (see :data:`Analysis`).
     """
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "machine.json").write_text(json.dumps(machine(), indent=2))
-    rows = {} if force else {r["key"]: r for r in load_rows(out)}
-    if force and (out / RESULTS).exists():
-        (out / RESULTS).unlink()
-    known = set(method_names())
-    unknown = [m for m in plan.methods if m not in known]
-    if unknown:
-        raise GlvoxError(f"unknown methods {unknown}; known: {sorted(known)}")
-    cells = [c for c in plan.cells() if c.key not in rows]
-    meshes: dict[str, Any] = {}
-    refs: dict = {}
-    progress = Progress(len(cells), quiet)
-    if log and len(cells) < len(plan.cells()):
-        log(f"resuming: {len(plan.cells()) - len(cells)} of {len(plan.cells())} cells already in {out}")
-    path = out / RESULTS
-    if path.is_file() and path.stat().st_size:
-        with open(path, "rb") as f:
-            f.seek(-1, os.SEEK_END)
-            cut = f.read(1) != b"\n"
-        if cut:  # an interrupted write: end that line so new rows start cleanly
-            with open(path, "a") as f:
-                f.write("\n")
-    with open(path, "a") as f:
-        for cell in cells:
-            progress.show(cell.key)
-            if cell.mesh not in meshes:
-                refs.clear()  # references of the previous mesh are not needed again
-                meshes = {cell.mesh: glvox.load_mesh(resolve_mesh(cell.mesh))}
-            row = run_cell(cell, plan, meshes, refs)
-            rows[cell.key] = row
-            f.write(json.dumps(row) + "\n")
-            f.flush()
-            progress.step()
-    progress.close()
-    order = {c.key: i for i, c in enumerate(plan.cells())}
-    return sorted((r for r in rows.values() if r["key"] in order), key=lambda r: order[r["key"]])
-
-
-def write_csv(rows: Iterable[dict[str, Any]], path: Path) -> None:
-    """A tidy CSV: one row per cell, nested fields as JSON strings."""
-    import csv
-
-    rows = list(rows)
-    cols: list[str] = []
-    for r in rows:
-        cols += [k for k in r if k not in cols]
-    with open(path, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=cols)
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: json.dumps(v) if isinstance(v, (dict, list)) else v for k, v in r.items()})
+    done = set(done)
+    todo: dict[str, dict[int, list[Contender]]] = {}
+    for cell in plan.cells():
+        if cell.key not in done:
+            todo.setdefault(cell.mesh, {}).setdefault(cell.n, []).append(cell.contender)
+    ctx = get_context()
+    rows: list[dict[str, Any]] = []
+    for mesh_path, by_size in todo.items():
+        mesh = glvox.load_mesh(mesh_path)
+        if not mesh.watertight and plan.open_solids:
+            log(f"{mesh_label(mesh_path)} is not watertight: glvox's solid methods run with allow_open=True "
+                f"(parity of crossings) and are checked against reference-solid along their own axis; the "
+                f"solid peers apply their own rules for holes")
+        for n, contenders in by_size.items():
+            new = run_cell(plan, mesh, mesh_path, n, contenders, ctx, progress, analyses)
+            if on_rows is not None:
+                on_rows(new)
+            rows += new
+    return rows

@@ -1,4 +1,4 @@
-"""Tables and plots from the harness's rows.
+"""``glvox compare``'s tables and plots, from the runner's rows.
 
 Markdown tables are laid out like the papers' (mesh x grid rows, method
 columns); plots are PNG files drawn with matplotlib's Agg backend (no display).
@@ -87,7 +87,7 @@ def time_table(rows) -> str:
     return _table(rows, lambda r: f"{_ms(r.get('wall_ms'))} ({_ms(r.get('gpu_ms'))})",
                   "Time (ms): wall (GPU), median of warm runs",
                   "GPU time sums the stages' GL_TIMESTAMP intervals; CPU references have wall time only. "
-                  "Cold runs (with shader compilation) are in the CSV (`cold_wall_ms`, `compile_ms`).")
+                  "Cold runs (with shader compilation) are in the CSV (`cold_ms`, `compile_ms`).")
 
 
 def count_table(rows) -> str:

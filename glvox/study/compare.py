@@ -1,0 +1,272 @@
+"""``glvox compare``: every chosen method on every mesh and grid size, tables, plots and pictures.
+
+    glvox compare --preset quick -o results/quick
+    glvox compare --preset paper -o results/paper
+    glvox compare -m ss-conservative scanline-ilv --meshes stanford_bunny_bun_zipper.ply -r 64 128 256
+
+A thin layer over the study's runner (:mod:`glvox.study.harness`): the plan
+holds every registered method (or ``-m``), solid methods are skipped on open
+meshes, and each row gets the separability of surfaces on closed meshes
+(:func:`separability`).  A run writes into its output folder:
+``machine.json`` (renderer, versions), ``results.jsonl`` (one row per cell,
+appended as each mesh and size finishes: rerunning the same command resumes,
+skipping the cells whose row key is there), ``results.csv`` and
+``results.json`` (tidy, all rows), ``tables.md``, ``plots/*.png`` and
+``pictures/*.png``.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import sys
+import time
+import warnings
+from pathlib import Path
+from typing import Any, Iterable, Sequence
+
+import glvox
+from glvox.errors import GlvoxError, NotWatertightWarning
+from glvox.gl.context import get_context
+from glvox.grid import unpack_bits
+from glvox.methods import get_method, method_names, run_method
+from glvox.metrics import separation_leaks
+from glvox.results.voxels import VoxelGrid
+
+from . import harness, report
+from .meshes import resolve_mesh
+from .options import CHECK_MAX, COMPARE_PRESETS
+from .plan import Contender, Plan, row_key
+from .render import disagreement_slice, render_voxels, save_png, save_slice_png
+
+#: The result file of a run (one JSON object per line, appended per mesh and size).
+RESULTS = "results.jsonl"
+
+#: Picture resolution cap: renders and slices are made at min(largest size, this).
+PICTURE_MAX = 128
+
+
+def compare_plan(methods: Sequence[str], meshes: Sequence[str], sizes: Sequence[int], repeat: int = 5,
+                 check_max: int | None = CHECK_MAX, cpu_max: int | None = None) -> Plan:
+    """The plan of ``glvox compare``: ``methods`` (registered names) on resolved ``meshes``.
+
+    Every timed run counts (no time budget); solid, sparse and LDI methods
+    are skipped on open meshes, where inside is undefined.
+    """
+    return Plan(meshes=list(meshes), sizes=sorted(set(sizes)), contenders=[Contender.of_method(m) for m in methods],
+                repeat=repeat, check_max=check_max, cpu_max=cpu_max, open_solids=False)
+
+
+def plan_from(args) -> Plan:
+    preset = dict(COMPARE_PRESETS.get(args.preset or "", {}))
+    methods = args.methods or preset.get("methods") or method_names()
+    meshes = args.meshes or preset.get("meshes")
+    sizes = args.sizes or preset.get("sizes")
+    if not meshes or not sizes:
+        raise GlvoxError("give --preset quick|paper, or --meshes and -r/--sizes")
+    return compare_plan(methods, [resolve_mesh(m) for m in meshes], sizes,
+                        repeat=args.repeat or preset.get("repeat", 5),
+                        check_max=args.check_max or preset.get("check_max", CHECK_MAX),
+                        cpu_max=preset.get("cpu_max"))
+
+
+def separability(row: dict[str, Any], grid: VoxelGrid | None, refs: harness.References) -> None:
+    """``leaks_26`` / ``leaks_6`` of a checked surface on a closed mesh: inside voxels
+    (of reference-solid) reached from outside by 26- / 6-paths of empty voxels."""
+    if grid is None or row["kind"] != "surface" or not refs.mesh.watertight or "iou" not in row:
+        return
+    surface = grid.dense()
+    inside = unpack_bits(refs.words("reference-solid"), refs.spec.dims) & ~surface
+    row["leaks_26"] = int(len(separation_leaks(surface, inside, 26)))
+    row["leaks_6"] = int(len(separation_leaks(surface, inside, 6)))
+
+
+# ---------------------------------------------------------------------------
+# the result files
+# ---------------------------------------------------------------------------
+
+
+def load_rows(out: str | os.PathLike) -> list[dict[str, Any]]:
+    """The rows in ``out/results.jsonl``; a line cut by an interruption is dropped (its cell runs again)."""
+    path = Path(out) / RESULTS
+    if not path.is_file():
+        return []
+    rows = []
+    for line in path.read_text().splitlines():
+        if line.strip():
+            try:
+                rows.append(json.loads(line))
+            except json.JSONDecodeError:
+                continue
+    return rows
+
+
+def _end_cut_line(path: Path) -> None:
+    """End a line an interrupted write left open, so that new rows start cleanly."""
+    if path.is_file() and path.stat().st_size:
+        with open(path, "rb") as f:
+            f.seek(-1, os.SEEK_END)
+            cut = f.read(1) != b"\n"
+        if cut:
+            with open(path, "a") as f:
+                f.write("\n")
+
+
+def write_csv(rows: Iterable[dict[str, Any]], path: Path) -> None:
+    """A tidy CSV: one row per cell, nested fields as JSON strings."""
+    rows = list(rows)
+    cols: list[str] = []
+    for r in rows:
+        cols += [k for k in r if k not in cols]
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=cols)
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: json.dumps(v) if isinstance(v, (dict, list)) else v for k, v in r.items()})
+
+
+class Progress:
+    """One line on stderr: cells done, rate, ETA, the step being run."""
+
+    def __init__(self, total: int, quiet: bool = False):
+        self.total, self.done, self.t0 = total, 0, time.perf_counter()
+        self.quiet = quiet or not sys.stderr.isatty()
+
+    def show(self, what: str) -> None:
+        if self.quiet:
+            return
+        el = time.perf_counter() - self.t0
+        eta = el / self.done * (self.total - self.done) if self.done else float("nan")
+        bar = "#" * int(20 * self.done / max(1, self.total))
+        sys.stderr.write(f"\r[{bar:<20}] {self.done}/{self.total}  {el:6.0f} s  ETA {eta:6.0f} s  "
+                         f"{what[:60]:<60}")
+        sys.stderr.flush()
+
+    def step(self, cells: int = 1) -> None:
+        self.done += cells
+
+    def close(self) -> None:
+        if not self.quiet:
+            sys.stderr.write("\n")
+
+
+def run(plan: Plan, out: str | os.PathLike, *, force: bool = False, quiet: bool = False,
+        log=lambda s: None) -> list[dict[str, Any]]:
+    """Run every cell of ``plan`` missing from ``out`` and return all its rows, in plan order.
+
+    Writes ``out/machine.json`` and appends the rows of each mesh and size
+    to ``out/results.jsonl`` as soon as they are measured.
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "machine.json").write_text(json.dumps(harness.machine(), indent=2))
+    path = out / RESULTS
+    if force and path.exists():
+        path.unlink()
+    rows = {row_key(r): r for r in load_rows(out)}
+    cells = plan.cells()
+    todo = [c for c in cells if c.key not in rows]
+    if len(todo) < len(cells):
+        log(f"resuming: {len(cells) - len(todo)} of {len(cells)} cells already in {out}")
+    progress = Progress(len(todo), quiet)
+    _end_cut_line(path)
+    with open(path, "a") as f:
+        def write(new: list[dict[str, Any]]) -> None:
+            for r in new:
+                rows[row_key(r)] = r
+                f.write(json.dumps(r) + "\n")
+            f.flush()
+            progress.step(len(new))
+
+        harness.run_plan(plan, done=rows, on_rows=write, progress=progress.show, analyses=[separability])
+    progress.close()
+    return [rows[c.key] for c in cells if c.key in rows]
+
+
+# ---------------------------------------------------------------------------
+# pictures
+# ---------------------------------------------------------------------------
+
+
+def _renders(ctx, plan: Plan, mesh, spec, n: int, stem: str, pic: Path) -> list[Path]:
+    """One surface and one solid result (mesh edges drawn over the surface)."""
+    methods = [c.method for c in plan.contenders]
+    surface = next((m for m in ("ss-conservative", "scanline-rlv") if m in methods), None)
+    solid = next((m for m in ("ss-solid", "ss-solid-tiled", "eisemann-solid") if m in methods), None)
+    paths = []
+    for name, overlay in ((surface, True), (solid, False)):
+        if name is None or (get_method(name).info.kind == "solid" and not mesh.watertight):
+            continue
+        g = run_method(name, mesh, spec)
+        img = render_voxels(ctx, g, mesh=mesh if overlay and mesh.n_triangles < 60000 else None)
+        paths.append(save_png(img, pic / f"{stem}_{name}_{n}.png"))
+    return paths
+
+
+def _slices(plan: Plan, mesh, spec, n: int, label: str, stem: str, pic: Path, log) -> list[Path]:
+    """A slice where each approximate method disagrees with its reference."""
+    paths = []
+    for c in plan.contenders:
+        info = get_method(c.method).info
+        if info.exact or not info.reference or info.kind not in ("surface", "solid"):
+            continue
+        if info.kind == "solid" and not mesh.watertight:
+            continue
+        try:
+            g = run_method(c.method, mesh, spec)
+            ref = run_method(info.reference, mesh, spec, allow_open=True)
+        except GlvoxError as exc:
+            log(f"no slice for {c.method} on {stem}: {exc}")
+            continue
+        if g.equal(ref):
+            continue  # nothing to show: the method agrees with its reference here
+        img, k = disagreement_slice(g, ref)
+        cmp = g.compare(ref)
+        title = (f"{label} at {n}^3, slice z = {k}\n{c.method} against {info.reference}: "
+                 f"{cmp.n_missing} missing, {cmp.n_extra} extra in the whole grid")
+        paths.append(save_slice_png(img, pic / f"{stem}_slice_{c.method}_vs_{info.reference}_{n}_z{k}.png",
+                                    c.method, info.reference, title))
+    return paths
+
+
+def pictures(plan: Plan, out: Path, log) -> list[Path]:
+    """Renders and disagreement slices of every mesh at min(largest size, :data:`PICTURE_MAX`)."""
+    ctx = get_context()
+    pic = out / "pictures"
+    pic.mkdir(exist_ok=True)
+    n = min(max(plan.sizes), PICTURE_MAX)
+    paths = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NotWatertightWarning)
+        for mesh_path in plan.meshes:
+            mesh = glvox.load_mesh(mesh_path)
+            spec = glvox.grid_for(mesh, n)
+            stem = Path(mesh_path).stem.replace(":", "_")
+            paths += _renders(ctx, plan, mesh, spec, n, stem, pic)
+            paths += _slices(plan, mesh, spec, n, Path(mesh_path).name, stem, pic, log)
+    return paths
+
+
+def main(args) -> int:
+    """``glvox compare`` with parsed ``args`` (:func:`glvox.study.options.add_compare_arguments`)."""
+    def log(msg: str) -> None:
+        if not args.quiet:
+            print(msg, file=sys.stderr)
+
+    plan = plan_from(args)
+    out = Path(args.out)
+    t0 = time.perf_counter()
+    log(f"{len(plan.cells())} cells: {len(plan.contenders)} methods x {len(plan.meshes)} meshes x "
+        f"sizes {plan.sizes}, {plan.repeat} timed runs each -> {out}")
+    rows = run(plan, out, force=args.force, quiet=args.quiet, log=log)
+    machine = json.loads((out / "machine.json").read_text())
+    write_csv(rows, out / "results.csv")
+    (out / "results.json").write_text(json.dumps({"machine": machine, "rows": rows}, indent=1))
+    written = report.write_all(rows, machine, out)
+    if not args.no_pictures:
+        written += pictures(plan, out, log)
+    bad = [r for r in rows if r["status"] == "error"]
+    log(f"done in {time.perf_counter() - t0:.0f} s: {len(rows)} cells, {len(bad)} errors; "
+        f"wrote {out / 'tables.md'}, {out / 'results.csv'}, {len(written) - 1} plots and pictures")
+    return 0
