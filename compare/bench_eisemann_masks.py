@@ -32,7 +32,7 @@ import glvox
 from glvox.errors import NotWatertightWarning
 from glvox.gl.context import get_context
 from glvox.methods import run_method
-from glvox.study.meshes import SHARED_MESHES, resolve_mesh
+from glvox.datasets import SHARED_MESHES, resolve_mesh
 
 DEFAULT_MESHES = ["stanford_armadillo_libigl_86k.obj", "stanford_bunny_bun_zipper.ply",
                   "stanford_dragon_vrip_res2.ply"]

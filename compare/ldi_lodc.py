@@ -35,7 +35,7 @@ from glvox.errors import NotWatertightWarning
 from glvox.gl.context import get_context
 from glvox.methods import run_method
 from glvox.study.harness import timed
-from glvox.study.meshes import resolve_mesh
+from glvox.datasets import resolve_mesh
 
 DEFAULT_MESHES = ["depth_reduced_diamond_lattice.stl", "stanford_armadillo_libigl_86k.obj", "gen:nest40"]
 DEFAULT_LOD_C = [8, 16, 32, 64, 128, 256, 512, 1024, 2048]

@@ -6,7 +6,7 @@ counts, and the 1D/2D/3D case percentages, for shared meshes and grid sizes.
                                         [--meshes stanford_bunny_bun_zipper.ply ...]
 
 Meshes are paths or names in GLVOX_MESHES (default ../shared/meshes beside the
-checkout; glvox.study.meshes).
+checkout; glvox.datasets).
 Prints a markdown table laid out like the paper's (mesh x grid rows).
 """
 
@@ -18,7 +18,7 @@ import sys
 import glvox
 from glvox.gl.context import get_context
 from glvox.study.harness import timed
-from glvox.study.meshes import resolve_mesh
+from glvox.datasets import resolve_mesh
 
 DEFAULT_MESHES = ["stanford_bunny_bun_zipper.ply", "stanford_dragon_vrip_res2.ply"]
 

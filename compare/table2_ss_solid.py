@@ -24,7 +24,7 @@ from glvox.errors import NotWatertightWarning
 from glvox.gl.context import get_context
 from glvox.methods import method_names
 from glvox.study.harness import timed
-from glvox.study.meshes import resolve_mesh
+from glvox.datasets import resolve_mesh
 
 DEFAULT_MESHES = ["stanford_bunny_bun_zipper.ply", "stanford_dragon_vrip_res2.ply"]
 

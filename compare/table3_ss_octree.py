@@ -30,7 +30,7 @@ import glvox
 from glvox.errors import NotWatertightWarning
 from glvox.gl.context import get_context
 from glvox.study.harness import timed
-from glvox.study.meshes import resolve_mesh
+from glvox.datasets import resolve_mesh
 
 DEFAULT_MESHES = ["stanford_bunny_bun_zipper.ply", "stanford_dragon_vrip_res2.ply",
                   "stanford_armadillo_libigl_86k.obj"]

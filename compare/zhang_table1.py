@@ -30,7 +30,7 @@ from glvox.methods.scanline import gpu_voxel_coords
 from glvox.reference import conservative_surface
 from glvox.reference.scanline import OpCounts, lattice_points, scanline_surface
 from glvox.study.harness import timed
-from glvox.study.meshes import SHARED_MESHES, resolve_mesh
+from glvox.datasets import SHARED_MESHES, resolve_mesh
 from glvox.study.zhang import ANGLES, RADIUS, N, ss_counts, triangle
 
 #: Table 1 of the paper: (comparisons, additions) of SS10, Pan11, Ours per angle.

@@ -288,22 +288,22 @@ def _add_grid_arguments(p: argparse.ArgumentParser, bounds: bool = False) -> Non
     p.add_argument("--tight", action="store_true", help="non-cubic dims fitted to the bounding box")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="glvox", description="Headless GPU voxelization of triangle meshes.")
-    p.add_argument("--version", action="version", version=f"glvox {__version__}")
-    sub = p.add_subparsers(dest="command", required=True)
-
+def _add_info_parser(sub) -> None:
     pi = sub.add_parser("info", help="print the GL backend, renderer, version and limits")
     pi.add_argument("--backend", choices=["egl", "osmesa", "auto"], default=None)
     pi.add_argument("--json", action="store_true", help="machine-readable output")
     pi.set_defaults(func=cmd_info)
 
+
+def _add_methods_parser(sub) -> None:
     pm = sub.add_parser("methods", help="list the registered methods")
     pm.add_argument("--kind", choices=["surface", "solid", "ldi", "sparse"])
     pm.add_argument("--family", choices=["raster", "compute", "cpu"])
     pm.add_argument("--json", action="store_true")
     pm.set_defaults(func=cmd_methods)
 
+
+def _add_voxelize_parser(sub) -> None:
     pv = sub.add_parser("voxelize", help="voxelize a mesh into .npz or .binvox",
                         description="Voxelize MESH (a file trimesh loads, or gen:torus / gen:sphere / "
                                     "gen:box / gen:bunny-like).")
@@ -319,6 +319,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_output_arguments(pv, "print counts and timings as JSON")
     pv.set_defaults(func=cmd_voxelize)
 
+
+def _add_batch_parser(sub) -> None:
     pb = sub.add_parser(
         "batch", help="voxelize every mesh of a folder or list (parallel, resumable)",
         description="Voxelize every mesh file under INPUT (a folder, searched recursively by suffix, or a "
@@ -349,6 +351,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_output_arguments(pb, "print the summary as JSON", "no progress bar, messages or summary")
     pb.set_defaults(func=cmd_batch)
 
+
+def _add_ldi_parser(sub) -> None:
     pl = sub.add_parser(
         "ldi", help="sample a mesh into a layered depth image (.npz)",
         description="Layered depth image of MESH along --axis: rays through the centers of the grid's "
@@ -371,6 +375,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_output_arguments(pl, "print counts and timings as JSON")
     pl.set_defaults(func=cmd_ldi)
 
+
+def _add_volume_parser(sub) -> None:
     pvol = sub.add_parser(
         "volume", help="intersecting volume of two closed meshes (Leung & Wang Sec. V-A)",
         description="Print the volume of the overlap of MESH_A and MESH_B (world units cubed), from the "
@@ -388,6 +394,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_output_arguments(pvol, "print the volume, counts and timings as JSON")
     pvol.set_defaults(func=cmd_volume)
 
+
+def _add_compare_parser(sub) -> None:
     pc = sub.add_parser(
         "compare", help="run methods x meshes x grid sizes: tables, plots and pictures",
         description="Every chosen method on every mesh and grid size: timed warm runs, voxel counts, "
@@ -396,6 +404,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_compare_arguments(pc)
     pc.set_defaults(func=cmd_compare)
 
+
+def _add_bench_parser(sub) -> None:
     pbe = sub.add_parser(
         "bench", help="glvox against Open3D, trimesh, PyVista and libigl on the same grids: ratio table",
         description="Every glvox GPU method and every installed peer voxelizer (pip install 'glvox[peers]') "
@@ -404,6 +414,19 @@ def build_parser() -> argparse.ArgumentParser:
                     "method to the fastest peer of its kind and the issue's targets.")
     add_bench_arguments(pbe)
     pbe.set_defaults(func=cmd_bench)
+
+
+#: One function per command, each adding its subparser.
+_COMMANDS = (_add_info_parser, _add_methods_parser, _add_voxelize_parser, _add_batch_parser, _add_ldi_parser,
+             _add_volume_parser, _add_compare_parser, _add_bench_parser)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="glvox", description="Headless GPU voxelization of triangle meshes.")
+    p.add_argument("--version", action="version", version=f"glvox {__version__}")
+    sub = p.add_subparsers(dest="command", required=True)
+    for add in _COMMANDS:
+        add(sub)
     return p
 
 

@@ -11,7 +11,7 @@ import pytest
 # The shared meshes (../shared/meshes/SOURCES.md), for `from conftest import
 # SHARED_MESHES`: tests over "every shared mesh" are parametrized by these
 # names and skip one that is absent.
-from glvox.study.meshes import SHARED_MESHES  # noqa: F401
+from glvox.datasets import SHARED_MESHES  # noqa: F401
 
 #: Heavier runs (large grids, every shared mesh) are opt-in.
 SLOW = os.environ.get("GLVOX_SLOW", "") not in ("", "0")

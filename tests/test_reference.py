@@ -9,8 +9,6 @@ sets.  None is a recorded output of the code under test.
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,20 +17,19 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial import ConvexHull
 
+from glvox.datasets import mesh_dir
 from glvox.metrics import separation_leaks
 from glvox.reference import (TIE_EPS, conservative_surface, conservative_surface_sat, float32_motion,
                              mismatch_is_tie, orientation_ambiguous, point_triangle_distance, short_edges,
                              six_separating_surface, solid, solid_ties, surface_ties)
 
-MESHES = Path(os.environ.get("GLVOX_MESHES",
-                             Path(__file__).resolve().parents[2] / "shared" / "meshes"))
 
 
 # ----------------------------------------------------------------------------
 # helpers
 
 def load_mesh(name: str) -> trimesh.Trimesh:
-    path = MESHES / name
+    path = mesh_dir() / name
     if not path.is_file():
         pytest.skip(f"test mesh {path} not found (set GLVOX_MESHES to the mesh folder)")
     return trimesh.load(path, force="mesh")

@@ -1,7 +1,9 @@
 """Projected optimal scanline voxelization (Zhang et al. 2018), CPU implementation.
 
 This is the exact CPU counterpart of ``shaders/scanline/voxelize.comp``: the
-same algorithm, step for step, in Python scalars.  It serves as the reference
+same algorithm, step for step, in Python scalars (which is why this module is
+long: it mirrors the shader function by function, so the two can be read and
+diffed side by side).  It serves as the reference
 the GPU methods ``scanline-rlv``, ``scanline-slv`` and ``scanline-ilv`` are
 checked against, and it counts comparisons and additions for the paper's
 Table 1 (``compare/zhang_table1.py``).

@@ -36,17 +36,16 @@ import time
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
-import glvox
 from glvox.errors import GlvoxError
 
-from .meshes import checkout_root, mesh_dir
+from ..datasets import checkout_root, mesh_dir
 
 def source_root() -> Path:
     """The checkout this glvox is imported from (``--against`` needs git)."""
     root = checkout_root()
     if root is None:
         raise GlvoxError(f"glvox bench --against compares git revisions, but glvox is imported from "
-                         f"{Path(glvox.__file__).resolve().parent.parent}, which is not a git checkout of glvox")
+                         f"{Path(__file__).resolve().parents[2]}, which is not a git checkout of glvox")
     return root
 
 

@@ -35,7 +35,7 @@ from glvox.tolerances import REGRESSION_TOLERANCE
 from . import ab, harness, regression
 from .bench_report import report
 from .coldstart import cold_start
-from .meshes import mesh_dir, resolve_mesh
+from ..datasets import mesh_dir, resolve_mesh
 from .options import AB_REPEAT, BENCH_BUDGET, BENCH_PRESETS, BENCH_REPEAT
 from .peers import PEERS, get_peer
 from .plan import CALIBRATION_CONTENDER, Contender, Plan

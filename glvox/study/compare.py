@@ -26,16 +26,16 @@ import warnings
 from pathlib import Path
 from typing import Any, Iterable, Sequence
 
-import glvox
 from glvox.errors import GlvoxError, NotWatertightWarning
 from glvox.gl.context import get_context
-from glvox.grid import unpack_bits
+from glvox.grid import grid_for, unpack_bits
+from glvox.mesh import load_mesh
 from glvox.methods import get_method, method_names, run_method
 from glvox.metrics import separation_leaks
 from glvox.results.voxels import VoxelGrid
 
 from . import harness, report
-from .meshes import resolve_mesh
+from ..datasets import resolve_mesh
 from .options import CHECK_MAX, COMPARE_PRESETS
 from .plan import Contender, Plan, row_key
 from .render import disagreement_slice, render_voxels, save_png, save_slice_png
@@ -240,8 +240,8 @@ def pictures(plan: Plan, out: Path, log) -> list[Path]:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", NotWatertightWarning)
         for mesh_path in plan.meshes:
-            mesh = glvox.load_mesh(mesh_path)
-            spec = glvox.grid_for(mesh, n)
+            mesh = load_mesh(mesh_path)
+            spec = grid_for(mesh, n)
             stem = Path(mesh_path).stem.replace(":", "_")
             paths += _renders(ctx, plan, mesh, spec, n, stem, pic)
             paths += _slices(plan, mesh, spec, n, Path(mesh_path).name, stem, pic, log)

@@ -38,11 +38,12 @@ from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
-import glvox
+from glvox._version import __version__
 from glvox.errors import GlvoxError, NotWatertightWarning
 from glvox.gl.context import get_context
 from glvox.gpu.buffers import gpu_bytes
-from glvox.grid import GridSpec, pack_bits
+from glvox.grid import GridSpec, grid_for, pack_bits
+from glvox.mesh import load_mesh
 from glvox.methods import get_method, run_method
 from glvox.methods.envelope import INSIDE_KINDS
 from glvox.metrics import agreement, popcount, tie_set
@@ -66,7 +67,7 @@ def machine() -> dict[str, Any]:
     import trimesh
 
     ctx = get_context()
-    return {"glvox": glvox.__version__, "python": platform.python_version(),
+    return {"glvox": __version__, "python": platform.python_version(),
             "numpy": np.__version__, "moderngl": moderngl.__version__, "trimesh": trimesh.__version__,
             "platform": platform.platform(), "cpu_count": os.cpu_count(),
             "gl": {"vendor": ctx.vendor, "renderer": ctx.renderer, "version": ctx.version,
@@ -366,7 +367,7 @@ def run_cell(plan: Plan, mesh, mesh_path: str, n: int, contenders: Sequence[Cont
              progress: Callable[[str], None] = lambda s: None,
              analyses: Sequence[Analysis] = ()) -> list[dict[str, Any]]:
     """``contenders`` on ``mesh`` at N = ``n``: one row each, in their order."""
-    spec = glvox.grid_for(mesh, n)
+    spec = grid_for(mesh, n)
     name = mesh_label(mesh_path)
     rows: list[dict[str, Any]] = []
     runners: dict[str, _Contestant] = {}
@@ -420,7 +421,7 @@ def run_plan(plan: Plan, *, done: Iterable[str] = (), on_rows: Callable[[list[di
     ctx = get_context()
     rows: list[dict[str, Any]] = []
     for mesh_path, by_size in todo.items():
-        mesh = glvox.load_mesh(mesh_path)
+        mesh = load_mesh(mesh_path)
         if not mesh.watertight and plan.open_solids:
             log(f"{mesh_label(mesh_path)} is not watertight: glvox's solid methods run with allow_open=True "
                 f"(parity of crossings) and are checked against reference-solid along their own axis; the "

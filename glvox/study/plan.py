@@ -109,7 +109,7 @@ class Plan:
     Attributes
     ----------
     meshes : sequence of str
-        Resolved mesh paths or ``gen:...`` names (:func:`glvox.study.meshes.resolve_mesh`).
+        Resolved mesh paths or ``gen:...`` names (:func:`glvox.datasets.resolve_mesh`).
     sizes : sequence of int
         Grid resolutions N (cubic N^3 grids fitted by :func:`glvox.grid_for`).
     contenders : sequence of Contender

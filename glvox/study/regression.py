@@ -17,7 +17,7 @@ from typing import Any, Sequence
 from glvox.errors import GlvoxError
 from glvox.tolerances import REGRESSION_TOLERANCE
 
-from .meshes import checkout_root
+from ..datasets import checkout_root
 from .options import CHECKOUT_BASELINE
 from .plan import CALIBRATION, row_key
 

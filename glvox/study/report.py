@@ -177,7 +177,7 @@ def octree_table(rows) -> str:
 
 def markdown(rows: Sequence[dict[str, Any]], machine: dict[str, Any]) -> str:
     gl = machine.get("gl", {})
-    head = [f"# glvox comparison", "",
+    head = ["# glvox comparison", "",
             f"{gl.get('renderer', '?')}; OpenGL {gl.get('version', '?')}; glvox {machine.get('glvox')}, "
             f"moderngl {machine.get('moderngl')}, trimesh {machine.get('trimesh')}, "
             f"Python {machine.get('python')}, {machine.get('cpu_count')} CPUs.", ""]

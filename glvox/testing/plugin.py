@@ -1,4 +1,9 @@
-"""pytest plugin of glvox (registered through the ``pytest11`` entry point)."""
+"""pytest plugin of glvox (registered through the ``pytest11`` entry point).
+
+pytest loads this module in every session of every project where glvox is
+installed, so it imports glvox itself (and with it moderngl) only inside the
+fixtures that need it: a project that never asks for ``gl_context`` pays nothing.
+"""
 
 from __future__ import annotations
 
@@ -27,7 +32,7 @@ def _require_gl(config) -> bool:
 
 @pytest.fixture(scope="session")
 def gl_context(request):
-    """The process's shared headless GL context (glvox.context.get_context())."""
+    """The process's shared headless GL context (glvox.gl.context.get_context())."""
     from glvox.errors import BackendError
     from glvox.gl.context import get_context
 
@@ -77,9 +82,11 @@ def _glvox_requires_gl(request):
 
 @pytest.fixture(scope="session")
 def glvox_mesh_dir(request) -> Path:
-    """The shared meshes folder: GLVOX_MESHES, else ../shared/meshes beside the checkout."""
-    env = os.environ.get("GLVOX_MESHES")
-    path = Path(env) if env else Path(request.config.rootpath).resolve().parent / "shared" / "meshes"
+    """The shared meshes folder (:func:`glvox.datasets.mesh_dir`: GLVOX_MESHES, else
+    ../shared/meshes beside glvox's checkout)."""
+    from glvox.datasets import mesh_dir
+
+    path = mesh_dir()
     if not path.is_dir():
         pytest.skip(f"shared meshes folder not found: {path} (set GLVOX_MESHES)")
     return path

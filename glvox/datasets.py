@@ -1,9 +1,9 @@
-"""Where the study finds its meshes, and the checkout glvox runs from.
+"""The shared meshes by name, and the checkout glvox runs from.
 
 The shared meshes (``../shared/meshes/SOURCES.md``) live outside the
 repository.  Everything that looks for them (``glvox compare``, ``glvox
-bench``, the scripts in ``compare/``, the tests) asks :func:`mesh_dir` or
-:func:`resolve_mesh`.
+bench``, the scripts in ``compare/``, the pytest plugin, the tests) asks
+:func:`mesh_dir` or :func:`resolve_mesh`.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from glvox.errors import GlvoxError
+from .errors import GlvoxError
 
 #: The shared meshes by file name, sorted; tests and scripts over "every
 #: shared mesh" iterate over these and skip one that is absent.
@@ -26,7 +26,7 @@ SHARED_MESHES = (
 
 #: The folder that holds the glvox package: the checkout's root when glvox
 #: runs from one (an editable install), site-packages otherwise.
-_ROOT = Path(__file__).resolve().parents[2]
+_ROOT = Path(__file__).resolve().parents[1]
 
 
 def checkout_root() -> Path | None:

@@ -1,0 +1,80 @@
+"""The package's layers: every import inside glvox points down the README's Layout list.
+
+A module may import glvox modules of its own layer or of the layers listed
+before it, never one listed after it, and nothing inside glvox imports the
+package face (glvox/__init__.py).  Function-local imports count too: a lazy
+import does not make an upward dependency acceptable.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1] / "glvox"
+
+#: The README's Layout order, lowest first.
+LAYERS = ["_version", "errors", "tolerances", "grid", "mesh", "datasets", "results", "io", "gl", "gpu",
+          "reference", "methods", "metrics", "batch", "study", "testing", "cli", "__main__"]
+
+
+def _layer(module: str) -> str:
+    """'glvox.gpu.sort' -> 'gpu'."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else "__init__"
+
+
+def _is_submodule(name: str) -> bool:
+    return (ROOT / name).is_dir() or (ROOT / f"{name}.py").is_file()
+
+
+def _imports(path: Path) -> list[tuple[int, str]]:
+    """(line, absolute module) of every glvox import in ``path``, relative ones resolved."""
+    rel = path.relative_to(ROOT.parent).with_suffix("")
+    package = list(rel.parts[:-1]) if rel.name != "__init__" else list(rel.parts[:-1])
+    out = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package[: len(package) - node.level + 1]
+                mod = ".".join(base + ([node.module] if node.module else []))
+            else:
+                mod = node.module or ""
+            if mod == "glvox" or mod.startswith("glvox."):
+                names = [a.name for a in node.names]
+                if mod == "glvox":  # `from glvox import x` / `from .. import x`: x is a submodule or the face
+                    out += [(node.lineno, f"glvox.{n}" if _is_submodule(n) else "glvox") for n in names]
+                else:
+                    out.append((node.lineno, mod))
+        elif isinstance(node, ast.Import):
+            out += [(node.lineno, a.name) for a in node.names if a.name.startswith("glvox")]
+    return out
+
+
+#: Scripts run in a child process that use glvox as a user does, through the face.
+THROUGH_THE_FACE = {
+    "glvox/study/ab_child.py": "serves timed runs of any revision's glvox, old layouts included",
+    "glvox/study/coldstart.py": "times a user's cold start, of which `import glvox` is part",
+}
+
+MODULES = sorted(p for p in ROOT.rglob("*.py") if p.name != "__init__.py" or p.parent != ROOT)
+
+
+def test_every_module_is_in_a_layer():
+    unknown = sorted({_layer(".".join(p.relative_to(ROOT.parent).with_suffix("").parts)) for p in MODULES}
+                     - set(LAYERS))
+    assert not unknown, f"add these to LAYERS in the README's order: {unknown}"
+
+
+@pytest.mark.parametrize("path", MODULES, ids=lambda p: str(p.relative_to(ROOT.parent)))
+def test_imports_point_down(path):
+    own = _layer(".".join(path.relative_to(ROOT.parent).with_suffix("").parts))
+    face_ok = path.relative_to(ROOT.parent).as_posix() in THROUGH_THE_FACE
+    bad = []
+    for line, mod in _imports(path):
+        target = _layer(mod)
+        if (target == "__init__" and not face_ok) or (target in LAYERS and LAYERS.index(target) > LAYERS.index(own)):
+            bad.append(f"line {line}: {mod}")
+    assert not bad, f"{path.name} ({own}) imports upward: {bad}"
