@@ -20,6 +20,7 @@ import numpy as np
 
 from . import io
 from ._version import __version__
+from .batch import BatchSettings, run_batch
 from .errors import GlvoxError
 from .gl.context import get_context
 from .grid import grid_for
@@ -139,8 +140,6 @@ def cmd_voxelize(args) -> int:
 
 def cmd_batch(args) -> int:
     """``glvox batch``: exit 0 when every mesh is done or skipped, 3 when some failed."""
-    from .batch import BatchSettings, run_batch
-
     if args.scheduler and args.workers is not None:
         raise GlvoxError("--workers sizes the local cluster; with --scheduler the cluster's own "
                          "workers run the batch, so give one or the other")

@@ -36,6 +36,7 @@ import warnings
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable, Sequence
 
+import moderngl
 import numpy as np
 
 from glvox._version import __version__
@@ -63,8 +64,7 @@ Analysis = Callable[[dict, "VoxelGrid | None", "References"], None]
 
 def machine() -> dict[str, Any]:
     """The GL renderer and the versions that produced a result."""
-    import moderngl
-    import trimesh
+    import trimesh  # lazy: slow to import, only its version is wanted here
 
     ctx = get_context()
     return {"glvox": __version__, "python": platform.python_version(),

@@ -25,6 +25,7 @@ which is a core dependency of glvox: its peers always run.
 from __future__ import annotations
 
 import importlib
+from importlib import metadata
 from dataclasses import dataclass
 from typing import Any
 
@@ -358,9 +359,7 @@ class IglWinding(Peer):
 
     def version(self) -> str:
         try:
-            from importlib.metadata import version
-
-            return version("libigl")
+            return metadata.version("libigl")
         except Exception:
             return "?"
 

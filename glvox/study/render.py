@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import moderngl
 import numpy as np
 
 from glvox.gl.shaders import render_program
@@ -101,8 +102,6 @@ def render_voxels(ctx, grid: VoxelGrid, size: tuple[int, int] = (960, 720), mesh
     -------
     (height, width, 3) uint8
     """
-    import moderngl
-
     ctx.make_current()
     mgl = ctx.mgl
     occ = np.asarray(grid.dense())
