@@ -464,31 +464,45 @@ class FakeClock:
 
 def test_progress_bar_rate_eta_and_plain_lines():
     clock, tty = FakeClock(), _io.StringIO()
-    p = Progress(200, stream=tty, tty=True, clock=clock)
+    p = Progress(200, unit="mesh", stream=tty, tty=True, clock=clock)
+    assert "ETA ?" in p.line() and "nan" not in p.line()   # no rate yet: the ETA is unknown
     for i in range(50):
         clock.t += 0.2                           # 5 meshes per second
-        p.update({"status": "failed" if i < 2 else "done"})
+        if i < 2:
+            p.status(f"{i + 1} failed")
+        p.update()
     # 150 left at 5 meshes/s: 30 s
-    assert p.line() == "50/200  25% |######                  |   5.0 mesh/s  ETA 0:00:30  2 failed"
-    assert tty.getvalue().count("\r") == 50 and "\n" not in tty.getvalue()
+    assert p.line() == "50/200  25% |######                  |  5.00 mesh/s  ETA 00:30, 2 failed"
+    assert tty.getvalue().count("\r") >= 2 and "\n" not in tty.getvalue()   # redrawn in place
+    assert tty.getvalue().rsplit("\r", 1)[-1].startswith("50/200")
     p.close()
     assert tty.getvalue().endswith("\n")
 
     clock, log = FakeClock(), _io.StringIO()
-    p = Progress(100, stream=log, tty=False, clock=clock, log_interval=10)
+    p = Progress(100, unit="mesh", stream=log, tty=False, clock=clock, log_interval=10)
     for _ in range(100):
         clock.t += 0.5
-        p.update({"status": "done"})
+        p.update()
     lines = log.getvalue().splitlines()
     # one line every 10 s of the 50 s run, the last at the end
     assert len(lines) == 5 and lines[-1].startswith("[    50.0 s] 100/100 100%")
-    assert "2.0 mesh/s" in lines[0]
+    assert "2.00 mesh/s" in lines[0] and "ETA 00:40" in lines[0]
 
     quiet = _io.StringIO()
     p = Progress(10, stream=quiet, enabled=False, tty=True, clock=FakeClock())
-    p.update({"status": "done"})
+    p.update()
     p.close()
     assert quiet.getvalue() == ""
+
+
+def test_rerun_that_skips_everything_reports_no_rate(dataset, tmp_path):
+    root, _ = dataset
+    args = ("batch", root / "group0", "-o", tmp_path / "o", "-r", R, "--workers", 0)
+    assert glvox(*args).returncode == 0
+    p = glvox(*args)
+    assert p.returncode == 0, p.stderr
+    assert "none processed: every output exists (--overwrite redoes them)" in p.stdout
+    assert "meshes/s" not in p.stdout
 
 
 def test_cli_summary_and_quiet(dataset, tmp_path):

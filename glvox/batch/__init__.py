@@ -57,19 +57,20 @@ Modules
 ``worker``    one mesh: :func:`voxelize_one`, the GL thread, the Dask task
 ``atomic``    writes through a temporary file and a rename
 ``manifest``  the CSV manifest and the summary
-``progress``  the progress bar
 ``safety``    the output-folder lock, stale temporary files, held signals
 ``cluster``   the Dask runner (local cluster or scheduler, crash retry)
 ``run``       :func:`run_batch`: resume, run in this process or on Dask, keep the manifest
+
+The progress bar is the package's one reporter, :class:`glvox.progress.Progress`.
 """
 
 from __future__ import annotations
 
+from ..progress import LOG_INTERVAL_S, Progress
 from .atomic import atomic_save
 from .cluster import WORKER_CRASHED
 from .jobs import SAVED_KINDS, BatchSettings, Job, find_meshes, mesh_suffixes, plan_jobs
 from .manifest import MANIFEST_COLUMNS, BatchSummary, read_manifest, write_manifest
-from .progress import LOG_INTERVAL_S, Progress
 from .run import MANIFEST_INTERVAL_S, run_batch
 from .safety import LOCK_NAME
 from .worker import Task, dask_task, voxelize_one

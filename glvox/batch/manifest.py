@@ -142,8 +142,13 @@ class BatchSummary:
 
     def format(self) -> str:
         """The summary lines ``glvox batch`` prints at the end."""
+        if self.done + self.failed:
+            rate = f"{self.processed_per_s:.2f} meshes/s"
+        else:  # a rate of 0 would read as a stall: say why nothing ran
+            rate = ("none processed: every output exists (--overwrite redoes them)" if self.skipped == self.total
+                    else "none processed")
         lines = [f"{self.total} meshes in {self.elapsed_s:.1f} s ({self.mode}, start-up "
-                 f"{self.startup_s:.1f} s): {self.processed_per_s:.2f} meshes/s",
+                 f"{self.startup_s:.1f} s): {rate}",
                  f"  done {self.done}, skipped {self.skipped}, failed {self.failed}"
                  + (f", not finished {self.pending}" if self.pending else "")]
         if self.failed_by_reason:

@@ -12,7 +12,7 @@ from ..errors import GlvoxError
 from .cluster import run_dask
 from .jobs import BatchSettings, Job, mesh_suffixes, plan_jobs
 from .manifest import MANIFEST_COLUMNS, BatchSummary, base_row, read_manifest, write_manifest
-from .progress import Progress
+from ..progress import Progress
 from .safety import OutputLock, remove_stale_parts, signals_held
 from .worker import Task, voxelize_one
 
@@ -101,13 +101,17 @@ class _Recorder:
         self.progress = progress
         self.last_write = time.monotonic()
         self.write_s = 0.0
+        self.failed = 0
 
     def __call__(self, row: dict[str, Any]) -> None:
         self.rows[row["input"]] = row
         if self.overwrite and row["status"] == "failed":
             # an output of earlier settings must not pass for this run's on the next one
             (self.out / row["output"]).unlink(missing_ok=True)
-        self.progress.update(row)
+        if row["status"] == "failed":
+            self.failed += 1
+            self.progress.status(f"{self.failed} failed")
+        self.progress.update()
         t = time.monotonic()
         if t - self.last_write >= max(MANIFEST_INTERVAL_S, 20 * self.write_s):
             self.write()
@@ -181,7 +185,7 @@ def run_batch(source: str | os.PathLike, out_dir: str | os.PathLike, settings: B
     manifest_path = Path(manifest).expanduser().absolute() if manifest else out / "manifest.csv"
     with OutputLock(out):
         rows, todo = _start(jobs, settings, out, manifest_path, overwrite, say)
-        progress = Progress(len(todo), stream=stream, enabled=not quiet)
+        progress = Progress(len(todo), unit="mesh", stream=stream, enabled=not quiet)
         record = _Recorder(rows, manifest_path, out, overwrite, progress)
         mode, startup = "in-process", 0.0
         try:

@@ -237,7 +237,7 @@ def run_against(plan, rev: str, tolerance: float,
             for mesh in plan.meshes:
                 for n in plan.sizes:
                     for c in contenders:
-                        progress(f"{c.key} on {Path(mesh).name} {n}^3")
+                        progress(f"{c.label} on {Path(mesh).name} {n}^3")
                         r = measure_cell(sides, mesh, n, c.method, dict(c.options), plan.repeat, plan.budget,
                                          tolerance)
                         rows.append({"key": c.key, "mesh": Path(mesh).name, "n": n, **r})

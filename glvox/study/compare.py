@@ -32,6 +32,7 @@ from glvox.grid import grid_for, unpack_bits
 from glvox.mesh import load_mesh
 from glvox.methods import get_method, method_names, run_method
 from glvox.metrics import separation_leaks
+from glvox.progress import Progress
 from glvox.results.voxels import VoxelGrid
 
 from . import harness, report
@@ -126,31 +127,6 @@ def write_csv(rows: Iterable[dict[str, Any]], path: Path) -> None:
             w.writerow({k: json.dumps(v) if isinstance(v, (dict, list)) else v for k, v in r.items()})
 
 
-class Progress:
-    """One line on stderr: cells done, rate, ETA, the step being run."""
-
-    def __init__(self, total: int, quiet: bool = False):
-        self.total, self.done, self.t0 = total, 0, time.perf_counter()
-        self.quiet = quiet or not sys.stderr.isatty()
-
-    def show(self, what: str) -> None:
-        if self.quiet:
-            return
-        el = time.perf_counter() - self.t0
-        eta = el / self.done * (self.total - self.done) if self.done else float("nan")
-        bar = "#" * int(20 * self.done / max(1, self.total))
-        sys.stderr.write(f"\r[{bar:<20}] {self.done}/{self.total}  {el:6.0f} s  ETA {eta:6.0f} s  "
-                         f"{what[:60]:<60}")
-        sys.stderr.flush()
-
-    def step(self, cells: int = 1) -> None:
-        self.done += cells
-
-    def close(self) -> None:
-        if not self.quiet:
-            sys.stderr.write("\n")
-
-
 def run(plan: Plan, out: str | os.PathLike, *, force: bool = False, quiet: bool = False,
         log=lambda s: None) -> list[dict[str, Any]]:
     """Run every cell of ``plan`` missing from ``out`` and return all its rows, in plan order.
@@ -169,7 +145,7 @@ def run(plan: Plan, out: str | os.PathLike, *, force: bool = False, quiet: bool 
     todo = [c for c in cells if c.key not in rows]
     if len(todo) < len(cells):
         log(f"resuming: {len(cells) - len(todo)} of {len(cells)} cells already in {out}")
-    progress = Progress(len(todo), quiet)
+    progress = Progress(len(todo), unit="cell", enabled=not quiet)
     _end_cut_line(path)
     with open(path, "a") as f:
         def write(new: list[dict[str, Any]]) -> None:
@@ -177,10 +153,10 @@ def run(plan: Plan, out: str | os.PathLike, *, force: bool = False, quiet: bool 
                 rows[row_key(r)] = r
                 f.write(json.dumps(r) + "\n")
             f.flush()
-            progress.step(len(new))
+            progress.update(len(new))
 
-        harness.run_plan(plan, done=rows, on_rows=write, progress=progress.show, analyses=[separability])
-    progress.close()
+        with progress:
+            harness.run_plan(plan, done=rows, on_rows=write, progress=progress.status, analyses=[separability])
     return [rows[c.key] for c in cells if c.key in rows]
 
 

@@ -356,7 +356,7 @@ def _finish_row(plan: Plan, row: dict[str, Any], r: _Contestant, refs: Reference
     row["voxels"] = popcount(words)
     ref, ref_opts = reference_of(r.c, r.mesh)
     if ref is not None and plan.checks(row["n"]):
-        progress(f"{row['mesh']} {row['n']}^3: checking {r.c.key} against {ref}")
+        progress(f"{row['mesh']} {row['n']}^3: checking {r.c.label} against {ref}")
         row["reference"] = ref + (f"[{','.join(f'{k}={v}' for k, v in ref_opts)}]" if ref_opts else "")
         row.update(agreement(words, refs.words(ref, ref_opts), refs.ties(ref)))
     for analyse in analyses:
@@ -383,8 +383,9 @@ def run_cell(plan: Plan, mesh, mesh_path: str, n: int, contenders: Sequence[Cont
         except RUN_ERRORS as exc:
             row.update(status="error", error=f"{type(exc).__name__}: {exc}")
     for r in runners.values():
-        progress(f"{name} {n}^3: cold {r.c.key}")
+        progress(f"{name} {n}^3: first run of {r.c.label}")
         r.cold()
+    progress(f"{name} {n}^3: timed runs of {len(runners)} contenders")
     _rounds(plan, list(runners.values()))
     refs = References(mesh, spec)
     for row in rows:

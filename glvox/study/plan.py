@@ -57,6 +57,15 @@ class Contender:
         return cls(f"peer:{p.name}", p.kind, peer=p.name)
 
     @property
+    def label(self) -> str:
+        """The contender as a person reads it in progress messages (not the row key)."""
+        if self.is_calibration:
+            return "the calibration workload"
+        if self.is_peer:
+            return f"peer {self.peer}"
+        return self.method + (f" ({', '.join(f'{k} {v}' for k, v in self.options)})" if self.options else "")
+
+    @property
     def is_peer(self) -> bool:
         return self.peer is not None
 
