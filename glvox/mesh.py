@@ -13,14 +13,18 @@ from __future__ import annotations
 
 import io
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Union
 
 import numpy as np
 
-from .errors import EmptyMeshError, FaceIndexError, MeshError, MeshLoadError, NonFiniteVertexError
+from .errors import EmptyMeshError, FaceIndexError, LimitError, MeshError, MeshLoadError, NonFiniteVertexError
 from .tolerances import DEGENERATE_AREA_RTOL
+
+#: The largest float32, the type of vertices on the GPU.
+FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 MeshLike = Union[str, os.PathLike, "Mesh", Any, tuple]
 
@@ -88,8 +92,13 @@ class Mesh:
         already computed), (F, 3) uint32 faces."""
         if anchor is None:
             anchor = self.anchor
-        return ((self.vertices - anchor).astype(np.float32),
-                self.faces.astype(np.uint32))
+        rel = self.vertices - anchor
+        reach = float(np.abs(rel).max())
+        if not reach < FLOAT32_MAX:  # a silent inf would give a wrong grid
+            raise LimitError(f"{self.name}: coordinates reach {reach:.3g} from the mesh's center, beyond the "
+                             f"float32 range of GPU vertices ({FLOAT32_MAX:.3g}); scale the mesh down or use a "
+                             f"reference-* method (float64)")
+        return rel.astype(np.float32), self.faces.astype(np.uint32)
 
     def __repr__(self) -> str:
         return (f"Mesh({self.name!r}, triangles={self.n_triangles}, "
@@ -122,6 +131,10 @@ def _load_file(path: Path):
                                   process=False, skip_materials=True)
     except Exception as exc:  # noqa: BLE001 - trimesh raises many types; one clear error
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        out_of_range = re.match(r"index -?\d+ is out of bounds for axis 0 with size (\d+)", msg)
+        if isinstance(exc, IndexError) and out_of_range:  # numpy's words for a face index past the vertices
+            raise FaceIndexError(f"could not read mesh file {path}: a face refers to a vertex the file does not "
+                                 f"have (it has {out_of_range.group(1)} vertices)") from None
         raise MeshLoadError(f"could not read mesh file {path}: {msg}") from None
     if isinstance(loaded, trimesh.Scene):
         return _scene_triangles(loaded, path)
@@ -241,10 +254,20 @@ def _validate(vertices: Any, faces: Any, name: str) -> Mesh:
             f"{name}: {len(idx)} vertices have NaN or infinite coordinates (first: vertex {int(idx[0])} "
             f"= {v[idx[0]].tolist()})"
         )
-    tri = v[f]
+    lo, hi = v[used].min(axis=0), v[used].max(axis=0)
+    with np.errstate(over="ignore"):
+        span = hi - lo
+    if not np.all(np.isfinite(span)):
+        raise NonFiniteVertexError(
+            f"{name}: the coordinates span more than a float64 holds (from {lo.tolist()} to {hi.tolist()}); "
+            f"scale the mesh down"
+        )
+    extent = float(span.max())
+    # areas relative to the extent squared, computed on coordinates scaled by
+    # the extent: the same test, without overflow for coordinates near 1e308
+    tri = v[f] / (extent if extent > 0 else 1.0)
     doubled_area = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    extent = float(np.ptp(v[used], axis=0).max())
-    degenerate = doubled_area <= DEGENERATE_AREA_RTOL * extent * extent
+    degenerate = doubled_area <= DEGENERATE_AREA_RTOL
     keep = f[~degenerate]
     if len(keep) == 0:
         raise EmptyMeshError(f"{name}: all {len(f)} triangles have zero area")
@@ -256,8 +279,11 @@ def _is_watertight(vertices: np.ndarray, faces: np.ndarray) -> bool:
     """Every edge shared by exactly two triangles, as trimesh judges it (after merging positions)."""
     import trimesh
 
-    m = trimesh.Trimesh(vertices=vertices, faces=faces, process=True, validate=False)
-    return bool(m.is_watertight)
+    # merging positions scales them by 10^8 first: coordinates near the float64
+    # limit overflow there (and are far from any shared edge anyway)
+    with np.errstate(over="ignore", invalid="ignore"):
+        m = trimesh.Trimesh(vertices=vertices, faces=faces, process=True, validate=False)
+        return bool(m.is_watertight)
 
 
 #: Meshes that need no file, for the README's first command and quick tries:

@@ -7,7 +7,7 @@ import pytest
 import trimesh
 
 import glvox
-from glvox.errors import (EmptyMeshError, FaceIndexError, MeshError, MeshLoadError, NonFiniteVertexError,
+from glvox.errors import (EmptyMeshError, FaceIndexError, LimitError, MeshError, MeshLoadError, NonFiniteVertexError,
                           NotWatertightError)
 from glvox.mesh import DEGENERATE_AREA_RTOL, generated_mesh, load_mesh
 
@@ -204,3 +204,32 @@ def test_text_mesh_that_is_not_utf8_reads_the_same_without_chardet(tmp_path, mon
     q = tmp_path / "ok.obj"
     q.write_bytes(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n# \xff\xfe not utf-8\n")
     assert load_mesh(q).n_triangles == 1
+
+
+def test_face_index_past_the_vertices_of_an_obj_file(tmp_path):
+    """trimesh's OBJ reader fails with numpy's words; glvox says which file and what is wrong."""
+    path = tmp_path / "bad_index.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 99\n")
+    with pytest.raises(FaceIndexError) as e:
+        load_mesh(path)
+    assert str(e.value) == (f"could not read mesh file {path}: a face refers to a vertex the file does not "
+                            f"have (it has 3 vertices)")
+
+
+def test_coordinates_near_the_float64_limit():
+    """A span past 1.8e308 is refused by name; a span of 1e307 is a valid mesh (its areas do not
+    overflow), which GPU methods refuse because float32 vertices would be infinite, and the float64
+    references voxelize."""
+    faces = np.array([[0, 1, 2], [0, 1, 3]])
+    huge = np.array([[0, 0, 0], [1e308, 0, 0], [0, 1e308, 0], [-1e308, -1e308, 1.0]])
+    with pytest.raises(NonFiniteVertexError, match="the coordinates span more than a float64 holds"):
+        load_mesh((huge, faces))
+    big = np.array([[0, 0, 0], [1e307, 0, 0], [0, 1e307, 0]])
+    m = load_mesh((big, faces[:1]))
+    assert m.n_triangles == 1 and m.n_degenerate == 0
+    with pytest.raises(LimitError, match=r"coordinates reach 5e\+306 from the mesh's center, beyond the float32"):
+        glvox.voxelize(m, 8)
+    # the scaled copy's reference surface, placed on the same relative grid, is the same voxels
+    ref = glvox.voxelize(m, 8, method="reference-conservative")
+    small = glvox.voxelize(load_mesh((big / 1e306, faces[:1])), 8, method="reference-conservative")
+    assert ref.count > 0 and np.array_equal(ref.dense(), small.dense())
