@@ -15,8 +15,9 @@ from typing import Any, Sequence
 
 
 from ._version import __version__
-from .errors import (BackendError, CapabilityError, EmptyMeshError, FaceIndexError, FormatError, GLError,
-                     GlvoxError, GridError, LimitError, MeshError, MeshLoadError, MethodError,
+from . import datasets
+from .errors import (BackendError, CapabilityError, DatasetError, EmptyMeshError, FaceIndexError, FormatError,
+                     GLError, GlvoxError, GridError, LimitError, MeshError, MeshLoadError, MethodError,
                      NonFiniteVertexError, NotWatertightError, ShaderError)
 from .gl.context import get_context
 from .grid import GridSpec, fit_grid, grid_for
@@ -28,9 +29,9 @@ from .results import LDI, SparseOctree, VoxelGrid
 
 __all__ = [
     "voxelize", "grid_for", "load_mesh", "fit_grid", "save", "load", "list_methods", "info",
-    "ldi", "intersect_ldi", "intersecting_volume", "LDI",
+    "ldi", "intersect_ldi", "intersecting_volume", "LDI", "datasets",
     "GridSpec", "VoxelGrid", "SparseOctree", "Mesh", "DEFAULT_METHOD", "__version__",
-    "GlvoxError", "BackendError", "CapabilityError", "EmptyMeshError", "FaceIndexError",
+    "GlvoxError", "BackendError", "CapabilityError", "DatasetError", "EmptyMeshError", "FaceIndexError",
     "FormatError", "GLError", "GridError", "LimitError", "MeshError", "MeshLoadError",
     "MethodError", "NonFiniteVertexError", "NotWatertightError", "ShaderError",
 ]

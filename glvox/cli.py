@@ -1,7 +1,14 @@
-"""Command line: ``glvox info | methods | voxelize | batch | ldi | volume | compare | bench``.
+"""Command line: ``glvox info | methods | voxelize | batch | ldi | volume | compare | bench | data``.
 
 Errors glvox raises on purpose print one line ``glvox: error: ...`` and exit
-with status 1 (2 for wrong usage, as argparse does); never a traceback.
+with status 1 (2 for wrong usage, as argparse does, in the same one-line
+form); never a traceback.
+
+Every command checks all its arguments before it loads or voxelizes
+anything: its parser sets ``validate=`` (a function of the parsed
+arguments that raises :class:`~glvox.errors.GlvoxError`, built from the
+checks in :mod:`glvox.preflight`) beside ``func=``, and :func:`main` runs it
+first.  A command added later does the same.
 """
 
 from __future__ import annotations
@@ -11,14 +18,13 @@ import json
 import signal
 import sys
 import threading
-import time
 import warnings
 from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 
-from . import io
+from . import datasets, io, preflight
 from ._version import __version__
 from .batch import BatchSettings, run_batch
 from .errors import GlvoxError
@@ -27,42 +33,16 @@ from .grid import grid_for
 from .mesh import load_mesh
 from .methods import DEFAULT_METHOD, get_method, method_infos, run_method
 from .methods.leung_wang import overlap_bounds, overlap_grid, run_intersection
+from .progress import Stages
+from .results import LDI
 from .study.options import add_bench_arguments, add_compare_arguments
 
 
-class _Progress:
-    """Stage messages with elapsed time on stderr (silent with --quiet)."""
+class _Parser(argparse.ArgumentParser):
+    """argparse with glvox's one-line errors (exit status 2 for wrong usage, as argparse's)."""
 
-    def __init__(self, quiet: bool):
-        self.quiet = quiet
-        self.t0 = time.perf_counter()
-
-    def __call__(self, msg: str) -> None:
-        if not self.quiet:
-            print(f"[{time.perf_counter() - self.t0:7.2f} s] {msg}", file=sys.stderr, flush=True)
-
-
-def _parse_options(pairs: Sequence[str], extra: Sequence[str] = ()) -> dict[str, str]:
-    """Method options from ``-O KEY=VALUE`` and from ``--KEY VALUE`` / ``--KEY=VALUE``."""
-    out = {}
-    for p in pairs:
-        if "=" not in p:
-            raise GlvoxError(f"method options are KEY=VALUE, got {p!r}")
-        k, v = p.split("=", 1)
-        out[k.strip().replace("-", "_")] = v.strip()
-    rest = list(extra)
-    while rest:
-        tok = rest.pop(0)
-        if not tok.startswith("--") or len(tok) < 3:
-            raise GlvoxError(f"unexpected argument {tok!r}")
-        if "=" in tok:
-            k, v = tok[2:].split("=", 1)
-        elif rest and not rest[0].startswith("--"):
-            k, v = tok[2:], rest.pop(0)
-        else:
-            raise GlvoxError(f"method option {tok} needs a value")
-        out[k.replace("-", "_")] = v
-    return out
+    def error(self, message: str):
+        self.exit(2, f"glvox: error: {message} (see `{self.prog} --help`)\n")
 
 
 def cmd_info(args) -> int:
@@ -95,25 +75,35 @@ def cmd_methods(args) -> int:
     return 0
 
 
+def _spec(args, mesh, bounds=None):
+    """The grid of ``mesh`` from the checked grid options."""
+    return grid_for(mesh, args.resolution if args.dims is None and args.voxel_size is None else None,
+                    dims=args.dims, voxel_size=args.voxel_size, bounds=bounds, padding=args.padding,
+                    tight=args.tight)
+
+
+def _summary(result) -> str:
+    """What a result holds, in a few words: voxels set, or an LDI's layers, samples and volume."""
+    if isinstance(result, LDI):
+        return f"n_max {result.n_max}, {result.samples} samples, volume {result.volume:.9g}"
+    voxels = result.run.stats.get("voxels")
+    return f"{voxels if voxels is not None else result.count} voxels set"
+
+
 def cmd_voxelize(args) -> int:
-    say = _Progress(args.quiet or args.json)
+    say = Stages(args.quiet or args.json)
     out = Path(args.output) if args.output else None
-    if out is not None:
-        io._suffix(out)  # refuse an unknown suffix before the work
     method = get_method(args.method)
-    options = _parse_options(args.option, args.extra)
+    options = preflight.parse_options(args.option, args.extra)
+    mesh_path = datasets.resolve_mesh(args.mesh, quiet=args.quiet or args.json)
     say(f"loading {args.mesh}")
-    mesh = load_mesh(args.mesh)
+    mesh = load_mesh(mesh_path)
     say(f"{mesh.n_triangles} triangles ({mesh.n_degenerate} zero-area dropped), "
         f"{'watertight' if mesh.watertight else 'NOT watertight'}")
-    bounds = None
-    if args.bounds is not None:
-        bounds = np.array(args.bounds, dtype=np.float64).reshape(2, 3)
-    if args.dims is None and args.voxel_size is None and args.resolution is None:
-        raise GlvoxError("give -r/--resolution N, --dims NX NY NZ or --voxel-size H")
-    spec = grid_for(mesh, args.resolution if args.dims is None and args.voxel_size is None else None,
-                    dims=args.dims, voxel_size=args.voxel_size, bounds=bounds,
-                    padding=args.padding, tight=args.tight)
+    bounds = np.array(args.bounds, dtype=np.float64).reshape(2, 3) if args.bounds is not None else None
+    spec = _spec(args, mesh, bounds)
+    if out is not None:
+        preflight.format_fits(out, method.info, spec)  # the dims of --tight / --voxel-size are known now
     say(f"grid {spec}")
     say(f"voxelizing with {method.info.name} ({method.info.family}, {method.info.kind})")
     with warnings.catch_warnings(record=True) as caught:
@@ -123,7 +113,7 @@ def cmd_voxelize(args) -> int:
     for w in caught:
         print(f"glvox: warning: {w.message}", file=sys.stderr)
     run = result.run
-    say(f"{run.stats.get('voxels', '?')} voxels set; {run.timings.summary()}")
+    say(f"{_summary(result)}; {run.timings.summary()}")
     if out is not None:
         io.save(result, out)
         say(f"wrote {out}")
@@ -134,16 +124,13 @@ def cmd_voxelize(args) -> int:
         d["output"] = str(out) if out else None
         print(json.dumps(d, indent=2))
     elif args.quiet is False and out is None:
-        print(f"{run.stats.get('voxels')} voxels")
+        print(_summary(result))
     return 0
 
 
 def cmd_batch(args) -> int:
     """``glvox batch``: exit 0 when every mesh is done or skipped, 3 when some failed."""
-    if args.scheduler and args.workers is not None:
-        raise GlvoxError("--workers sizes the local cluster; with --scheduler the cluster's own "
-                         "workers run the batch, so give one or the other")
-    options = _parse_options(args.option)
+    options = preflight.parse_options(args.option)
     settings = BatchSettings(
         method=args.method, resolution=args.resolution,
         dims=tuple(args.dims) if args.dims is not None else None, voxel_size=args.voxel_size,
@@ -182,28 +169,15 @@ def _axis(value: str) -> int:
 
 def cmd_ldi(args) -> int:
     """``glvox ldi``: a layered depth image (default leung-wang-ldi) into an npz."""
-    say = _Progress(args.quiet or args.json)
+    say = Stages(args.quiet or args.json)
     out = Path(args.output) if args.output else None
-    if out is not None and out.suffix.lower() != ".npz":
-        raise GlvoxError(f"an LDI is written as .npz, got {out}")
     info = get_method(args.method).info
-    if info.kind != "ldi":
-        raise GlvoxError(f"glvox ldi needs a method of kind 'ldi' (leung-wang-ldi, peel-ldi, reference-ldi), "
-                         f"got {args.method!r} (kind {info.kind!r}); use glvox voxelize for voxel grids")
-    options = _parse_options(args.option)
-    options["axis"] = args.axis
-    if "lod_c" in info.options:
-        options["lod_c"] = args.lod_c
-    elif args.lod_c is not None:
-        raise GlvoxError(f"--lod-c is an option of leung-wang-ldi, not of {args.method!r}")
-    options = {k: v for k, v in options.items() if v is not None}
+    options = preflight.ldi_options(args, info)
+    mesh_path = datasets.resolve_mesh(args.mesh, quiet=args.quiet or args.json)
     say(f"loading {args.mesh}")
-    mesh = load_mesh(args.mesh)
+    mesh = load_mesh(mesh_path)
     say(f"{mesh.n_triangles} triangles, {'watertight' if mesh.watertight else 'NOT watertight'}")
-    if args.dims is None and args.voxel_size is None and args.resolution is None:
-        raise GlvoxError("give -r/--resolution N, --dims NX NY NZ or --voxel-size H")
-    spec = grid_for(mesh, args.resolution if args.dims is None and args.voxel_size is None else None,
-                    dims=args.dims, voxel_size=args.voxel_size, padding=args.padding, tight=args.tight)
+    spec = _spec(args, mesh)
     say(f"grid {spec}; sampling with {info.name}")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -212,7 +186,7 @@ def cmd_ldi(args) -> int:
     for w in caught:
         print(f"glvox: warning: {w.message}", file=sys.stderr)
     run = result.run
-    say(f"n_max {result.n_max}, {result.samples} samples, volume {result.volume:.9g}; {run.timings.summary()}")
+    say(f"{_summary(result)}; {run.timings.summary()}")
     if out is not None:
         result.save(out)
         say(f"wrote {out}")
@@ -222,17 +196,17 @@ def cmd_ldi(args) -> int:
                   "output": str(out) if out else None})
         print(json.dumps(d, indent=2))
     elif out is None:
-        print(f"n_max {result.n_max}, {result.samples} samples, volume {result.volume:.9g}")
+        print(_summary(result))
     return 0
 
 
 def cmd_volume(args) -> int:
     """``glvox volume A B``: the intersecting volume of two closed meshes (Leung & Wang Sec. V-A)."""
-    say = _Progress(args.quiet or args.json)
-    a, b = load_mesh(args.mesh_a), load_mesh(args.mesh_b)
+    say = Stages(args.quiet or args.json)
+    quiet = args.quiet or args.json
+    a = load_mesh(datasets.resolve_mesh(args.mesh_a, quiet=quiet))
+    b = load_mesh(datasets.resolve_mesh(args.mesh_b, quiet=quiet))
     say(f"{a.name}: {a.n_triangles} triangles; {b.name}: {b.n_triangles} triangles")
-    if args.resolution is None and args.dims is None and args.voxel_size is None:
-        raise GlvoxError("give -r/--resolution N, --dims NX NY NZ or --voxel-size H")
     if overlap_bounds(a, b) is None:
         volume, d = 0.0, {"volume": 0.0, "note": "the bounding boxes do not overlap"}
     else:
@@ -267,6 +241,32 @@ def cmd_bench(args) -> int:
     from .study.bench import main as bench_main  # for start-up time, as in cmd_compare
 
     return bench_main(args)
+
+
+def cmd_data(args) -> int:
+    """``glvox data list | fetch NAME... | path [NAME]``: the meshes glvox knows by name."""
+    if args.action == "list":
+        for name in datasets.mesh_names():
+            src, where = datasets.source(name), datasets.find(name)
+            print(f"{name:<36} {src.size / 1e6:6.2f} MB  {where.parent if where else 'not on this machine'}")
+            print(f"    licence: {src.licence}")
+            print(f"    credit:  {src.credit}")
+            print(f"    source:  {src.repo} {src.path} @ {src.commit[:10]}"
+                  + (f" (with {', '.join(src.companions)})" if src.companions else ""))
+        print(f"searched: {', '.join(str(d) for d in datasets.search_dirs())}; downloads go to "
+              f"{datasets.data_dir()} (GLVOX_MESHES; GLVOX_DATA_MIRROR replaces the download site)")
+    elif args.action == "fetch":
+        for name in args.names or datasets.mesh_names():
+            print(datasets.fetch(name, quiet=args.quiet))
+    elif not args.names:
+        print(datasets.data_dir())
+    else:
+        where = datasets.find(args.names[0])
+        if where is None:
+            raise GlvoxError(f"{args.names[0]} is not on this machine: `glvox data fetch {args.names[0]}` "
+                             f"downloads it into {datasets.data_dir()}")
+        print(where)
+    return 0
 
 
 def _add_output_arguments(p, json_help: str, quiet_help: str = "no progress messages") -> None:
@@ -316,7 +316,7 @@ def _add_voxelize_parser(sub) -> None:
     pv.add_argument("--allow-open", action="store_true",
                     help="let solid methods run on meshes that are not watertight")
     _add_output_arguments(pv, "print counts and timings as JSON")
-    pv.set_defaults(func=cmd_voxelize)
+    pv.set_defaults(func=cmd_voxelize, validate=preflight.validate_voxelize)
 
 
 def _add_batch_parser(sub) -> None:
@@ -348,7 +348,7 @@ def _add_batch_parser(sub) -> None:
     pb.add_argument("--suffix", action="append", metavar="SUFFIX",
                     help="mesh suffix to search for (repeatable; default: every format trimesh loads)")
     _add_output_arguments(pb, "print the summary as JSON", "no progress bar, messages or summary")
-    pb.set_defaults(func=cmd_batch)
+    pb.set_defaults(func=cmd_batch, validate=preflight.validate_batch)
 
 
 def _add_ldi_parser(sub) -> None:
@@ -372,7 +372,7 @@ def _add_ldi_parser(sub) -> None:
     _add_grid_arguments(pl)
     pl.add_argument("--allow-open", action="store_true", help="sample meshes that are not watertight (parity)")
     _add_output_arguments(pl, "print counts and timings as JSON")
-    pl.set_defaults(func=cmd_ldi)
+    pl.set_defaults(func=cmd_ldi, validate=preflight.validate_ldi)
 
 
 def _add_volume_parser(sub) -> None:
@@ -391,7 +391,7 @@ def _add_volume_parser(sub) -> None:
     pvol.add_argument("-o", "--output", help="also write the overlap's LDI (.npz)")
     pvol.add_argument("--allow-open", action="store_true", help="meshes that are not watertight (parity)")
     _add_output_arguments(pvol, "print the volume, counts and timings as JSON")
-    pvol.set_defaults(func=cmd_volume)
+    pvol.set_defaults(func=cmd_volume, validate=preflight.validate_volume)
 
 
 def _add_compare_parser(sub) -> None:
@@ -401,7 +401,7 @@ def _add_compare_parser(sub) -> None:
                     "agreement with the exact references, separability; writes results.csv/.json, "
                     "tables.md, plots/ and pictures/ into -o (rerunning resumes).")
     add_compare_arguments(pc)
-    pc.set_defaults(func=cmd_compare)
+    pc.set_defaults(func=cmd_compare, validate=preflight.validate_compare)
 
 
 def _add_bench_parser(sub) -> None:
@@ -410,18 +410,33 @@ def _add_bench_parser(sub) -> None:
         description="Every glvox GPU method and every installed peer voxelizer (pip install 'glvox[peers]') "
                     "on the same mesh and grid, timed in one process (medians of interleaved warm runs), "
                     "with each one's agreement with glvox's exact references; prints the ratio of each "
-                    "method to the fastest peer of its kind and the issue's targets.")
+                    "method to the fastest peer of its kind.")
     add_bench_arguments(pbe)
-    pbe.set_defaults(func=cmd_bench)
+    pbe.set_defaults(func=cmd_bench, validate=preflight.validate_bench)
+
+
+def _add_data_parser(sub) -> None:
+    pd = sub.add_parser(
+        "data", help="the meshes glvox knows by name: list (licences, credits), fetch, path",
+        description="The meshes of glvox's tests, comparison and README, by name.  `list` shows each with "
+                    "its size, where it is, its licence and credit; `fetch NAME...` (or --all) downloads the "
+                    "missing ones (checked against their SHA-256) into GLVOX_MESHES or the user cache; `path "
+                    "NAME` prints where one is (no NAME: the download folder).  GLVOX_DATA_MIRROR=URL downloads "
+                    "from a mirror that serves the files under their glvox names.")
+    pd.add_argument("action", choices=["list", "fetch", "path"])
+    pd.add_argument("names", nargs="*", metavar="NAME", help="mesh names (see `glvox data list`)")
+    pd.add_argument("--all", action="store_true", help="fetch every mesh")
+    pd.add_argument("-q", "--quiet", action="store_true", help="no download messages or progress bar")
+    pd.set_defaults(func=cmd_data, validate=preflight.validate_data)
 
 
 #: One function per command, each adding its subparser.
 _COMMANDS = (_add_info_parser, _add_methods_parser, _add_voxelize_parser, _add_batch_parser, _add_ldi_parser,
-             _add_volume_parser, _add_compare_parser, _add_bench_parser)
+             _add_volume_parser, _add_compare_parser, _add_bench_parser, _add_data_parser)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="glvox", description="Headless GPU voxelization of triangle meshes.")
+    p = _Parser(prog="glvox", description="Headless GPU voxelization of triangle meshes.")
     p.add_argument("--version", action="version", version=f"glvox {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
     for add in _COMMANDS:
@@ -438,9 +453,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     if getattr(args, "method", "x") is None:
         args.method = DEFAULT_METHOD
     try:
+        validate = getattr(args, "validate", None)
+        if validate is not None:
+            validate(args)  # every argument, before any work
         return args.func(args)
     except GlvoxError as exc:
         print(f"glvox: error: {exc}", file=sys.stderr)
+        return 1
+    except OSError as exc:  # the checks passed, yet the system refused (a full disk, a vanished folder)
+        where = f" ({exc.filename})" if exc.filename else ""
+        print(f"glvox: error: {exc.strerror or exc}{where}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("glvox: interrupted", file=sys.stderr)

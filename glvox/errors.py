@@ -75,3 +75,7 @@ class CapabilityError(GlvoxError, RuntimeError):
 
 class FormatError(GlvoxError, ValueError):
     """A result file (npz, binvox) is malformed or of an unknown format."""
+
+
+class DatasetError(GlvoxError, LookupError):
+    """A mesh asked for by name is unknown, or not on this machine and cannot be downloaded."""

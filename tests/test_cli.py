@@ -93,7 +93,22 @@ def test_voxelize_grid_options(tmp_path):
      "option axis must be one of [0, 1, 2], got 7"),
     (["voxelize", "gen:torus", "-r", "8", "-m", "reference-solid", "-O", "speed=9"],
      "method 'reference-solid' has no option speed; its options: axis"),
-    (["voxelize", "gen:torus", "-r", "8", "-o", "x.vox"], "unknown voxel file suffix '.vox'"),
+    (["voxelize", "gen:torus", "-r", "8", "-o", "x.vox"], "unknown output file suffix '.vox'"),
+    (["voxelize", "gen:torus", "--dims", "8", "8", "4", "-o", "x.binvox"],
+     "binvox holds cubic grids only, and this grid has dims (8, 8, 4)"),
+    (["voxelize", "gen:torus", "-r", "8", "-m", "leung-wang-ldi", "-o", "x.binvox"],
+     "an LDI (leung-wang-ldi) is saved as .npz"),
+    (["voxelize", "gen:torus", "-r", "8", "--padding", "4"], "padding 4 leaves no voxel inside a grid of resolution 8"),
+    (["voxelize", "gen:torus", "--voxel-size", "-1"], "voxel_size must be a finite positive number, got -1.0"),
+    (["voxelize", "gen:torus", "-r", "8", "-o", "no_such_folder/x.npz"], "the output's folder no_such_folder does not exist"),
+    (["ldi", "gen:torus", "-r", "8", "--lod-c", "0"], "--lod-c must be a positive integer, got 0"),
+    (["volume", "gen:torus", "gen:box"], "give -r/--resolution N, --dims NX NY NZ or --voxel-size H"),
+    (["batch", "/nonexistent", "-o", "out", "-r", "8"], "batch input not found: /nonexistent"),
+    (["batch", ".", "-o", "out", "-r", "8", "--tight", "--format", "binvox"], "binvox holds cubic grids only"),
+    (["compare", "--meshes", "gen:torus", "-r", "0"], "compare grid sizes must be a positive integer, got 0"),
+    (["compare", "--meshes", "no_such_mesh.obj", "-r", "8"], "mesh file not found: no_such_mesh.obj"),
+    (["bench", "--preset", "quick", "--check", "no_baseline.json"], "no benchmark baseline at no_baseline.json"),
+    (["data", "fetch", "no_such_mesh.obj"], "unknown mesh name 'no_such_mesh.obj'; `glvox data list` shows"),
     (["voxelize", "gen:torus", "-r", "8", "-m", "reference-solid", "--axis"], "method option --axis needs a value"),
     (["voxelize", "gen:torus", "-r", "8", "-m", "reference-solid", "--axis", "3"],
      "option axis must be one of [0, 1, 2], got 3"),
@@ -101,11 +116,82 @@ def test_voxelize_grid_options(tmp_path):
     (["voxelize", "gen:torus"], "give -r/--resolution N, --dims NX NY NZ or --voxel-size H"),
 ])
 def test_errors_are_one_line_and_non_zero(tmp_path, args, msg):
+    """Each error is found before any work: the one line is all stderr holds (no "loading ..." before it)."""
     p = glvox(*args, cwd=tmp_path)
     assert p.returncode == 1
     lines = p.stderr.strip().splitlines()
-    assert lines[-1].startswith("glvox: error: ") and msg in lines[-1], p.stderr
-    assert "Traceback" not in p.stderr
+    assert len(lines) == 1 and lines[0].startswith("glvox: error: ") and msg in lines[0], p.stderr
+    assert p.stdout == "" and not any(tmp_path.iterdir())   # nothing written either
+
+
+#: Each command that writes something, with its output option pointed where nothing can be
+#: written (/proc takes no new files, even for root), and a mesh argument that does not
+#: exist: the output is checked first, so the error names the output, not the mesh.
+BAD_OUTPUT = {
+    "voxelize": ["voxelize", "/nonexistent.obj", "-r", "8", "-o", "/proc/glvox_x.npz"],
+    "voxelize-binvox": ["voxelize", "/nonexistent.obj", "-r", "8", "-o", "/proc/glvox_x.binvox"],
+    "batch": ["batch", "/nonexistent", "-r", "8", "-o", "/proc/glvox_x"],
+    "batch-manifest": ["batch", "/nonexistent", "-r", "8", "-o", "out", "--manifest", "/proc/glvox_m.csv"],
+    "ldi": ["ldi", "/nonexistent.obj", "-r", "8", "-o", "/proc/glvox_x.npz"],
+    "volume": ["volume", "/nonexistent.obj", "gen:box", "-r", "8", "-o", "/proc/glvox_x.npz"],
+    "compare": ["compare", "--meshes", "/nonexistent.obj", "-r", "8", "-o", "/proc/glvox_x"],
+    "bench": ["bench", "--meshes", "/nonexistent.obj", "-r", "8", "-o", "/proc/glvox_x"],
+    "bench-baseline": ["bench", "--meshes", "/nonexistent.obj", "-r", "8", "--save-baseline", "/proc/glvox_b.json"],
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_OUTPUT))
+def test_every_command_refuses_an_unwritable_output_before_work(tmp_path, case):
+    p = glvox(*BAD_OUTPUT[case], cwd=tmp_path)
+    lines = p.stderr.strip().splitlines()
+    assert p.returncode == 1 and len(lines) == 1, p.stderr
+    assert lines[0].startswith("glvox: error: cannot write the ") and "in /proc: creating a file there fails" \
+        in lines[0], p.stderr
+    assert not any(tmp_path.iterdir())
+
+
+def test_every_command_with_an_output_has_a_bad_output_case():
+    """A command added later with an output option gets a case in BAD_OUTPUT (and a validate function)."""
+    from glvox.cli import build_parser
+
+    sub = next(a for a in build_parser()._actions if a.__class__.__name__ == "_SubParsersAction")
+    writers = {name for name, p in sub.choices.items()
+               if any(set(a.option_strings) & {"-o", "--output", "--out"} for a in p._actions)}
+    assert writers == {c.split("-")[0] for c in BAD_OUTPUT}
+    assert all(p.get_default("validate") is not None for name, p in sub.choices.items()
+               if name not in ("info", "methods"))
+
+
+def test_usage_errors_are_one_line_too():
+    p = glvox("voxelize", "gen:torus", "-r", "x")
+    assert p.returncode == 2 and p.stderr.strip().splitlines() == [
+        "glvox: error: argument -r/--resolution: invalid int value: 'x' (see `glvox voxelize --help`)"]
+    p = glvox("bench", "--save-baseline")  # names the file it writes: never the checkout's unasked
+    assert p.returncode == 2 and "--save-baseline: expected one argument" in p.stderr
+
+
+def test_a_grid_known_only_from_the_mesh_is_checked_before_voxelizing(tmp_path):
+    p = glvox("voxelize", "gen:torus", "-r", "8", "--tight", "-o", tmp_path / "t.binvox")
+    assert p.returncode == 1 and "loading gen:torus" in p.stderr and "voxelizing" not in p.stderr
+    assert p.stderr.strip().splitlines()[-1] == (
+        "glvox: error: binvox holds cubic grids only, and this grid has dims (8, 8, 3): write .npz, or use "
+        "-r N without --tight or --voxel-size")
+
+
+def test_voxelize_with_an_ldi_method_says_what_it_made(tmp_path):
+    p = glvox("voxelize", "gen:box", "-r", "8", "-m", "reference-ldi")
+    assert p.returncode == 0, p.stderr
+    # gen:box is 2 x 1.2 x 0.8 in a centered 8^3 grid of h = 0.25: of the rays along z through
+    # the column centers, 8 along x and 4 along y (centers +-0.125, +-0.375; +-0.625 miss the
+    # box's +-0.6) cross it twice, so 64 samples and a volume of 32 columns x h^2 x 0.8 = 1.6
+    out = p.stdout.strip()
+    assert out.startswith("n_max 2, 64 samples, volume ") and "?" not in p.stderr and "None" not in out
+    assert float(out.rsplit(" ", 1)[1]) == pytest.approx(32 * 0.25 ** 2 * 0.8, rel=1e-6)
+
+
+def test_bench_help_speaks_to_users():
+    p = glvox("bench", "--help")
+    assert p.returncode == 0 and "issue" not in p.stdout
 
 
 def test_nan_mesh_file_is_refused(tmp_path):
@@ -118,3 +204,6 @@ def test_nan_mesh_file_is_refused(tmp_path):
 def test_open_mesh_with_solid_method(tmp_path, shared_mesh):
     p = glvox("voxelize", shared_mesh("stanford_bunny_bun_zipper.ply"), "-r", 16, "-m", "reference-solid")
     assert p.returncode == 1 and "is not watertight" in p.stderr and "--allow-open" in p.stderr
+    assert "for the solid method 'reference-solid'" in p.stderr
+    p = glvox("voxelize", shared_mesh("stanford_bunny_bun_zipper.ply"), "-r", 16, "-m", "reference-ldi")
+    assert p.returncode == 1 and "for the LDI method 'reference-ldi'" in p.stderr

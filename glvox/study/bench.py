@@ -3,7 +3,7 @@
     glvox bench --preset quick                     # the ratio table in a few minutes
     glvox bench --preset full -o results/bench     # bunny and dragon, 128^3 to 1024^3
     glvox bench --preset quick --check             # no-regression check against compare/bench_baseline.json
-    glvox bench --preset quick --save-baseline     # refresh compare/bench_baseline.json
+    glvox bench --preset quick --save-baseline compare/bench_baseline.json   # refresh the checkout's baseline
     glvox bench --preset quick --against HEAD~1    # side by side with an earlier revision (:mod:`.ab`)
 
 A thin layer over the study's runner (:mod:`glvox.study.harness`, whose
@@ -30,6 +30,7 @@ from typing import Any, Callable, Sequence
 
 from glvox.errors import GlvoxError
 from glvox.methods import get_method, method_names
+from glvox.progress import Progress, Stages
 from glvox.tolerances import REGRESSION_TOLERANCE
 
 from . import ab, harness, regression
@@ -94,12 +95,18 @@ def add_ratios(rows: list[dict[str, Any]]) -> None:
 
 
 def run_plan(plan: Plan, *, log: Callable[[str], None] = lambda s: None,
-             progress: Callable[[str], None] = lambda s: None) -> list[dict[str, Any]]:
+             progress: Progress | None = None) -> list[dict[str, Any]]:
     """Every cell of ``plan`` with the calibration workload beside the contenders;
-    rows in mesh, size, contender order, ratios added."""
+    rows in mesh, size, contender order, ratios added.  ``progress`` counts the
+    cells (the calibration rows included) and shows the step at hand."""
     if CALIBRATION_CONTENDER not in plan.contenders:
         plan = Plan(**{**vars(plan), "contenders": [*plan.contenders, CALIBRATION_CONTENDER]})
-    rows = harness.run_plan(plan, log=log, progress=progress)
+    if progress is None:
+        rows = harness.run_plan(plan, log=log)
+    else:
+        progress.total += len(plan.cells())
+        rows = harness.run_plan(plan, log=log, progress=progress.status,
+                                on_rows=lambda new: progress.update(len(new)))
     add_ratios(rows)
     return rows
 
@@ -184,7 +191,8 @@ def _against(args, log, progress) -> int:
     return 3 if any(r.get("regressed") for r in ab_rows) else 0
 
 
-def _confirm(plan: Plan, rows: list[dict[str, Any]], baseline: dict[str, Any], log, progress) -> dict[str, Any]:
+def _confirm(plan: Plan, rows: list[dict[str, Any]], baseline: dict[str, Any], log,
+             progress: Progress) -> dict[str, Any]:
     """The regression check, with suspects measured again (twice the rounds, each keeping its best)."""
     check = regression.check(rows, baseline["rows"])
     if check["regressions"]:
@@ -197,12 +205,14 @@ def _confirm(plan: Plan, rows: list[dict[str, Any]], baseline: dict[str, Any], l
     return check
 
 
-def _cold_starts(plan: Plan, progress) -> list[dict[str, Any]]:
+def _cold_starts(plan: Plan, progress: Progress) -> list[dict[str, Any]]:
     methods = list(dict.fromkeys(c.method for c in plan.contenders if c.method is not None))
+    progress.total += len(methods)
     colds = []
     for m in methods:
-        progress(f"cold start of {m} in a fresh process")
+        progress.status(f"cold start of {m} in a fresh process")
         colds.append(cold_start(m, plan.meshes[0], min(plan.sizes)))
+        progress.update()
     return colds
 
 
@@ -214,26 +224,22 @@ def main(args) -> int:
             print(msg, file=sys.stderr, flush=True)
 
     t_start = time.perf_counter()
-
-    def progress(msg: str) -> None:
-        if not args.quiet:
-            print(f"[{time.perf_counter() - t_start:7.1f} s] {msg}", file=sys.stderr, flush=True)
-
     if args.against:
-        code = _against(args, log, progress)
+        code = _against(args, log, Stages(quiet=args.quiet))
         log(f"done in {time.perf_counter() - t_start:.0f} s")
         return code
     plan = plan_from(args, log)
     check_path = regression.baseline_path(args.check) if args.check else None
     baseline = regression.load_baseline(check_path) if check_path else None
-    save_path = regression.baseline_path(args.save_baseline) if args.save_baseline else None
+    save_path = Path(args.save_baseline) if args.save_baseline else None
     machine = machine_info(plan)
     log(f"{len(plan.contenders)} contenders x {len(plan.meshes)} meshes x sizes {list(plan.sizes)}; "
         f"renderer {machine['gl']['renderer']}")
-    rows = run_plan(plan, log=log, progress=progress)
-    check = _confirm(plan, rows, baseline, log, progress) if baseline is not None else None
-    machine["load_average_end"] = list(os.getloadavg())
-    colds = _cold_starts(plan, progress) if args.cold_start else None
+    with Progress(0, unit="cell", enabled=not args.quiet) as progress:  # run_plan adds its cells
+        rows = run_plan(plan, log=log, progress=progress)
+        check = _confirm(plan, rows, baseline, log, progress) if baseline is not None else None
+        machine["load_average_end"] = list(os.getloadavg())
+        colds = _cold_starts(plan, progress) if args.cold_start else None
     result = {"machine": machine, "plan": {"meshes": list(plan.meshes), "sizes": list(plan.sizes),
                                            "repeat": plan.repeat, "budget": plan.budget, "preset": args.preset},
               "rows": rows, "cold_start": colds, "seconds": time.perf_counter() - t_start}

@@ -78,8 +78,9 @@ AB_REPEAT = 10
 #: named here so that building the parser does not import the peers).
 PEER_NAMES = ("open3d", "trimesh-subdivide", "trimesh-fill", "pyvista", "igl-winding")
 
-#: ``--check`` / ``--save-baseline`` given without a PATH: the checkout's
-#: ``compare/bench_baseline.json`` (:func:`glvox.study.regression.baseline_path`).
+#: ``--check`` given without a PATH: the checkout's ``compare/bench_baseline.json``
+#: (:func:`glvox.study.regression.baseline_path`).  ``--save-baseline`` always
+#: takes a PATH: a benchmark run never rewrites a tracked file unasked.
 CHECKOUT_BASELINE = "<checkout>"
 
 
@@ -109,9 +110,9 @@ def add_bench_arguments(p: argparse.ArgumentParser) -> None:
                    help="exit status 3 when a method regressed by more than "
                         f"{REGRESSION_TOLERANCE * 100:.0f}%% against a baseline results file (default: "
                         "compare/bench_baseline.json of the checkout glvox runs from)")  # argparse formats help with %
-    p.add_argument("--save-baseline", nargs="?", const=CHECKOUT_BASELINE, default=None, metavar="PATH",
-                   help="write the results as the new baseline (default: compare/bench_baseline.json of the "
-                        "checkout glvox runs from)")
+    p.add_argument("--save-baseline", default=None, metavar="PATH",
+                   help="write the results as a baseline file for --check (the checkout's own is "
+                        "compare/bench_baseline.json: name it to refresh it)")
     p.add_argument("--against", default=None, metavar="REV",
                    help="A/B check: time the plan's glvox methods with glvox at git revision REV and with this "
                         "checkout, run by run in two processes (no peers; --repeat runs per side, default "

@@ -1,0 +1,303 @@
+"""Checks of a command's arguments before any work: every command runs them first.
+
+A command line that cannot succeed should fail in a second with one line,
+not after minutes of loading and voxelizing (or with a traceback when the
+result is written).  Each check raises a :class:`~glvox.errors.GlvoxError`
+whose message the CLI prints as ``glvox: error: ...``; none loads a mesh,
+makes a GL context or writes anything that stays.
+
+The checks: output files (:func:`output_file`: the folder exists and takes
+a file, the suffix is known), output folders (:func:`output_folder`), grid
+options (:func:`grid_args`), the method and its options
+(:func:`method_args`), mesh arguments (:func:`mesh_arg`), whether a format
+holds the grid (:func:`format_fits`).  Below them, each command's
+``validate_<command>(args)``, which ``glvox.cli`` runs before the command
+(its parser's ``validate=``); a new command adds its own from these checks.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from pathlib import Path
+from typing import Any, Iterable, Sequence
+
+import numpy as np
+
+from . import datasets
+from .errors import FormatError, GlvoxError, GridError, MeshLoadError
+from .grid import GridSpec, fit_grid
+from .methods import get_method, validate_options
+from .methods.base import MethodInfo
+from .study.options import BENCH_PRESETS, CHECKOUT_BASELINE, COMPARE_PRESETS
+
+
+def _writable_folder(folder: Path, what: str) -> None:
+    """Create and delete a file in ``folder``: the only test of writability that
+    holds for read-only mounts, /proc and permissions alike (root passes ``os.access``)."""
+    try:
+        with tempfile.TemporaryFile(dir=folder, prefix=".glvox-probe-"):
+            pass
+    except OSError as exc:
+        raise GlvoxError(f"cannot write the {what} in {folder}: creating a file there fails "
+                         f"({exc.strerror or exc})") from None
+
+
+def output_file(path: str | os.PathLike, suffixes: Sequence[str], what: str = "output") -> Path:
+    """Check an output file: a known suffix, an existing folder that takes a new file, not a folder.
+
+    Parameters
+    ----------
+    path : path
+    suffixes : sequence of str
+        Accepted suffixes, lower case with the dot (``('.npz', '.binvox')``).
+    what : str
+        The argument's name in messages (``'output'``, ``'manifest'``).
+
+    Returns
+    -------
+    Path
+    """
+    p = Path(path).expanduser()
+    if p.suffix.lower() not in suffixes:
+        raise FormatError(f"unknown {what} file suffix {p.suffix!r} for {p}: use {' or '.join(suffixes)}")
+    if p.is_dir():
+        raise GlvoxError(f"the {what} {p} is a folder; give a file name ending in {' or '.join(suffixes)}")
+    folder = p.parent if str(p.parent) else Path(".")
+    if not folder.is_dir():
+        raise GlvoxError(f"the {what}'s folder {folder} does not exist")
+    _writable_folder(folder, what)
+    return p
+
+
+def output_folder(path: str | os.PathLike, what: str = "output folder") -> Path:
+    """Check an output folder: a folder (or not yet there) whose nearest existing folder takes files."""
+    p = Path(path).expanduser()
+    if p.exists() and not p.is_dir():
+        raise GlvoxError(f"the {what} {p} is a file, not a folder")
+    existing = p.absolute()
+    while not existing.exists():
+        existing = existing.parent
+    if not existing.is_dir():
+        raise GlvoxError(f"cannot make the {what} {p}: {existing} is a file")
+    _writable_folder(existing, what)
+    return p
+
+
+def positive(name: str, value: Any, *, integer: bool = True) -> None:
+    """``value`` is None or a positive (integer) number."""
+    if value is None:
+        return
+    ok = value > 0 and (int(value) == value if integer else math.isfinite(value))
+    if not ok:
+        raise GlvoxError(f"{name} must be a positive {'integer' if integer else 'number'}, got {value!r}")
+
+
+def grid_args(resolution: int | None = None, dims: Sequence[int] | None = None, voxel_size: float | None = None,
+              bounds: Sequence[float] | None = None, padding: int = 0, tight: bool = False) -> GridSpec | None:
+    """Check the grid options as :func:`glvox.grid.grid_for` will see them, before the mesh is loaded.
+
+    Precedence as on the command line: ``dims``, else ``voxel_size``, else
+    ``resolution``.
+
+    Returns
+    -------
+    GridSpec or None
+        The grid when it does not depend on the mesh (explicit ``bounds``;
+        or ``dims``; or ``resolution`` without ``tight``: its dims are right,
+        its placement is a unit box's), else None.
+    """
+    if resolution is None and dims is None and voxel_size is None:
+        raise GridError("give -r/--resolution N, --dims NX NY NZ or --voxel-size H")
+    if dims is not None or voxel_size is not None:
+        resolution = None
+    if voxel_size is not None and not (math.isfinite(voxel_size) and voxel_size > 0):
+        raise GridError(f"voxel_size must be a finite positive number, got {voxel_size!r}")
+    if bounds is not None:
+        box = np.asarray(bounds, dtype=np.float64).reshape(2, 3)
+        return fit_grid(box, resolution, dims=dims, voxel_size=voxel_size, padding=padding, tight=tight)
+    unit = np.array([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]])
+    # a stand-in voxel size: its dims depend on the mesh, but padding and exclusivity are checked
+    spec = fit_grid(unit, resolution, dims=dims, voxel_size=None if voxel_size is None else 1.0,
+                    padding=padding, tight=tight)
+    return None if voxel_size is not None or (resolution is not None and tight) else spec
+
+
+def method_args(name: str, options: dict[str, Any], kinds: Iterable[str] | None = None,
+                command: str = "glvox voxelize") -> tuple[MethodInfo, dict[str, Any]]:
+    """A registered method, of one of ``kinds`` when given, and its options coerced.
+
+    Returns
+    -------
+    (MethodInfo, dict)
+        The method's info and its options with defaults filled.
+    """
+    info = get_method(name).info
+    kinds = tuple(kinds) if kinds is not None else None
+    if kinds is not None and info.kind not in kinds:
+        raise GlvoxError(f"{command} needs a method of kind {' or '.join(repr(k) for k in kinds)}, got "
+                         f"{name!r} (kind {info.kind!r})")
+    return info, validate_options(info, options)
+
+
+def format_fits(path: Path, info: MethodInfo | None, spec: GridSpec | None) -> None:
+    """Whether ``path``'s format holds ``info``'s result on ``spec`` (None: not known yet).
+
+    binvox holds cubic voxel grids only: an LDI and non-cubic dims are refused.
+    """
+    if path.suffix.lower() != ".binvox":
+        return
+    if info is not None and info.kind == "ldi":
+        raise FormatError(f"an LDI ({info.name}) is saved as .npz (depths per ray), not binvox: {path}")
+    if spec is not None and len(set(spec.dims)) != 1:
+        raise FormatError(f"binvox holds cubic grids only, and this grid has dims {spec.dims}: write .npz, or "
+                          f"use -r N without --tight or --voxel-size")
+
+
+# ---------------------------------------------------------------------------
+# the commands' arguments (parsed by glvox.cli)
+# ---------------------------------------------------------------------------
+
+
+def parse_options(pairs: Sequence[str], extra: Sequence[str] = ()) -> dict[str, str]:
+    """Method options from ``-O KEY=VALUE`` and from ``--KEY VALUE`` / ``--KEY=VALUE``."""
+    out = {}
+    for p in pairs:
+        if "=" not in p:
+            raise GlvoxError(f"method options are KEY=VALUE, got {p!r}")
+        k, v = p.split("=", 1)
+        out[k.strip().replace("-", "_")] = v.strip()
+    rest = list(extra)
+    while rest:
+        tok = rest.pop(0)
+        if not tok.startswith("--") or len(tok) < 3:
+            raise GlvoxError(f"unexpected argument {tok!r}")
+        if "=" in tok:
+            k, v = tok[2:].split("=", 1)
+        elif rest and not rest[0].startswith("--"):
+            k, v = tok[2:], rest.pop(0)
+        else:
+            raise GlvoxError(f"method option {tok} needs a value")
+        out[k.replace("-", "_")] = v
+    return out
+
+
+def mesh_arg(name: str) -> None:
+    """A mesh argument names a file, a generated mesh or a mesh glvox can fetch (checked, not loaded)."""
+    if not (name.startswith("gen:") or os.path.exists(name) or name in datasets.SOURCES):
+        raise MeshLoadError(f"mesh file not found: {name} (nor is it a mesh name glvox knows: `glvox data list`)")
+
+
+def _grid_args(args, bounds: bool = False) -> GridSpec | None:
+    """:func:`grid_args` of a command's parsed grid options."""
+    return grid_args(args.resolution, args.dims, args.voxel_size, args.bounds if bounds else None,
+                     getattr(args, "padding", 0), getattr(args, "tight", False))
+
+
+def validate_voxelize(args) -> None:
+    out = output_file(args.output, (".npz", ".binvox")) if args.output else None
+    mesh_arg(args.mesh)
+    info, _ = method_args(args.method, parse_options(args.option, args.extra))
+    spec = _grid_args(args, bounds=True)
+    if out is not None:
+        format_fits(out, info, spec)
+
+
+def validate_batch(args) -> None:
+    output_folder(args.output)
+    if args.manifest:
+        output_file(args.manifest, (".csv",), "manifest")
+    if not os.path.exists(args.input):
+        raise GlvoxError(f"batch input not found: {args.input} (a folder of meshes or a text file of paths)")
+    if args.scheduler and args.workers is not None:
+        raise GlvoxError("--workers sizes the local cluster; with --scheduler the cluster's own "
+                         "workers run the batch, so give one or the other")
+    if args.workers is not None and args.workers < 0:
+        raise GlvoxError(f"--workers must be 0 (in this process) or more, got {args.workers}")
+    method_args(args.method, parse_options(args.option), command="glvox batch")
+    spec = _grid_args(args)
+    if args.format == "binvox" and (spec is None or len(set(spec.dims)) != 1):
+        raise GlvoxError("binvox holds cubic grids only: use -r N without --tight or --voxel-size, or cubic "
+                         "--dims, or --format npz")
+
+
+def ldi_options(args, info) -> dict:
+    """The LDI method's options from -O, --axis and --lod-c."""
+    options = parse_options(args.option)
+    options["axis"] = args.axis
+    if "lod_c" in info.options:
+        options["lod_c"] = args.lod_c
+    elif args.lod_c is not None:
+        raise GlvoxError(f"--lod-c is an option of leung-wang-ldi, not of {args.method!r}")
+    return {k: v for k, v in options.items() if v is not None}
+
+
+def validate_ldi(args) -> None:
+    if args.output:
+        output_file(args.output, (".npz",))
+    mesh_arg(args.mesh)
+    info = get_method(args.method).info
+    if info.kind != "ldi":
+        raise GlvoxError(f"glvox ldi needs a method of kind 'ldi' (leung-wang-ldi, peel-ldi, reference-ldi), "
+                         f"got {args.method!r} (kind {info.kind!r}); use glvox voxelize for voxel grids")
+    positive("--lod-c", args.lod_c)
+    method_args(args.method, ldi_options(args, info), kinds=("ldi",), command="glvox ldi")
+    _grid_args(args)
+
+
+def validate_volume(args) -> None:
+    if args.output:
+        output_file(args.output, (".npz",))
+    mesh_arg(args.mesh_a)
+    mesh_arg(args.mesh_b)
+    positive("--lod-c", args.lod_c)
+    grid_args(args.resolution, args.dims, args.voxel_size)
+
+
+def validate_study(args, presets: dict, name: str) -> None:
+    """What ``glvox compare`` and ``glvox bench`` share: output folder, methods, meshes, sizes."""
+    if args.out:
+        output_folder(args.out)
+    preset = presets.get(args.preset or "", {})
+    if not (args.meshes or preset.get("meshes")) or not (args.sizes or preset.get("sizes")):
+        raise GlvoxError(f"give --preset {'|'.join(sorted(presets))}, or --meshes and -r/--sizes")
+    for m in args.methods or []:
+        get_method(m)
+    for m in args.meshes or []:
+        mesh_arg(m)
+    for n in args.sizes or []:
+        positive(f"{name} grid sizes", n)
+    positive("--repeat", args.repeat)
+    positive("--check-max", args.check_max)
+
+
+def validate_compare(args) -> None:
+    validate_study(args, COMPARE_PRESETS, "compare")
+
+
+def validate_bench(args) -> None:
+    if args.save_baseline:  # outputs first, as every command does
+        output_file(args.save_baseline, (".json",), "baseline")
+    validate_study(args, BENCH_PRESETS, "bench")
+    if args.check and args.check != CHECKOUT_BASELINE and not Path(args.check).is_file():
+        raise GlvoxError(f"no benchmark baseline at {args.check}: run `glvox bench --preset quick "
+                         f"--save-baseline {args.check}` on the version to compare against")
+    if args.budget is not None:
+        positive("--budget", args.budget, integer=False)
+
+
+def validate_data(args) -> None:
+    for n in args.names:
+        datasets.source(n)  # an unknown name: one line pointing at `glvox data list`
+    if args.action == "fetch":
+        if not args.names and not args.all:
+            raise GlvoxError("give the names of the meshes to fetch (`glvox data list`), or --all")
+        if any(datasets.find(n) is None for n in (args.names or datasets.mesh_names())):
+            output_folder(datasets.data_dir(), "download folder")
+    elif args.all:
+        raise GlvoxError("--all goes with `glvox data fetch`")
+    elif args.action == "path" and len(args.names) > 1:
+        raise GlvoxError("glvox data path takes one mesh name (or none: the download folder)")
+    elif args.action == "list" and args.names:
+        raise GlvoxError("glvox data list takes no names")
