@@ -335,6 +335,10 @@ def _reason(exc: BaseException) -> str:
     return type(exc).__name__
 
 
+def _size(n: int) -> str:
+    return f"{n / 1e6:.1f} MB" if n >= 1e6 else f"{max(1, round(n / 1e3))} kB"
+
+
 def _how(mesh: str) -> str:
     return (f"get it where there is network with `glvox data fetch {mesh}`, set GLVOX_MESHES to a folder "
             f"that holds it, or GLVOX_DATA_MIRROR to a mirror")
@@ -351,8 +355,8 @@ def _download(src: MeshSource, folder: Path, mesh: str, quiet: bool) -> None:
                            f"({_UNREACHABLE[base]}); {_how(mesh)}")
     folder.mkdir(parents=True, exist_ok=True)
     if not quiet:
-        print(f"glvox: downloading {src.name} ({src.size / 1e6:.1f} MB; {src.licence}) from {url} into {folder}",
-              file=sys.stderr, flush=True)
+        print(f"glvox: downloading {src.name} ({_size(src.size)}) from {url} into {folder}", file=sys.stderr,
+              flush=True)
     fname = src.name + (".gz" if gunzip_to else "")
     # unpacked under a temporary name and renamed once checked, so that an
     # interrupted unpack never leaves a file that a later lookup would trust
@@ -367,7 +371,8 @@ def _download(src: MeshSource, folder: Path, mesh: str, quiet: bool) -> None:
                              downloader=downloader)
     except requests.HTTPError as exc:
         code = exc.response.status_code if exc.response is not None else "?"
-        raise DatasetError(f"cannot download mesh {mesh}: {url} answered HTTP {code}; {_how(mesh)}") from None
+        fix = "check GLVOX_DATA_MIRROR, or unset it to download from the sources" if base != RAW_BASE else _how(mesh)
+        raise DatasetError(f"cannot download mesh {mesh}: {url} answered HTTP {code}; {fix}") from None
     except (requests.ConnectionError, requests.Timeout) as exc:
         _UNREACHABLE[base] = _reason(exc)
         raise DatasetError(f"mesh {mesh} is not on this machine and cannot be downloaded: no connection to "

@@ -1,4 +1,4 @@
-"""Shared test helpers.  The GL fixtures (gl_context, glvox_mesh_dir, the GL
+"""Shared test helpers.  The GL fixtures (gl_context, glvox_mesh, glvox_mesh_dir, the GL
 error check and the requires_gl marker) come from glvox's own pytest plugin,
 installed with the package (entry point pytest11)."""
 
@@ -27,13 +27,7 @@ def pytest_collection_modifyitems(config, items):
 
 
 @pytest.fixture(scope="session")
-def shared_mesh(glvox_mesh_dir):
-    """shared_mesh(name) -> path of a file in the shared meshes folder (skip if absent)."""
-
-    def get(name: str):
-        path = glvox_mesh_dir / name
-        if not path.is_file():
-            pytest.skip(f"shared mesh {name} not found in {glvox_mesh_dir}")
-        return path
-
-    return get
+def shared_mesh(glvox_mesh):
+    """shared_mesh(name) -> path of a shared mesh, through glvox.datasets (the plugin's glvox_mesh:
+    found or downloaded; skipped with one line when not available, failed with GLVOX_REQUIRE_MESHES=1)."""
+    return glvox_mesh

@@ -224,12 +224,15 @@ def test_coordinates_near_the_float64_limit():
     huge = np.array([[0, 0, 0], [1e308, 0, 0], [0, 1e308, 0], [-1e308, -1e308, 1.0]])
     with pytest.raises(NonFiniteVertexError, match="the coordinates span more than a float64 holds"):
         load_mesh((huge, faces))
-    big = np.array([[0, 0, 0], [1e307, 0, 0], [0, 1e307, 0]])
-    m = load_mesh((big, faces[:1]))
-    assert m.n_triangles == 1 and m.n_degenerate == 0
+    big = np.array([[0, 0, 0], [1e307, 0, 0], [0, 1e307, 0], [2e307, 0, 0]])
+    m = load_mesh((big, np.array([[0, 1, 2], [0, 1, 3]])))   # the second is a line: zero area
+    assert m.n_triangles == 1 and m.n_degenerate == 1
+    # areas are relative to the extent: a mesh 1e-9 across is as valid as one 1e307 across
+    assert load_mesh((big * 1e-316, faces[:1])).n_degenerate == 0
+    one = load_mesh((big[:3], faces[:1]))
     with pytest.raises(LimitError, match=r"coordinates reach 5e\+306 from the mesh's center, beyond the float32"):
-        glvox.voxelize(m, 8)
+        glvox.voxelize(one, 8)
     # the scaled copy's reference surface, placed on the same relative grid, is the same voxels
-    ref = glvox.voxelize(m, 8, method="reference-conservative")
-    small = glvox.voxelize(load_mesh((big / 1e306, faces[:1])), 8, method="reference-conservative")
+    ref = glvox.voxelize(one, 8, method="reference-conservative")
+    small = glvox.voxelize(load_mesh((big[:3] / 1e306, faces[:1])), 8, method="reference-conservative")
     assert ref.count > 0 and np.array_equal(ref.dense(), small.dense())

@@ -17,11 +17,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial import ConvexHull
 
-from glvox.datasets import mesh_dir
 from glvox.metrics import separation_leaks
 from glvox.reference import (TIE_EPS, conservative_surface, conservative_surface_sat, float32_motion,
                              mismatch_is_tie, orientation_ambiguous, point_triangle_distance, short_edges,
                              six_separating_surface, solid, solid_ties, surface_ties)
+from glvox.testing.plugin import mesh_or_skip
 
 
 
@@ -29,10 +29,7 @@ from glvox.reference import (TIE_EPS, conservative_surface, conservative_surface
 # helpers
 
 def load_mesh(name: str) -> trimesh.Trimesh:
-    path = mesh_dir() / name
-    if not path.is_file():
-        pytest.skip(f"test mesh {path} not found (set GLVOX_MESHES to the mesh folder)")
-    return trimesh.load(path, force="mesh")
+    return trimesh.load(mesh_or_skip(name), force="mesh")
 
 
 def fit(mesh: trimesh.Trimesh, n: int):

@@ -10,8 +10,10 @@ any project's tests:
   ``gl_context``;
 * the marker ``@pytest.mark.requires_gl(version=450, extensions=(...),
   limits={...})`` that skips with a reason naming the missing capability;
-* ``glvox_mesh_dir``: the shared meshes folder (``GLVOX_MESHES``, default
-  ``../shared/meshes`` beside the checkout), skipping with its path when absent;
+* ``glvox_mesh``: ``glvox_mesh(name)`` gives the path of a mesh glvox knows by
+  name (:mod:`glvox.datasets`: found on disk or downloaded), skipping with one
+  line that says how to get it when it is not available, failing instead with
+  ``GLVOX_REQUIRE_MESHES=1``; ``glvox_mesh_dir``, the first meshes folder;
 * the helpers :func:`run_compute` and :func:`run_fragment` below.
 
 Support for tests of ``glvox batch`` pipelines, imported on demand (they need

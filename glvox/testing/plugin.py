@@ -80,13 +80,42 @@ def _glvox_requires_gl(request):
     yield
 
 
+def _require_meshes() -> bool:
+    return os.environ.get("GLVOX_REQUIRE_MESHES", "") not in ("", "0")
+
+
+def mesh_or_skip(name: str) -> Path:
+    """The path of mesh ``name`` (:func:`glvox.datasets.fetch`: GLVOX_MESHES, else ../shared/meshes
+    beside the checkout, else the user cache, else a download); when it is not available, skip
+    the calling test with one line naming it and saying how to get it, or fail it when
+    ``GLVOX_REQUIRE_MESHES=1`` (for sites that must not pass by skipping)."""
+    from glvox.datasets import fetch
+    from glvox.errors import DatasetError
+
+    try:
+        return fetch(name, quiet=True)
+    except DatasetError as exc:
+        if _require_meshes():
+            pytest.fail(f"GLVOX_REQUIRE_MESHES is set and {exc}", pytrace=False)
+        pytest.skip(str(exc))
+
+
 @pytest.fixture(scope="session")
-def glvox_mesh_dir(request) -> Path:
-    """The shared meshes folder (:func:`glvox.datasets.mesh_dir`: GLVOX_MESHES, else
-    ../shared/meshes beside glvox's checkout)."""
+def glvox_mesh():
+    """``glvox_mesh(name)`` -> Path of a mesh glvox knows by name (see :func:`mesh_or_skip`)."""
+    return mesh_or_skip
+
+
+@pytest.fixture(scope="session")
+def glvox_mesh_dir() -> Path:
+    """The first meshes folder glvox looks in (:func:`glvox.datasets.mesh_dir`); a mesh by name is
+    better asked of ``glvox_mesh``, which also finds it in the cache or downloads it."""
     from glvox.datasets import mesh_dir
 
     path = mesh_dir()
     if not path.is_dir():
-        pytest.skip(f"shared meshes folder not found: {path} (set GLVOX_MESHES)")
+        msg = f"no meshes folder at {path}: `glvox data fetch --all`, or set GLVOX_MESHES"
+        if _require_meshes():
+            pytest.fail(f"GLVOX_REQUIRE_MESHES is set and {msg}", pytrace=False)
+        pytest.skip(msg)
     return path
