@@ -2,13 +2,28 @@
 
 from __future__ import annotations
 
+import inspect
 import math
 import os
+from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
 from ..gl.shaders import compute_program, render_program
+
+
+def _from_caller(search: Iterable[os.PathLike | str], frame) -> list[Path]:
+    """``search`` with relative folders taken from the calling file's folder, so that a test
+    finds its shaders wherever pytest runs from; each relative folder is also tried from the
+    working directory after that (what it meant before), and absolute folders are kept."""
+    caller = frame.f_globals.get("__file__") if frame is not None else None
+    base = Path(caller).resolve().parent if caller else Path.cwd()
+    out: list[Path] = []
+    for entry in search:
+        p = Path(entry)
+        out += [p] if p.is_absolute() else [base / p, Path.cwd() / p]
+    return out
 
 
 def set_uniforms(prog, uniforms: Mapping[str, Any]) -> None:
@@ -33,19 +48,29 @@ def run_compute(ctx, shader: str, groups: int | Sequence[int], *,
         Path of the ``.comp`` file relative to a search folder (glvox's
         ``shaders/`` is always searched; add yours with ``search``).
     groups : int or (3,) int
-        Work groups to dispatch.
+        Work groups to dispatch; each runs the shader's ``local_size``
+        invocations, so ``gl_GlobalInvocationID.x`` goes up to
+        ``groups * local_size_x - 1``.
     buffers : {binding: array or (count, dtype)}
         An array is uploaded as is; ``(count, dtype)`` makes a zero-filled
         buffer of that many elements.
     read : iterable of int
         Bindings to read back after the dispatch.
     uniforms, defines : mapping, optional
+        Uniforms by name (int, float, or a tuple for vectors; a uniform the
+        shader does not use is optimized out and raises KeyError); defines
+        inserted after ``#version``.
+    search : iterable of path
+        Folders to find ``shader`` and its includes in; a relative folder is
+        taken from the folder of the file that calls this (your test file),
+        then from the working directory.  See docs/testing.md.
 
     Returns
     -------
     {binding: array} for each binding in ``read``, with the dtype (and, for
     uploaded arrays, the shape) it was given.
     """
+    search = _from_caller(search, inspect.currentframe().f_back)
     ctx.make_current()
     prog = compute_program(ctx, shader, defines, search)
     set_uniforms(prog, uniforms or {})
@@ -100,11 +125,16 @@ def run_fragment(ctx, fragment: str, size: tuple[int, int], *, outputs: int = 1,
         ``'xor'``, ``'or'``... enabled around the draws (see :mod:`glvox.gl`).
     textures : {unit: moderngl texture}, optional
         Bound before drawing.
+    search : iterable of path
+        As for :func:`run_compute` (relative to the calling file's folder).
 
     Returns
     -------
-    list of arrays, one per attachment, shape (height, width, components).
+    list of arrays, one per attachment, shape (height, width, components)
+        and ``dtype`` (``'f1'``: uint8); ``out[y, x]`` is the pixel whose
+        ``gl_FragCoord.xy`` is ``(x + 0.5, y + 0.5)`` (row 0 at the bottom).
     """
+    search = _from_caller(search, inspect.currentframe().f_back)
     ctx.make_current()
     prog = render_program(ctx, vertex, fragment, defines=defines, search=search)
     set_uniforms(prog, uniforms or {})
