@@ -261,7 +261,7 @@ def validate_study(args, presets: dict, name: str) -> None:
         output_folder(args.out)
     preset = presets.get(args.preset or "", {})
     if not (args.meshes or preset.get("meshes")) or not (args.sizes or preset.get("sizes")):
-        raise GlvoxError(f"give --preset {'|'.join(sorted(presets))}, or --meshes and -r/--sizes")
+        raise GlvoxError(f"give --preset {'|'.join(presets)}, or --meshes and -r/--sizes")
     for m in args.methods or []:
         get_method(m)
     for m in args.meshes or []:

@@ -98,7 +98,7 @@ def test_unknown_method_and_missing_mesh_are_one_line_errors(tmp_path, capsys):
     assert run_cli("-m", "nope", "--meshes", "gen:box", "-r", "8", "-o", str(tmp_path)) == 1
     assert "unknown method 'nope'" in capsys.readouterr().err
     assert run_cli("--meshes", "no_such_mesh.ply", "-r", "8", "-o", str(tmp_path)) == 1
-    assert "neither a path nor a file" in capsys.readouterr().err
+    assert "mesh file not found: no_such_mesh.ply (nor is it a mesh name glvox knows" in capsys.readouterr().err
 
 
 def test_presets_cover_the_registry():

@@ -36,7 +36,7 @@ from glvox.tolerances import REGRESSION_TOLERANCE
 from . import ab, harness, regression
 from .bench_report import report
 from .coldstart import cold_start
-from ..datasets import mesh_dir, resolve_mesh
+from ..datasets import resolve_mesh
 from .options import AB_REPEAT, BENCH_BUDGET, BENCH_PRESETS, BENCH_REPEAT
 from .peers import PEERS, get_peer
 from .plan import CALIBRATION_CONTENDER, Contender, Plan
@@ -139,11 +139,11 @@ def _meshes(args, preset: dict[str, Any], log: Callable[[str], None]) -> list[st
     for m in args.meshes or preset.get("meshes") or []:
         try:
             resolved.append(resolve_mesh(m))
-        except GlvoxError:
+        except GlvoxError as exc:
             alt = preset.get("fallback", {}).get(m)
             if alt is None or args.meshes:
                 raise
-            log(f"shared mesh {m} not found in {mesh_dir()} (set GLVOX_MESHES); using {alt} instead")
+            log(f"using {alt} in place of {m}: {exc}")
             resolved.append(alt)
     return resolved
 
