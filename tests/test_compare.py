@@ -148,3 +148,25 @@ def test_disagreement_slice_colors():
     assert tuple(img[0, 3]) == render.ONLY_A
     assert tuple(img[1, 1]) == render.ONLY_B
     assert tuple(img[2, 3]) == render.NONE
+
+
+def test_progress_when_stderr_is_not_a_terminal(tmp_path):
+    """A log gets plain progress lines (here only the final one: the run is shorter than the
+    10 s between lines), people's names for the steps, no redraws and no 'nan'."""
+    p = subprocess.run([sys.executable, "-m", "glvox", "compare", "--meshes", "gen:box", "-r", "8",
+                        "-m", "ss-conservative", "reference-conservative", "--repeat", "1", "--no-pictures",
+                        "-o", str(tmp_path / "out")], capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr
+    lines = [ln for ln in p.stderr.splitlines() if "% |" in ln]
+    assert len(lines) == 1 and "2/2 100% |" in lines[0] and "cell/s" in lines[0], p.stderr
+    assert "\r" not in p.stderr and "nan" not in p.stderr.lower()
+    assert lines[0].endswith("gen:box 8^3: checking reference-conservative against reference-conservative")
+
+
+def test_progress_names_contenders_as_people_read_them():
+    from glvox.study.plan import CALIBRATION_CONTENDER, Contender
+
+    variant = Contender.of_method("ss-conservative", {"variant": "simple"})
+    assert variant.key == "ss-conservative[variant=simple]" and variant.label == "ss-conservative (variant simple)"
+    assert Contender.of_peer("trimesh-subdivide").label == "peer trimesh-subdivide"
+    assert CALIBRATION_CONTENDER.label == "the calibration workload"
