@@ -353,7 +353,10 @@ def _download(src: MeshSource, folder: Path, mesh: str, quiet: bool) -> None:
     if base in _UNREACHABLE:
         raise DatasetError(f"mesh {mesh} is not on this machine and {base} could not be reached earlier "
                            f"({_UNREACHABLE[base]}); {_how(mesh)}")
-    folder.mkdir(parents=True, exist_ok=True)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise DatasetError(f"cannot make the download folder {folder}: {exc.strerror or exc}") from None
     if not quiet:
         print(f"glvox: downloading {src.name} ({_size(src.size)}) from {url} into {folder}", file=sys.stderr,
               flush=True)
@@ -377,6 +380,11 @@ def _download(src: MeshSource, folder: Path, mesh: str, quiet: bool) -> None:
         _UNREACHABLE[base] = _reason(exc)
         raise DatasetError(f"mesh {mesh} is not on this machine and cannot be downloaded: no connection to "
                            f"{base} ({_reason(exc)}); {_how(mesh)}") from None
+    except requests.RequestException as exc:
+        raise DatasetError(f"cannot download mesh {mesh} from {url}: {_reason(exc)}; {_how(mesh)}") from None
+    except OSError as exc:  # the folder takes no files (read-only, full)
+        raise DatasetError(f"cannot download mesh {mesh} into {folder}: {exc.strerror or exc}; set GLVOX_MESHES "
+                           f"to a folder you can write") from None
     except ValueError as exc:
         if "hash" not in str(exc).lower():
             raise

@@ -324,3 +324,13 @@ def test_plugin_skips_with_one_line_or_fails_when_required(tmp_path, require):
         assert p.returncode == 1 and "1 failed" in p.stdout and f"GLVOX_REQUIRE_MESHES is set and {why}" in p.stdout
     else:
         assert p.returncode == 0 and "1 skipped" in p.stdout and why in p.stdout, p.stdout
+
+
+def test_a_folder_that_takes_no_files_is_one_line(fake, server, monkeypatch):
+    fake("tiny.stl", b"x")
+    server.files["/tiny.stl"] = b"x"
+    monkeypatch.setenv("GLVOX_DATA_MIRROR", server.url)
+    monkeypatch.setenv("GLVOX_MESHES", "/proc/glvox_meshes")   # /proc takes no new entries, even for root
+    with pytest.raises(DatasetError, match=r"^cannot make the download folder /proc/glvox_meshes: "):
+        datasets.fetch("tiny.stl", quiet=True)
+    assert server.asked == []
