@@ -357,9 +357,6 @@ def _download(src: MeshSource, folder: Path, mesh: str, quiet: bool) -> None:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise DatasetError(f"cannot make the download folder {folder}: {exc.strerror or exc}") from None
-    if not quiet:
-        print(f"glvox: downloading {src.name} ({_size(src.size)}) from {url} into {folder}", file=sys.stderr,
-              flush=True)
     fname = src.name + (".gz" if gunzip_to else "")
     # unpacked under a temporary name and renamed once checked, so that an
     # interrupted unpack never leaves a file that a later lookup would trust
@@ -395,6 +392,9 @@ def _download(src: MeshSource, folder: Path, mesh: str, quiet: bool) -> None:
     if gunzip_to:
         _keep_unpacked(Path(got), folder / src.name, src, url)
         (folder / fname).unlink(missing_ok=True)
+    if not quiet:  # said once it is done, so that a failure is the one line of its error
+        print(f"glvox: downloaded {src.name} ({_size(src.size)}) from {url} into {folder}", file=sys.stderr,
+              flush=True)
 
 
 def _keep_unpacked(part: Path, final: Path, src: MeshSource, url: str) -> None:
