@@ -120,22 +120,14 @@ def _run_table() -> np.ndarray:
 _RUNS = _run_table()
 
 
-def _in_grid_mask(coords: np.ndarray, dims) -> np.ndarray:
-    """(M,) uint64: the bits of each level-0 sub-grid that lie inside the grid."""
-    e = np.clip(np.asarray(dims)[None, :] - 4 * coords, 0, 4)                      # in-grid extent per axis
-    y, z = np.arange(4)[:, None], np.arange(4)[None, :]
-    nib = ((np.uint64(1) << e[:, 0].astype(np.uint64)) - np.uint64(1))[:, None, None]
-    keep = (y[None] < e[:, 1, None, None]) & (z[None] < e[:, 2, None, None])       # (M, 4 y, 4 z)
-    parts = np.where(keep, nib << (4 * y + 16 * z).astype(np.uint64)[None], np.uint64(0))
-    return np.bitwise_or.reduce(parts.reshape(len(coords), 16), axis=1)
-
-
 def octree_boxes(octree: SparseOctree) -> np.ndarray:
     """(K, 6) int64 boxes covering exactly the octree's set voxels, never a dense grid.
 
     Uniform inside nodes (levels >= 1) are one box each; a level-0 sub-grid is
     one box when full, else one box per full z slab (4 x 4) and one per x run
-    of its other rows.  Boxes may reach beyond the grid; :func:`_split` clips them.
+    of its other rows.  Boxes may reach beyond the grid (the octree's cube is
+    larger, and bits beyond the grid's faces are not part of the result):
+    :func:`_split` clips them.
     """
     out = []
     for lv in octree.levels[1:]:
@@ -143,21 +135,13 @@ def octree_boxes(octree: SparseOctree) -> np.ndarray:
         if sel.any():
             lo = lv.coords()[sel] * lv.side
             out.append(np.concatenate([lo, lo + lv.side - 1], axis=1))
-    lv0 = octree.levels[0]
-    coords = lv0.coords()
-    data = octree.data.copy()
-    face = np.any(4 * coords + 4 > np.asarray(octree.dims), axis=1)                # nodes at the +faces
-    mask = np.full(len(data), np.uint64(0xFFFFFFFFFFFFFFFF))
-    mask[face] = _in_grid_mask(coords[face], octree.dims)
-    data &= mask
-    full = (data == mask) & (mask != 0)
+    coords, data = octree.levels[0].coords(), octree.data
+    full = data == np.uint64(0xFFFFFFFFFFFFFFFF)
     lo = 4 * coords[full]
     out.append(np.concatenate([lo, lo + 3], axis=1))
-    part, pc, pm = data[~full & (data != 0)], coords[~full & (data != 0)], mask[~full & (data != 0)]
-    shifts = (16 * np.arange(4)).astype(np.uint64)
-    slab = (part[:, None] >> shifts) & np.uint64(0xFFFF)                            # (M, 4 z)
-    slab_mask = (pm[:, None] >> shifts) & np.uint64(0xFFFF)
-    fs = (slab == slab_mask) & (slab != 0)
+    part, pc = data[~full & (data != 0)], coords[~full & (data != 0)]
+    slab = (part[:, None] >> (16 * np.arange(4)).astype(np.uint64)) & np.uint64(0xFFFF)   # (M, 4 z)
+    fs = slab == 0xFFFF
     n, z = np.nonzero(fs)
     lo = 4 * pc[n] + np.stack([0 * z, 0 * z, z], axis=1)
     out.append(np.concatenate([lo, lo + np.array([3, 3, 0])], axis=1))

@@ -163,12 +163,13 @@ class _Decoder:
         return values[:count]
 
     def _base64(self, text: bytes) -> bytes:
-        """Base64 data as VTK writes it: the header encoded on its own, then the data."""
+        """Base64 data as VTK writes it: uncompressed, the byte count and the data in
+        one stream; compressed, the block header encoded on its own, then the blocks."""
         w = self.uint.itemsize
         first = base64.b64decode(text[:_b64_chars(w)])
         if self.decompress is None:
             n = int(np.frombuffer(first[:w], self.uint)[0])
-            return base64.b64decode(text[_b64_chars(w):_b64_chars(w) + _b64_chars(n)])[:n]
+            return base64.b64decode(text[:_b64_chars(w + n)])[w:w + n]
         nb = int(np.frombuffer(first[:w], self.uint)[0])
         hlen = _b64_chars(w * (3 + nb))
         sizes = np.frombuffer(base64.b64decode(text[:hlen])[:w * (3 + nb)], self.uint).astype(np.int64)[3:]
