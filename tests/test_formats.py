@@ -296,6 +296,11 @@ def test_vdb_written_by_openvdb_reads_by_active_bounding_box(tmp_path):
     assert back.dims == (4, 5, 3) and back.count == 3 * 3 + 1
     np.testing.assert_allclose(back.origin, [10 - 3 * 0.5 - 0.25, 20 + 2 * 0.5 - 0.25, 30 + 5 * 0.5 - 0.25])
     assert back.dense()[3, 4, 2] and back.dense()[0:3, 0:3, 0].all()
+    # with glvox_dims, a voxel outside that extent is an error, not a silently cropped grid
+    grid["glvox_dims"] = "2 9 9"
+    VDB.write(str(tmp_path / "cropped.vdb"), grids=[grid])
+    with pytest.raises(FormatError, match=r"active voxels in \(-3, 2, 5\)\.\.\(-3, 2, 5\), outside the extent \(0, 0, 0\)\.\.\(1, 8, 8\)"):
+        io.load(tmp_path / "cropped.vdb")
 
 
 # -- octrees into OpenVDB without a dense grid ------------------------------------------------------
@@ -332,6 +337,21 @@ def test_octree_to_vdb_equals_its_decoded_grid_and_coverage(tmp_path, monkeypatc
     c = np.array(grid.transform.indexToWorld((1.0, 2.0, 0.0)))
     np.testing.assert_allclose(c, o.origin + (4 * np.array([1, 2, 0]) + 2) * o.voxel_size, atol=1e-12)
     assert io.load(path).equal(o.to_grid())
+
+
+@needs_vdb
+def test_octree_to_vdb_with_every_sub_grid_pattern(tmp_path):
+    # random level-0 sub-grids (rows with up to four runs, full and empty rows, slabs and blocks)
+    o = glvox.voxelize("gen:torus", method="ss-octree", dims=(37, 22, 13))
+    rng = np.random.default_rng(7)
+    data = rng.integers(0, 2**64, size=len(o.data), dtype=np.uint64, endpoint=False)
+    data[::5] = np.uint64(0xFFFFFFFFFFFFFFFF)
+    data[1::7] = 0
+    data[2::9] &= np.uint64(0x0000FFFF0000FFFF)            # full and empty z slabs
+    o.data[:] = data
+    path = io.save(o, tmp_path / "r.vdb", coverage=False)
+    occ, _, _ = read_with_library(path)
+    np.testing.assert_array_equal(occ, o.to_grid().dense())
 
 
 @needs_vdb

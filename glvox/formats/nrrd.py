@@ -56,7 +56,8 @@ def write(result: Result, path: Path) -> None:
         "kinds": ["domain"] * 3, "centerings": ["cell"] * 3, "glvox_placement": PLACEMENT_NOTE,
     }
     warn_dropped(grid, "NRRD")
-    nrrd.write(str(path), np.asarray(grid.dense(), dtype=np.uint8), header, index_order="F")
+    # zlib level 6 (as npz and .vti): pynrrd's default 9 took 7x longer here for 20% smaller files
+    nrrd.write(str(path), np.asarray(grid.dense(), dtype=np.uint8), header, index_order="F", compression_level=6)
 
 
 def read(path: Path) -> VoxelGrid:

@@ -44,7 +44,6 @@ import numpy as np
 from ..errors import FormatError
 from ..grid import MAX_VOXELS
 from ..results import Result, SparseOctree, VoxelGrid
-from ..results.octree import NONE
 from .common import Format, grid_from_matrix
 
 INSTALL_HINT = ("OpenVDB's Python module is not on PyPI: on Debian/Ubuntu `apt-get install python3-openvdb` "
@@ -106,55 +105,67 @@ def dense_boxes(occ: np.ndarray) -> np.ndarray:
 
 
 def _run_table() -> np.ndarray:
-    """(16, 5) int64: for each 4-bit row value, its x runs (count, x0, x1, x0, x1; at most two)."""
-    table = np.zeros((16, 5), dtype=np.int64)
-    for v in range(16):
-        bits = np.array([0] + [(v >> x) & 1 for x in range(4)] + [0])
-        starts, ends = np.flatnonzero(np.diff(bits) == 1), np.flatnonzero(np.diff(bits) == -1) - 1
+    """(256, 9) int64: for each 8-bit row value, its x runs (count, then x0, x1 of up to four)."""
+    bits = (np.arange(256)[:, None] >> np.arange(8)) & 1
+    step = np.diff(np.pad(bits, ((0, 0), (1, 1))), axis=1)
+    table = np.zeros((256, 9), dtype=np.int64)
+    for v in range(256):
+        starts, ends = np.flatnonzero(step[v] == 1), np.flatnonzero(step[v] == -1) - 1
         table[v, 0] = len(starts)
         table[v, 1:1 + 2 * len(starts)] = np.stack([starts, ends], axis=1).reshape(-1)
     return table
 
 
-#: x runs of each 4-bit sub-grid row value (see :func:`_run_table`).
+#: x runs of each byte of an 8^3 block's row (see :func:`_run_table`).
 _RUNS = _run_table()
 
 
 def octree_boxes(octree: SparseOctree) -> np.ndarray:
-    """(K, 6) int64 boxes covering exactly the octree's set voxels, never a dense grid.
+    """(K, 6) int64 boxes (min xyz, max xyz inclusive) covering exactly the octree's set
+    voxels, never a dense grid.
 
-    Uniform inside nodes (levels >= 1) are one box each; a level-0 sub-grid is
-    one box when full, else one box per full z slab (4 x 4) and one per x run
-    of its other rows.  Boxes may reach beyond the grid (the octree's cube is
-    larger, and bits beyond the grid's faces are not part of the result):
-    :func:`_split` clips them.
+    Uniform inside nodes (levels >= 1) are one box each.  The level-0 sub-grids
+    are taken eight at a time as the 8^3 block of their level-1 parent (a VDB
+    leaf): a full block is one box, a full 8 x 8 z slab one box, and the other
+    rows give one box per x run, spanning the consecutive y rows of the slab
+    that hold the same byte.  Boxes may reach beyond the grid (the octree's
+    cube is larger, and bits beyond the grid's faces are not part of the
+    result): :func:`_split` clips them.
     """
-    out = []
-    for lv in octree.levels[1:]:
-        sel = (lv.child == NONE) & lv.inside
-        if sel.any():
-            lo = lv.coords()[sel] * lv.side
-            out.append(np.concatenate([lo, lo + lv.side - 1], axis=1))
-    coords, data = octree.levels[0].coords(), octree.data
-    full = data == np.uint64(0xFFFFFFFFFFFFFFFF)
-    lo = 4 * coords[full]
-    out.append(np.concatenate([lo, lo + 3], axis=1))
-    part, pc = data[~full & (data != 0)], coords[~full & (data != 0)]
-    slab = (part[:, None] >> (16 * np.arange(4)).astype(np.uint64)) & np.uint64(0xFFFF)   # (M, 4 z)
-    fs = slab == 0xFFFF
-    n, z = np.nonzero(fs)
-    lo = 4 * pc[n] + np.stack([0 * z, 0 * z, z], axis=1)
-    out.append(np.concatenate([lo, lo + np.array([3, 3, 0])], axis=1))
-    rows = ((slab[:, :, None] >> (4 * np.arange(4)).astype(np.uint64)) & np.uint64(0xF)).astype(np.int64)
-    rows[fs] = 0                                                                   # (M, 4 z, 4 y)
-    for r in range(2):
-        n, z, y = np.nonzero(_RUNS[rows, 0] > r)
-        runs = _RUNS[rows[n, z, y]]
-        base = 4 * pc[n] + np.stack([0 * y, y, z], axis=1)
-        x0, x1 = runs[:, 1 + 2 * r], runs[:, 2 + 2 * r]
-        out.append(np.concatenate([base + np.stack([x0, 0 * x0, 0 * x0], axis=1),
-                                   base + np.stack([x1, 0 * x1, 0 * x1], axis=1)], axis=1))
-    return np.concatenate(out, axis=0).astype(np.int64) if out else np.zeros((0, 6), np.int64)
+    out = [np.zeros((0, 6), np.int64)]
+    for level, coords in octree.uniform_blocks():
+        lo = coords * (4 << level)
+        out.append(np.concatenate([lo, lo + (4 << level) - 1], axis=1))
+    coords, rows = octree.leaf_rows()
+    base = 8 * coords
+    full = (rows == 0xFF).all(axis=(1, 2))
+    out.append(np.concatenate([base[full], base[full] + 7], axis=1))
+    rows[full] = 0
+    slab = (rows == 0xFF).all(axis=2)                                              # (P, 8 z)
+    p, z = np.nonzero(slab)
+    lo = base[p] + np.stack([0 * z, 0 * z, z], axis=1)
+    out.append(np.concatenate([lo, lo + [7, 7, 0]], axis=1))
+    rows[slab] = 0
+    # groups of consecutive y rows with the same nonzero byte, per (block, z)
+    start = rows != 0
+    start[:, :, 1:] &= rows[:, :, 1:] != rows[:, :, :-1]
+    p, z, y = np.nonzero(start)
+    flat = (p * 8 + z) * 8 + y
+    same = rows.reshape(-1)
+    y1 = y.copy()
+    more = np.ones(len(y), bool)
+    while more.any():                                                              # at most 7 steps
+        nxt = flat + (y1 - y) + 1
+        more &= (y1 < 7) & (same[np.minimum(nxt, same.size - 1)] == same[flat])
+        y1 += more
+    value = same[flat]
+    for r in range(4):
+        sel = _RUNS[value, 0] > r
+        x0, x1 = _RUNS[value[sel], 1 + 2 * r], _RUNS[value[sel], 2 + 2 * r]
+        lo = base[p[sel]] + np.stack([x0, y[sel], z[sel]], axis=1)
+        hi = base[p[sel]] + np.stack([x1, y1[sel], z[sel]], axis=1)
+        out.append(np.concatenate([lo, hi], axis=1))
+    return np.concatenate(out, axis=0).astype(np.int64)
 
 
 def _coverage(vdb, octree: SparseOctree):
@@ -163,12 +174,9 @@ def _coverage(vdb, octree: SparseOctree):
     dims = np.asarray(octree.dims)
     cd = -(-dims // 4)
     edge = dims - 4 * (cd - 1)                                  # in-grid voxels of the last cell per axis
-    for lv in octree.levels[1:]:
-        sel = (lv.child == NONE) & lv.inside
-        if not sel.any():
-            continue
-        f = 1 << lv.level
-        lo = lv.coords()[sel] * f
+    for level, coords in octree.uniform_blocks():
+        f = 1 << level
+        lo = coords * f
         hi = np.minimum(lo + f, cd) - 1
         ok = np.all(lo <= hi, axis=1)
         lo, hi = lo[ok], hi[ok]
@@ -243,24 +251,25 @@ def _steps(grid) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _fill_dense(grid, lo: np.ndarray, dims: tuple[int, int, int], path: Path) -> np.ndarray:
-    """bool (dims) of the grid's active True values, index ``lo`` at [0, 0, 0]."""
-    out = np.zeros(dims, dtype=bool)
-    singles = []
-    hi = lo + np.asarray(dims) - 1
+    """bool (dims) of the grid's active True values (voxels and tiles), index ``lo`` at [0, 0, 0]."""
+    mins, maxs = [], []
     for item in grid.iterOnValues():
-        if not item.value:
-            continue
-        a, b = item.min, item.max
-        if not (all(lo[i] <= a[i] for i in range(3)) and all(b[i] <= hi[i] for i in range(3))):
-            raise FormatError(f"{path}: grid {grid.name!r} has active voxels in {a}..{b}, outside the "
-                              f"extent {tuple(lo)}..{tuple(hi)} its glvox_dims give")
-        if item.count == 1:
-            singles.append(a)
-        else:
-            out[a[0] - lo[0]:b[0] - lo[0] + 1, a[1] - lo[1]:b[1] - lo[1] + 1, a[2] - lo[2]:b[2] - lo[2] + 1] = True
-    if singles:
-        ijk = np.asarray(singles, dtype=np.int64) - lo
-        out[ijk[:, 0], ijk[:, 1], ijk[:, 2]] = True
+        if item.value:
+            mins.append(item.min)
+            maxs.append(item.max)
+    a = np.asarray(mins, dtype=np.int64).reshape(-1, 3) - lo
+    b = np.asarray(maxs, dtype=np.int64).reshape(-1, 3) - lo
+    outside = (a < 0).any(axis=1) | (b >= np.asarray(dims)).any(axis=1)
+    if outside.any():
+        i = int(np.argmax(outside))
+        raise FormatError(f"{path}: grid {grid.name!r} has active voxels in {tuple((a[i] + lo).tolist())}.."
+                          f"{tuple((b[i] + lo).tolist())}, outside the extent {tuple(lo.tolist())}.."
+                          f"{tuple((lo + np.asarray(dims) - 1).tolist())} of its glvox_dims")
+    out = np.zeros(dims, dtype=bool)
+    one = np.all(a == b, axis=1)
+    out[tuple(a[one].T)] = True
+    for (x0, y0, z0), (x1, y1, z1) in zip(a[~one].tolist(), b[~one].tolist()):
+        out[x0:x1 + 1, y0:y1 + 1, z0:z1 + 1] = True
     return out
 
 
