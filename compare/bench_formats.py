@@ -67,7 +67,7 @@ def library_reader(suffix: str):
     if suffix in (".nii", ".nii.gz"):
         import nibabel as nib
         import numpy as np
-        return lambda p: np.array(nib.load(str(p)).dataobj)      # a copy: .nii is memory-mapped
+        return lambda p: np.asanyarray(nib.load(str(p)).dataobj).copy(order="K")   # .nii is memory-mapped
     if suffix == ".vti":
         from vtkmodules.vtkIOXML import vtkXMLImageDataReader
 

@@ -156,8 +156,9 @@ def grid_from_matrix(data: np.ndarray, steps: np.ndarray, first_center: np.ndarr
     c0 = np.asarray(first_center, dtype=np.float64).reshape(3)
     lowest = np.array([c0[w] if sign[order[w]] > 0 else c0[w] - h * (dims[w] - 1) for w in range(3)])
     spec = GridSpec(dims, lowest - 0.5 * h, h)
-    extra_grids = {k: VoxelGrid(np.ascontiguousarray(a != 0), spec) for k, a in arrays.items() if k}
-    return VoxelGrid(np.ascontiguousarray(arrays[""] != 0), spec, extras=extra_grids)
+    # no C-contiguous copy: the files' x-fastest (Fortran) order is the one the bit packing reads
+    extra_grids = {k: VoxelGrid(a != 0, spec) for k, a in arrays.items() if k}
+    return VoxelGrid(arrays[""] != 0, spec, extras=extra_grids)
 
 
 def center_matrix(spec: GridSpec) -> np.ndarray:

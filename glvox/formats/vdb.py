@@ -98,7 +98,7 @@ def dense_boxes(occ: np.ndarray) -> np.ndarray:
     pad = np.zeros((rows.shape[0], 1), dtype=np.int8)
     step = np.diff(np.concatenate([pad, rows.view(np.int8), pad], axis=1), axis=1)
     r0, x0 = np.nonzero(step == 1)
-    r1, x1 = np.nonzero(step == -1)                           # row-major: ends pair with starts
+    _, x1 = np.nonzero(step == -1)                            # row-major: ends pair with starts
     ny = occ.shape[1]
     j, k = r0 % ny, r0 // ny
     return np.stack([x0, j, k, x1 - 1, j, k], axis=1).astype(np.int64)
@@ -265,7 +265,7 @@ def _fill_dense(grid, lo: np.ndarray, dims: tuple[int, int, int], path: Path) ->
         raise FormatError(f"{path}: grid {grid.name!r} has active voxels in {tuple((a[i] + lo).tolist())}.."
                           f"{tuple((b[i] + lo).tolist())}, outside the extent {tuple(lo.tolist())}.."
                           f"{tuple((lo + np.asarray(dims) - 1).tolist())} of its glvox_dims")
-    out = np.zeros(dims, dtype=bool)
+    out = np.zeros(dims, dtype=bool, order="F")               # x fastest, as the bit packing reads it
     one = np.all(a == b, axis=1)
     out[tuple(a[one].T)] = True
     for (x0, y0, z0), (x1, y1, z1) in zip(a[~one].tolist(), b[~one].tolist()):
