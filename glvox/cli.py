@@ -25,9 +25,9 @@ from .errors import GlvoxError
 from .gl.context import get_context
 from .grid import grid_for
 from .mesh import load_mesh
-from .results import LDI, SparseOctree
 from .methods import DEFAULT_METHOD, get_method, method_infos, run_method
 from .methods.leung_wang import overlap_bounds, overlap_grid, run_intersection
+from .results import LDI, SparseOctree
 from .study.options import add_bench_arguments, add_compare_arguments
 
 
@@ -155,7 +155,9 @@ def check_convert_args(args) -> tuple[Path, Path]:
     format's library importable, the input a file, the output writable and not the input."""
     src, dst = Path(args.input), Path(args.output)
     io.check_readable(src)
-    io.check_writable(dst)
+    fmt = io.check_writable(dst)
+    if args.no_coverage and "coverage" not in fmt.options:
+        raise GlvoxError(f"--no-coverage is an option of .vdb output, not of {fmt.name}: {dst}")
     if dst.exists() and src.resolve() == dst.resolve():
         raise GlvoxError(f"input and output are the same file: {src}")
     return src, dst

@@ -38,7 +38,7 @@ XFORM_CODE = 2
 
 
 def _library():
-    return import_library("nibabel", ".nii files")
+    return import_library("nibabel", "NIfTI (.nii, .nii.gz)")
 
 
 def write(result: Result, path: Path) -> None:

@@ -42,7 +42,7 @@ PLACEMENT_NOTE = ("voxel (i, j, k) is the cell centered at space origin + (i, j,
 
 
 def _library():
-    return import_library("nrrd", ".nrrd files")
+    return import_library("nrrd", "NRRD (.nrrd)")
 
 
 def write(result: Result, path: Path) -> None:
