@@ -1,4 +1,4 @@
-"""Command line: ``glvox info | methods | voxelize | batch | ldi | volume | compare | bench | data``.
+"""Command line: ``glvox info | methods | voxelize | convert | batch | ldi | volume | compare | bench | data``.
 
 Errors glvox raises on purpose print one line ``glvox: error: ...`` and exit
 with status 1 (2 for wrong usage, as argparse does, in the same one-line
@@ -34,7 +34,7 @@ from .mesh import load_mesh
 from .methods import DEFAULT_METHOD, get_method, method_infos, run_method
 from .methods.leung_wang import overlap_bounds, overlap_grid, run_intersection
 from .progress import Stages
-from .results import LDI
+from .results import LDI, SparseOctree
 from .study.options import add_bench_arguments, add_compare_arguments
 
 
@@ -115,7 +115,7 @@ def cmd_voxelize(args) -> int:
     run = result.run
     say(f"{_summary(result)}; {run.timings.summary()}")
     if out is not None:
-        io.save(result, out)
+        _save(result, out)
         say(f"wrote {out}")
     if args.json:
         d = run.to_dict()
@@ -125,6 +125,29 @@ def cmd_voxelize(args) -> int:
         print(json.dumps(d, indent=2))
     elif args.quiet is False and out is None:
         print(_summary(result))
+    return 0
+
+
+def _save(result, out: Path, **options) -> None:
+    """``io.save``, its FormatWarnings (what a format drops) printed as ``glvox: warning:`` lines."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        io.save(result, out, **options)
+    for w in caught:
+        print(f"glvox: warning: {w.message}", file=sys.stderr)
+
+
+def cmd_convert(args) -> int:
+    """``glvox convert IN OUT``: read a voxel file and write it in the format of OUT's suffix."""
+    src, dst = Path(args.input), Path(args.output)
+    say = Stages(args.quiet)
+    result = io.load(src, convention=args.convention)
+    kind = "ldi" if isinstance(result, LDI) else "sparse" if isinstance(result, SparseOctree) else None
+    io.check_writable(dst, kind=kind, dims=result.dims)
+    say(f"read {src}: {result!r}")
+    options = {"coverage": False} if args.no_coverage else {}
+    _save(result, dst, convention=args.convention, **options)
+    say(f"wrote {dst} ({dst.stat().st_size} bytes)")
     return 0
 
 
@@ -309,7 +332,7 @@ def _add_voxelize_parser(sub) -> None:
     pv.add_argument("mesh")
     pv.add_argument("-r", "--resolution", type=int, help="voxels along the longest axis (cubic N^3 grid)")
     pv.add_argument("-m", "--method", default=None, help="registry name (see `glvox methods`)")
-    pv.add_argument("-o", "--output", help="output file, .npz or .binvox")
+    pv.add_argument("-o", "--output", help="output file: .npz, .binvox, .nrrd, .nii(.gz), .vti or .vdb")
     pv.add_argument("-O", "--option", action="append", default=[], metavar="KEY=VALUE",
                     help="method option (repeatable); `--KEY VALUE` works too, e.g. --axis 2")
     _add_grid_arguments(pv, bounds=True)
@@ -317,6 +340,23 @@ def _add_voxelize_parser(sub) -> None:
                     help="let solid methods run on meshes that are not watertight")
     _add_output_arguments(pv, "print counts and timings as JSON")
     pv.set_defaults(func=cmd_voxelize, validate=preflight.validate_voxelize)
+
+
+def _add_convert_parser(sub) -> None:
+    pcv = sub.add_parser(
+        "convert", help="convert a voxel file to another format (placement kept)",
+        description="Read INPUT and write OUTPUT in the format of its suffix: .npz, .binvox, .nrrd, .nii, "
+                    ".nii.gz, .vti, .vdb.  Placement (origin, voxel size, dims) is kept; extra masks where "
+                    "the output format holds them (.npz, .vti, .vdb; a warning names what is dropped).  "
+                    "NRRD and NIfTI need `pip install 'glvox[formats]'`, .vdb OpenVDB's Python module.")
+    pcv.add_argument("input", help="voxel file to read")
+    pcv.add_argument("output", help="file to write (format by suffix)")
+    pcv.add_argument("--convention", choices=["trimesh", "binvox"], default="trimesh",
+                     help="binvox placement of a binvox input or output (default trimesh's)")
+    pcv.add_argument("--no-coverage", action="store_true",
+                     help="write an octree to .vdb without its coverage FloatGrid")
+    pcv.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+    pcv.set_defaults(func=cmd_convert, validate=preflight.validate_convert)
 
 
 def _add_batch_parser(sub) -> None:
@@ -431,8 +471,8 @@ def _add_data_parser(sub) -> None:
 
 
 #: One function per command, each adding its subparser.
-_COMMANDS = (_add_info_parser, _add_methods_parser, _add_voxelize_parser, _add_batch_parser, _add_ldi_parser,
-             _add_volume_parser, _add_compare_parser, _add_bench_parser, _add_data_parser)
+_COMMANDS = (_add_info_parser, _add_methods_parser, _add_voxelize_parser, _add_convert_parser, _add_batch_parser,
+             _add_ldi_parser, _add_volume_parser, _add_compare_parser, _add_bench_parser, _add_data_parser)
 
 
 def build_parser() -> argparse.ArgumentParser:

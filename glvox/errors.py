@@ -74,7 +74,12 @@ class CapabilityError(GlvoxError, RuntimeError):
 
 
 class FormatError(GlvoxError, ValueError):
-    """A result file (npz, binvox) is malformed or of an unknown format."""
+    """A result file is malformed, of an unknown format, or its format's library is missing."""
+
+
+class FormatWarning(UserWarning):
+    """A format keeps less than the result holds (e.g. NIfTI has no room for
+    extra masks): what is dropped is named."""
 
 
 class DatasetError(GlvoxError, LookupError):

@@ -1,148 +1,71 @@
-"""Reading and writing results by file suffix: ``.npz`` and ``.binvox``.
+"""Reading and writing results by file suffix, through the format registry.
 
-npz: every result type writes its own layout on one base
-(:mod:`glvox.results.base`: ``origin``, ``voxel_size``, ``method``, ``kind``
-and the type's arrays, listed in :mod:`glvox.results.voxels`,
-:mod:`glvox.results.octree` and :mod:`glvox.results.ldi`).  A sparse octree
-stores the octree itself, never a decoded grid, so a 4096^3 result stays a
-few hundred MiB; :func:`load` returns the type the file holds.
-
-binvox placement
-----------------
-The binvox header has ``translate`` and ``scale``.  Two readings exist:
-
-* ``'trimesh'`` (default; what ``trimesh.exchange.binvox`` reads and writes):
-  ``translate`` is the center of voxel 0 and ``scale`` the distance from the
-  first to the last voxel center, (n - 1) h.
-* ``'binvox'`` (Patrick Min's binvox tool): ``translate`` is the grid's
-  minimum corner and ``scale`` its full length, n h.
-
-glvox writes the trimesh reading so trimesh loads the same occupancy and
-placement; pass ``convention='binvox'`` for files made by the binvox tool.
-binvox stores cubic grids only (one scale for all axes), so non-cubic grids
-are refused: save them as npz.  A sparse octree is decoded
-(:meth:`SparseOctree.to_grid`) when it fits, and refused otherwise; an LDI
-is not a grid and is refused.
+``.npz`` (every result type), ``.binvox``, ``.nrrd``, ``.nii`` / ``.nii.gz``,
+``.vti`` and ``.vdb``: one module per format in :mod:`glvox.formats`, which
+lists what each holds, the library it needs and how it encodes placement (the
+world center of voxel (i, j, k) is ``origin + (i, j, k) h + h/2`` in all).
+:func:`check_writable` and :func:`check_readable` refuse a bad path before
+any work (unknown suffix, missing library, a result the format cannot hold).
 """
 
 from __future__ import annotations
 
 import os
 from pathlib import Path
-
-import numpy as np
+from typing import Any
 
 from .errors import FormatError
-from .grid import GridSpec
-from .results import LDI, Result, SparseOctree, VoxelGrid, read_npz
+from .formats import check_readable, check_writable, format_for
+from .formats.binvox import CONVENTIONS, binvox_bytes
+from .results import Result
 
-CONVENTIONS = ("trimesh", "binvox")
-
-
-def _suffix(path: Path) -> str:
-    s = path.suffix.lower()
-    if s not in (".npz", ".binvox"):
-        raise FormatError(f"unknown voxel file suffix {path.suffix!r} for {path}: use .npz or .binvox")
-    return s
+__all__ = ["CONVENTIONS", "binvox_bytes", "check_readable", "check_writable", "load", "save"]
 
 
-def save(result: Result, path: str | os.PathLike, *, convention: str = "trimesh") -> Path:
-    """Write ``result`` (a VoxelGrid, SparseOctree or LDI) to ``path`` (.npz or .binvox, by suffix)."""
+def _options(fmt, takes: tuple[str, ...], given: dict[str, Any], path: Path) -> dict[str, Any]:
+    """``given`` when ``fmt`` takes every option in it (``takes``), else a FormatError."""
+    unknown = sorted(k for k in given if k not in takes)
+    if unknown:
+        known = f"; it takes {list(takes)}" if takes else ""
+        raise FormatError(f"{fmt.name} ({path.name}) takes no option {unknown}{known}")
+    return given
+
+
+def save(result: Result, path: str | os.PathLike, *, convention: str = "trimesh", **options: Any) -> Path:
+    """Write ``result`` (a VoxelGrid, SparseOctree or LDI) to ``path``, the format by suffix.
+
+    Parameters
+    ----------
+    result : Result
+    path : path-like
+        ``.npz``, ``.binvox``, ``.nrrd``, ``.nii``, ``.nii.gz``, ``.vti`` or ``.vdb``.
+    convention : {'trimesh', 'binvox'}
+        binvox placement (ignored by the other formats).
+    **options
+        Format options, e.g. ``coverage=False`` for ``.vdb``.
+
+    Returns
+    -------
+    Path
+    """
     path = Path(path)
-    if _suffix(path) == ".npz":
-        return result.save(path)
-    if isinstance(result, LDI):
-        raise FormatError(f"an LDI is saved as .npz (depths per ray), not binvox: {path}")
-    grid = result.to_grid() if isinstance(result, SparseOctree) else result
-    path.write_bytes(binvox_bytes(grid, convention=convention))
+    fmt = format_for(path)
+    if "convention" in fmt.options:
+        options["convention"] = convention
+    fmt.require()
+    fmt.write(result, path, **_options(fmt, fmt.options, options, path))
     return path
 
 
-def load(path: str | os.PathLike, *, convention: str = "trimesh"):
-    """Read a result written by :func:`save` (or any conforming npz / binvox).
+def load(path: str | os.PathLike, *, convention: str = "trimesh", **options: Any) -> Result:
+    """Read a result written by :func:`save` (or a conforming file of another tool).
 
     Returns a VoxelGrid, or a :class:`~glvox.results.SparseOctree` or an
-    :class:`~glvox.results.LDI` for an npz holding one.
+    :class:`~glvox.results.LDI` for an npz holding one.  ``convention`` is
+    binvox's placement (ignored by the other formats).
     """
     path = Path(path)
-    if not path.is_file():
-        raise FormatError(f"voxel file not found: {path}")
-    if _suffix(path) == ".npz":
-        return read_npz(path)
-    return _load_binvox(path.read_bytes(), path, convention)
-
-
-def binvox_bytes(grid: VoxelGrid, *, convention: str = "trimesh") -> bytes:
-    """The binvox encoding of ``grid`` (cubic grids only)."""
-    if convention not in CONVENTIONS:
-        raise FormatError(f"convention must be one of {CONVENTIONS}, got {convention!r}")
-    nx, ny, nz = grid.dims
-    if not nx == ny == nz:
-        raise FormatError(f"binvox stores cubic grids only, got dims {grid.dims}; save as .npz instead")
-    n, h = nx, grid.voxel_size
-    if convention == "trimesh":
-        if n < 2:
-            raise FormatError("trimesh's binvox placement needs at least 2 voxels per axis; save as .npz")
-        translate, scale = grid.origin + 0.5 * h, (n - 1) * h
-    else:
-        translate, scale = grid.origin, n * h
-    # binvox order: x slowest, then z, then y fastest ("xzy")
-    flat = np.ascontiguousarray(np.asarray(grid.dense()).transpose(0, 2, 1)).reshape(-1)
-    rle = _rle(flat)
-    header = (
-        "#binvox 1\n"
-        f"dim {nx} {ny} {nz}\n"
-        f"translate {float(translate[0])!r} {float(translate[1])!r} {float(translate[2])!r}\n"
-        f"scale {float(scale)!r}\n"
-        "data\n"
-    )
-    return header.encode("ascii") + rle
-
-
-def _rle(flat: np.ndarray) -> bytes:
-    """(value, count <= 255) byte pairs of a flat bool array."""
-    if flat.size == 0:
-        return b""
-    change = np.flatnonzero(flat[1:] != flat[:-1]) + 1
-    starts = np.concatenate([[0], change])
-    lengths = np.diff(np.concatenate([starts, [flat.size]]))
-    values = flat[starts].astype(np.uint8)
-    reps = (lengths + 254) // 255
-    v = np.repeat(values, reps)
-    c = np.full(int(reps.sum()), 255, dtype=np.int64)
-    last = np.cumsum(reps) - 1
-    c[last] = lengths - 255 * (reps - 1)
-    return np.stack([v, c.astype(np.uint8)], axis=1).tobytes()
-
-
-def _load_binvox(data: bytes, path: Path, convention: str) -> VoxelGrid:
-    if convention not in CONVENTIONS:
-        raise FormatError(f"convention must be one of {CONVENTIONS}, got {convention!r}")
-    try:
-        end = data.index(b"data\n") + 5
-        header = data[:end].decode("ascii").splitlines()
-        if not header[0].startswith("#binvox"):
-            raise ValueError("missing '#binvox' magic")
-        fields = {ln.split()[0]: ln.split()[1:] for ln in header[1:] if ln.strip()}
-        dims = tuple(int(x) for x in fields["dim"])
-        translate = np.array([float(x) for x in fields["translate"]])
-        scale = float(fields["scale"][0])
-    except (ValueError, KeyError, IndexError, UnicodeDecodeError) as exc:
-        raise FormatError(f"{path} is not a valid binvox file ({exc})") from None
-    pairs = np.frombuffer(data[end:], dtype=np.uint8)
-    if pairs.size % 2:
-        raise FormatError(f"{path}: truncated binvox data (odd byte count)")
-    pairs = pairs.reshape(-1, 2)
-    flat = np.repeat(pairs[:, 0].astype(bool), pairs[:, 1].astype(np.int64))
-    nx, ny, nz = dims
-    if flat.size != nx * ny * nz:
-        raise FormatError(f"{path}: binvox data holds {flat.size} voxels, header says {nx}x{ny}x{nz}")
-    occ = flat.reshape(nx, nz, ny).transpose(0, 2, 1)
-    n = nx
-    if convention == "trimesh":
-        h = scale / (n - 1) if n > 1 else scale
-        origin = translate - 0.5 * h
-    else:
-        h = scale / n
-        origin = translate
-    return VoxelGrid(np.ascontiguousarray(occ), GridSpec(dims, origin, h))
+    fmt = check_readable(path)
+    if "convention" in fmt.read_options:
+        options["convention"] = convention
+    return fmt.read(path, **_options(fmt, fmt.read_options, options, path))

@@ -25,7 +25,7 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 
-from . import datasets
+from . import datasets, io
 from .errors import FormatError, GlvoxError, GridError, MeshLoadError
 from .grid import GridSpec, fit_grid
 from .methods import get_method, validate_options
@@ -82,6 +82,28 @@ def output_folder(path: str | os.PathLike, what: str = "output folder") -> Path:
     if not existing.is_dir():
         raise GlvoxError(f"cannot make the {what} {p}: {existing} is a file")
     _writable_folder(existing, what)
+    return p
+
+
+def result_file(path: str | os.PathLike, kind: str | None = None, dims: Sequence[int] | None = None,
+                what: str = "output") -> Path:
+    """Check a voxel file to write: what :func:`glvox.io.check_writable` checks (a known
+    suffix, the format's library, a result kind and dims the format holds, an existing
+    folder), then that the folder really takes a new file.
+
+    Parameters
+    ----------
+    path : path
+    kind : {'surface', 'solid', 'sparse', 'ldi'}, optional
+        The result's kind, when known.
+    dims : (3,) int, optional
+        The grid's dims, when known.
+    what : str
+        The argument's name in messages.
+    """
+    p = Path(path).expanduser()
+    io.check_writable(p, kind=kind, dims=dims)
+    _writable_folder(p.parent if str(p.parent) else Path("."), what)
     return p
 
 
@@ -142,17 +164,10 @@ def method_args(name: str, options: dict[str, Any], kinds: Iterable[str] | None 
 
 
 def format_fits(path: Path, info: MethodInfo | None, spec: GridSpec | None) -> None:
-    """Whether ``path``'s format holds ``info``'s result on ``spec`` (None: not known yet).
-
-    binvox holds cubic voxel grids only: an LDI and non-cubic dims are refused.
-    """
-    if path.suffix.lower() != ".binvox":
-        return
-    if info is not None and info.kind == "ldi":
-        raise FormatError(f"an LDI ({info.name}) is saved as .npz (depths per ray), not binvox: {path}")
-    if spec is not None and len(set(spec.dims)) != 1:
-        raise FormatError(f"binvox holds cubic grids only, and this grid has dims {spec.dims}: write .npz, or "
-                          f"use -r N without --tight or --voxel-size")
+    """Whether ``path``'s format holds ``info``'s result on ``spec`` (None: not known yet),
+    e.g. binvox holds cubic voxel grids only (the format registry decides)."""
+    io.check_writable(path, kind=info.kind if info is not None else None,
+                      dims=spec.dims if spec is not None else None)
 
 
 # ---------------------------------------------------------------------------
@@ -196,9 +211,9 @@ def _grid_args(args, bounds: bool = False) -> GridSpec | None:
 
 
 def validate_voxelize(args) -> None:
-    out = output_file(args.output, (".npz", ".binvox")) if args.output else None
-    mesh_arg(args.mesh)
     info, _ = method_args(args.method, parse_options(args.option, args.extra))
+    out = result_file(args.output, kind=info.kind) if args.output else None
+    mesh_arg(args.mesh)
     spec = _grid_args(args, bounds=True)
     if out is not None:
         format_fits(out, info, spec)
@@ -218,7 +233,7 @@ def validate_batch(args) -> None:
     method_args(args.method, parse_options(args.option), command="glvox batch")
     spec = _grid_args(args)
     if args.format == "binvox" and (spec is None or len(set(spec.dims)) != 1):
-        raise GlvoxError("binvox holds cubic grids only: use -r N without --tight or --voxel-size, or cubic "
+        raise GlvoxError("binvox stores cubic grids only: use -r N without --tight or --voxel-size, or cubic "
                          "--dims, or --format npz")
 
 
@@ -235,7 +250,7 @@ def ldi_options(args, info) -> dict:
 
 def validate_ldi(args) -> None:
     if args.output:
-        output_file(args.output, (".npz",))
+        result_file(args.output, kind="ldi")
     mesh_arg(args.mesh)
     info = get_method(args.method).info
     if info.kind != "ldi":
@@ -248,11 +263,24 @@ def validate_ldi(args) -> None:
 
 def validate_volume(args) -> None:
     if args.output:
-        output_file(args.output, (".npz",))
+        result_file(args.output, kind="ldi")
     mesh_arg(args.mesh_a)
     mesh_arg(args.mesh_b)
     positive("--lod-c", args.lod_c)
     grid_args(args.resolution, args.dims, args.voxel_size)
+
+
+def validate_convert(args) -> None:
+    """``glvox convert IN OUT``: both suffixes known, each format's library importable, the
+    input a file, the output writable and not the input."""
+    src = Path(args.input)
+    io.check_readable(src)
+    fmt = io.check_writable(args.output)
+    dst = result_file(args.output)
+    if args.no_coverage and "coverage" not in fmt.options:
+        raise GlvoxError(f"--no-coverage is an option of .vdb output, not of {fmt.name}: {dst}")
+    if dst.exists() and src.resolve() == dst.resolve():
+        raise GlvoxError(f"input and output are the same file: {src}")
 
 
 def validate_study(args, presets: dict, name: str) -> None:

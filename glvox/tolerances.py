@@ -47,6 +47,14 @@ DEGENERATE_AREA_RTOL = 1e-14
 #: digits, far below any voxel-sized difference.
 PLACEMENT_RTOL = 1e-5
 
+#: (relative to h) Files of other tools (NIfTI, NRRD, VTK image data) give a
+#: grid's placement as an index-to-world matrix; glvox reads one whose axes are
+#: the world axes (up to order and sign) with one voxel size.  NIfTI-1 stores
+#: the matrix in float32 (6e-8 relative) and its qform as a quaternion, whose
+#: round trip costs a few 1e-7; 1e-6 keeps a margin over that and still refuses
+#: a rotation of 1e-4 degree (2e-6 rad) or anisotropic spacing.
+FORMAT_AXIS_RTOL = 1e-6
+
 #: (voxels) A fit's dims are ceil(extent / h - FIT_CEIL_SLACK): an extent that
 #: is a whole number of voxels up to float64 rounding of the division does not
 #: get one more, empty, voxel.

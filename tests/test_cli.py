@@ -93,19 +93,19 @@ def test_voxelize_grid_options(tmp_path):
      "option axis must be one of [0, 1, 2], got 7"),
     (["voxelize", "gen:torus", "-r", "8", "-m", "reference-solid", "-O", "speed=9"],
      "method 'reference-solid' has no option speed; its options: axis"),
-    (["voxelize", "gen:torus", "-r", "8", "-o", "x.vox"], "unknown output file suffix '.vox'"),
+    (["voxelize", "gen:torus", "-r", "8", "-o", "x.stl"], "unknown voxel file suffix '.stl'"),
     (["voxelize", "gen:torus", "--dims", "8", "8", "4", "-o", "x.binvox"],
-     "binvox holds cubic grids only, and this grid has dims (8, 8, 4)"),
+     "binvox stores cubic grids only, got dims (8, 8, 4)"),
     (["voxelize", "gen:torus", "-r", "8", "-m", "leung-wang-ldi", "-o", "x.binvox"],
-     "an LDI (leung-wang-ldi) is saved as .npz"),
+     "an LDI is saved as .npz (depths per ray), not binvox"),
     (["voxelize", "gen:torus", "-r", "8", "--padding", "4"], "padding 4 leaves no voxel inside a grid of resolution 8"),
     (["voxelize", "gen:torus", "--voxel-size", "-1"], "voxel_size must be a finite positive number, got -1.0"),
     (["voxelize", "gen:torus", "-r", "8", "-o", "no_such_folder/x.npz"],
-     "the output's folder no_such_folder does not exist"),
+     "output folder no_such_folder does not exist"),
     (["ldi", "gen:torus", "-r", "8", "--lod-c", "0"], "--lod-c must be a positive integer, got 0"),
     (["volume", "gen:torus", "gen:box"], "give -r/--resolution N, --dims NX NY NZ or --voxel-size H"),
     (["batch", "/nonexistent", "-o", "out", "-r", "8"], "batch input not found: /nonexistent"),
-    (["batch", ".", "-o", "out", "-r", "8", "--tight", "--format", "binvox"], "binvox holds cubic grids only"),
+    (["batch", ".", "-o", "out", "-r", "8", "--tight", "--format", "binvox"], "binvox stores cubic grids only"),
     (["compare", "--meshes", "gen:torus", "-r", "0"], "compare grid sizes must be a positive integer, got 0"),
     (["compare", "--meshes", "no_such_mesh.obj", "-r", "8"], "mesh file not found: no_such_mesh.obj"),
     (["bench", "--preset", "quick", "--check", "no_baseline.json"], "no benchmark baseline at no_baseline.json"),
@@ -175,8 +175,7 @@ def test_a_grid_known_only_from_the_mesh_is_checked_before_voxelizing(tmp_path):
     p = glvox("voxelize", "gen:torus", "-r", "8", "--tight", "-o", tmp_path / "t.binvox")
     assert p.returncode == 1 and "loading gen:torus" in p.stderr and "voxelizing" not in p.stderr
     assert p.stderr.strip().splitlines()[-1] == (
-        "glvox: error: binvox holds cubic grids only, and this grid has dims (8, 8, 3): write .npz, or use "
-        "-r N without --tight or --voxel-size")
+        "glvox: error: binvox stores cubic grids only, got dims (8, 8, 3); save as .npz instead")
 
 
 def test_voxelize_with_an_ldi_method_says_what_it_made(tmp_path):

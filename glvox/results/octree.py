@@ -224,12 +224,36 @@ class SparseOctree(Result):
             "nodes": self.nodes_per_level,
         }
 
-    def _uniform_blocks(self, min_level: int = 1):
-        """(level, (K, 3) coords) of the inside nodes without children, top first."""
+    def uniform_blocks(self, min_level: int = 1):
+        """(level, (K, 3) int64 level coordinates) of the inside nodes without children
+        from ``min_level`` up, top first: each covers ``4 * 2**level`` voxels per axis."""
         for lv in reversed(self.levels[max(min_level, 1):]):
             sel = (lv.child == NONE) & lv.inside
             if sel.any():
                 yield lv.level, morton_decode(lv.morton[sel])
+
+    def leaf_rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """The 8^3 blocks of the refined level-1 nodes (the level-0 sub-grids, eight at a time).
+
+        Returns
+        -------
+        coords : (P, 3) int64
+            Level-1 coordinates (a, b, c) of the nodes with children; the block
+            covers voxels ``8 (a, b, c)`` to ``8 (a, b, c) + 7``.
+        rows : (P, 8, 8) uint8
+            ``rows[p, z, y]`` bit x is voxel ``8 (a, b, c) + (x, y, z)``, bits
+            beyond the grid's faces as the sub-grids hold them.
+        """
+        lv1 = self.levels[1]
+        par = np.flatnonzero(lv1.child != NONE)
+        d = self.data[lv1.child[par].astype(np.int64)[:, None] + np.arange(8)]  # (P, 8)
+        r = np.arange(8)
+        y8, z8 = r[None, :], r[:, None]                                      # rows (z8, y8)
+        shift = (4 * (y8 & 3) + 16 * (z8 & 3)).astype(np.uint64)
+        lo_child = ((y8 >> 2) << 1) | ((z8 >> 2) << 2)                      # x = 0 child
+        lo = (d[:, lo_child] >> shift) & np.uint64(0xF)
+        hi = (d[:, lo_child | 1] >> shift) & np.uint64(0xF)
+        return morton_decode(lv1.morton[par]), (lo | (hi << np.uint64(4))).astype(np.uint8)
 
     def to_grid(self) -> VoxelGrid:
         """The decoded dense grid (VoxelGrid on the same spec, ``run`` shared).
@@ -249,20 +273,12 @@ class SparseOctree(Result):
         # bytes of 8 voxels along x, rows (z, y): a level-1 node is one byte
         # in each of its 8 x 8 rows, so its children fill whole bytes
         grid = np.zeros((bz, by, bx), dtype=np.uint8)
-        lv1 = self.levels[1]
-        par = np.flatnonzero(lv1.child != NONE)
-        if len(par):
-            d = self.data[lv1.child[par].astype(np.int64)[:, None] + np.arange(8)]  # (P, 8)
+        coords, rows = self.leaf_rows()
+        if len(coords):
+            a, b, c = coords.T
             r = np.arange(8)
-            y8, z8 = r[None, :], r[:, None]                                      # rows (z8, y8)
-            shift = (4 * (y8 & 3) + 16 * (z8 & 3)).astype(np.uint64)
-            lo_child = ((y8 >> 2) << 1) | ((z8 >> 2) << 2)                      # x = 0 child
-            lo = (d[:, lo_child] >> shift) & np.uint64(0xF)
-            hi = (d[:, lo_child | 1] >> shift) & np.uint64(0xF)
-            rows = (lo | (hi << np.uint64(4))).astype(np.uint8)                   # (P, 8, 8)
-            a, b, c = morton_decode(lv1.morton[par]).T
-            grid[8 * c[:, None, None] + z8, 8 * b[:, None, None] + y8, a[:, None, None]] = rows
-        for level, coords in self._uniform_blocks():
+            grid[8 * c[:, None, None] + r[:, None], 8 * b[:, None, None] + r[None, :], a[:, None, None]] = rows
+        for level, coords in self.uniform_blocks():
             s = 4 << level
             sx = s // 8
             for a, b, c in coords:
@@ -297,7 +313,7 @@ class SparseOctree(Result):
         # voxels of each block inside the grid, per axis (s except on the +x, +y, +z faces)
         e = [np.clip(d - s * np.arange(n), 0, s).astype(np.float64) for d, n in zip(self.dims, cd)]
         out = np.zeros(cd, dtype=np.float32)
-        for lvl, coords in self._uniform_blocks(level + 1):
+        for lvl, coords in self.uniform_blocks(level + 1):
             f = 1 << (lvl - level)
             for a, b, c in coords:
                 ex, ey, ez = e[0][a * f:(a + 1) * f], e[1][b * f:(b + 1) * f], e[2][c * f:(c + 1) * f]
