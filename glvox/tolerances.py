@@ -94,3 +94,10 @@ DECISION_RTOL = 1e-5
 #: fraction.  The same code measured twice on a quiet machine stays within a
 #: few percent; a shared machine needs the recheck the bench does on a flag.
 REGRESSION_TOLERANCE = 0.10
+
+# -- mesh checks ----------------------------------------------------------------
+
+#: Decimal digits to which vertex positions are rounded before duplicates are
+#: merged for the watertight check (glvox.mesh.is_watertight): trimesh's
+#: tol.merge = 1e-8, so glvox's answer is trimesh's on every mesh.
+MERGE_DIGITS = 8

@@ -16,7 +16,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1] / "glvox"
 
 #: The README's Layout order, lowest first.
-LAYERS = ["_version", "errors", "tolerances", "grid", "mesh", "datasets", "results", "io", "gl", "gpu",
+LAYERS = ["_version", "errors", "tolerances", "grid", "meshfiles", "mesh", "datasets", "results", "io", "gl", "gpu",
           "reference", "methods", "metrics", "batch", "study", "testing", "cli", "__main__"]
 
 
