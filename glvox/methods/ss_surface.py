@@ -143,13 +143,14 @@ class _SSSurface(Method):
     def _finish(self, spec, timer, grid, stats):
         with timer.stage("readback", gpu=False):
             words = read_grid_words(grid, spec)
-            cases = np.frombuffer(stats.read(size=12), dtype="<u4")
+            stat_words = np.frombuffer(stats.read(size=32), dtype="<u4")
+        cases, voxels = stat_words[:3], int(stat_words[7])  # ss/write.glsl counts the voxels
         if self.criterion == 0:
             total = int(cases.sum())
             timer.stats["cases_1d_2d_3d"] = [int(c) for c in cases]
             timer.stats["case_percent_1d_2d_3d"] = [round(100.0 * int(c) / total, 1) if total else 0.0
                                                     for c in cases]
-        return VoxelGrid(words=words, spec=spec)
+        return VoxelGrid(words=words, spec=spec, count=voxels)
 
 
 @register
