@@ -103,10 +103,6 @@ class Mesh:
 
 
 def _load_file(path: Path):
-    # trimesh is imported where it is used (here and below): it takes ~0.5 s to
-    # import, which commands that never load a mesh file should not pay
-    import trimesh
-
     if not path.exists():
         raise MeshLoadError(f"mesh file not found: {path}")
     if path.is_dir():
@@ -119,6 +115,10 @@ def _load_file(path: Path):
     fast = read_fast(suffix, path.read_bytes()) if suffix in FAST_SUFFIXES else None
     if fast is not None:
         return fast
+    # trimesh is imported where it is used (here and below): it takes ~0.5 s to
+    # import, which the fast readers and commands that load no file do not pay
+    import trimesh
+
     try:
         # materials and textures are irrelevant to voxels (and would need Pillow)
         try:
