@@ -48,13 +48,29 @@ _VARIANTS = {"simple": 0, "specialized": 1, "sorted": 2}
 _REQUIRES = Requirements(gl_version=430, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 7,
                                                  "GL_MAX_COMPUTE_WORK_GROUP_SIZE": 256})
 
-#: The default conservative variant.  No variant wins every cell of
-#: compare/table1_ss_surface.py (bunny and dragon, 128^3-1024^3):
-#: specialized takes the least time over all of them, winning at large
-#: grids, while simple wins on small grids, where bounding boxes are a few
-#: voxels and the case branches only cost divergence (figures in
-#: compare/README.md).
-DEFAULT_VARIANT = "specialized"
+#: ``ss-conservative``'s variant ``auto`` (the default) runs ``simple`` where a
+#: grid face has at most 1 / AUTO_SIMPLE_DENSITY voxels per triangle
+#: (F / N^2 >= AUTO_SIMPLE_DENSITY, N^2 = the geometric mean of the grid's
+#: face areas), ``sorted`` below.  Measured with compare/ss_variants.py on
+#: five shared meshes (3.5k to 203k triangles) at 64^3-1024^3: simple was
+#: fastest in every cell with F / N^2 >= 0.77 but one (fandisk 128^3, 0.88),
+#: sorted in every cell at 0.33 and below but two (featuretype 128^3, 5%
+#: behind simple; dragon 1024^3, 17% behind specialized); specialized, the
+#: former default, never led by more than noise; simple fell behind by up to
+#: 4x on large grids and sorted by up to 1.9x on small ones.  Figures in
+#: README "Methods".
+AUTO_SIMPLE_DENSITY = 0.5
+
+#: The variant ``auto`` takes when ``sorted`` cannot run (more triangles than
+#: one indirect dispatch holds).
+AUTO_FALLBACK = "specialized"
+
+
+def default_variant(n_triangles: int, dims) -> str:
+    """The variant ``auto`` picks for ``n_triangles`` on a grid of ``dims`` (see :data:`AUTO_SIMPLE_DENSITY`)."""
+    # F / V^(2/3) >= d  <=>  (F / d)^3 >= V^2: exact in floats for every grid glvox takes
+    volume = float(np.prod(np.asarray(dims, dtype=np.float64)))
+    return "simple" if (n_triangles / AUTO_SIMPLE_DENSITY) ** 3 >= volume * volume else "sorted"
 
 
 class _SSSurface(Method):
@@ -63,6 +79,11 @@ class _SSSurface(Method):
     def _run(self, ctx, mesh, spec, timer, variant: str):
         n = mesh.n_triangles
         max_groups = int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])
+        if variant == "auto":
+            variant = default_variant(n, spec.dims)
+            if variant == "sorted" and n > max_groups * _LOCAL:
+                variant = AUTO_FALLBACK
+            timer.stats["variant"] = variant
         if variant == "sorted" and n > max_groups * _LOCAL:
             raise LimitError(
                 f"the sorted variant dispatches each bounding-box type at once, at most "
@@ -161,7 +182,9 @@ class SSConservative(_SSSurface):
         summary="conservative (26-separating) surface, one compute invocation per triangle, atomicOr",
         reference="reference-conservative",
         requires=_REQUIRES,
-        options={"variant": Option(DEFAULT_VARIANT, "Table 1's realization", tuple(_VARIANTS))},
+        options={"variant": Option("auto", "Table 1's realization; auto: simple where triangles / N^2 >= "
+                                           f"{AUTO_SIMPLE_DENSITY}, else sorted (measured, "
+                                           "compare/ss_variants.py)", ("auto", *_VARIANTS))},
     )
     criterion = 0
 

@@ -42,7 +42,7 @@ from .plan import CALIBRATION_CONTENDER, Contender, Plan
 
 #: Variants benchmarked beside a method's default (their own rows).
 VARIANTS: dict[str, list[dict[str, Any]]] = {
-    "ss-conservative": [{"variant": "simple"}, {"variant": "sorted"}],
+    "ss-conservative": [{"variant": "simple"}, {"variant": "specialized"}, {"variant": "sorted"}],
 }
 
 #: Kinds of glvox method the bench races against the peers.
