@@ -16,7 +16,7 @@ import os
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
-from typing import Any, Union
+from typing import Any, Sequence, Union
 
 import numpy as np
 
@@ -252,8 +252,10 @@ def _validate(vertices: Any, faces: Any, name: str) -> Mesh:
             f"{name}: {len(idx)} vertices have NaN or infinite coordinates (first: vertex {int(idx[0])} "
             f"= {v[idx[0]].tolist()})"
         )
-    doubled_area = _doubled_areas(v, f)
-    extent = float(np.ptp(v[used], axis=0).max())
+    cols = [np.ascontiguousarray(c) for c in v.T]  # x, y, z: contiguous gathers below
+    doubled_area = _doubled_areas(cols, f)
+    referenced = cols if used.all() else [c[used] for c in cols]
+    extent = max(float(c.max() - c.min()) for c in referenced)
     degenerate = doubled_area <= DEGENERATE_AREA_RTOL * extent * extent
     keep = f[~degenerate] if degenerate.any() else f
     if len(keep) == 0:
@@ -262,18 +264,21 @@ def _validate(vertices: Any, faces: Any, name: str) -> Mesh:
                 watertight=is_watertight(v, keep), name=name)
 
 
-def _doubled_areas(v: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """(F,) float64 |(b - a) x (c - a)| per triangle.
+def _doubled_areas(cols: Sequence[np.ndarray], f: np.ndarray) -> np.ndarray:
+    """(F,) float64 |(b - a) x (c - a)| per triangle, from the (V,) x, y, z columns of the vertices.
 
     The operations of ``np.linalg.norm(np.cross(...), axis=1)`` in the same
-    order (so the same bits), on (F,) columns instead of (F, 3, 3) gathers
-    and temporaries: ~3x faster.
+    order (so the same bits), on contiguous (F,) coordinate columns instead
+    of (F, 3, 3) gathers and strided temporaries: ~6x faster.
     """
-    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
-    e1, e2 = (b - a).T, (c - a).T
-    x = e1[1] * e2[2] - e1[2] * e2[1]
-    y = e1[2] * e2[0] - e1[0] * e2[2]
-    z = e1[0] * e2[1] - e1[1] * e2[0]
+    vx, vy, vz = cols
+    f0, f1, f2 = (np.ascontiguousarray(c) for c in f.T)
+    ax, ay, az = vx[f0], vy[f0], vz[f0]
+    e1x, e1y, e1z = vx[f1] - ax, vy[f1] - ay, vz[f1] - az
+    e2x, e2y, e2z = vx[f2] - ax, vy[f2] - ay, vz[f2] - az
+    x = e1y * e2z - e1z * e2y
+    y = e1z * e2x - e1x * e2z
+    z = e1x * e2y - e1y * e2x
     return np.sqrt(x * x + y * y + z * z)
 
 
