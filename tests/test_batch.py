@@ -523,6 +523,9 @@ def test_small_meshes_travel_several_per_message_large_ones_alone(tmp_path):
     assert out[0] == [j.rel for j in small[:CHUNK_MESHES]]
     assert out[1:] == [[j.rel for j in small[CHUNK_MESHES:]], ["big1.obj"], ["big2.obj"], ["big3.obj"]]
     assert sum(out, []) == [j.rel for j in small + big]  # every job once, in order
+    lpt = [[j.rel for j in c] for c in chunks(small + big, largest_first=True)]
+    assert lpt[:2] == [["big1.obj"], ["big2.obj"]] and lpt[2][0] == "big3.obj"  # then small ones fill up
+    assert sorted(sum(lpt, [])) == sorted(sum(out, []))
 
 
 def test_workers_divide_llvmpipe_threads_and_take_egl_devices_in_turn(dataset, tmp_path, monkeypatch):

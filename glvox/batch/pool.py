@@ -3,10 +3,13 @@
 Why not a local Dask cluster (still used with ``--scheduler``): measured
 here (``python compare/bench_batch.py``, 200 meshes at 32^3), Dask took
 1.3-1.9 s to start two workers and ~10 ms per task, so two Dask workers
-voxelized 19 meshes/s where one process voxelized 112.  This pool starts its
-workers from a ``forkserver`` that has imported glvox once (~0.3 s), sends
-each worker several small meshes per message (:data:`CHUNK_MESHES`, up to
-:data:`CHUNK_BYTES` of files), and gets one row back per mesh as it finishes.
+voxelized 19 meshes/s where one process voxelized 112.  This pool forks its
+workers from the calling process when it has no GL context and no other
+thread (``glvox batch`` from the command line: ~10 ms, every import
+inherited), else starts them from a ``forkserver`` that has imported glvox
+once (~0.3 s); it sends each worker several small meshes per message
+(:data:`CHUNK_MESHES`, up to :data:`CHUNK_BYTES` of files) and gets one row
+back per mesh as it finishes.
 
 Per worker: one process, one GL context and its compiled programs for the
 whole batch (:func:`glvox.gl.context.get_context` is per process), llvmpipe's
@@ -27,10 +30,12 @@ from __future__ import annotations
 import multiprocessing as mp
 import os
 import signal
+import threading
 from collections import deque
 from multiprocessing.connection import wait
 from typing import Any, Callable, Sequence
 
+from ..gl.context import any_context
 from .cluster import crashed_row
 from .jobs import BatchSettings, Job
 from .manifest import base_row, now
@@ -44,16 +49,20 @@ CHUNK_MESHES = 16
 #: large meshes spread over the workers and the last ones finish together.
 CHUNK_BYTES = 1 << 20
 
-_context: Any = None
+_forkserver: Any = None
 
 
 def _mp_context():
-    """The forkserver context, its server preloaded with the batch worker (and so glvox)."""
-    global _context
-    if _context is None:
-        _context = mp.get_context("forkserver")
-        _context.set_forkserver_preload(["glvox.batch.worker"])
-    return _context
+    """How workers start: forked from this process when that is safe (one thread, no GL
+    context yet), so they inherit every import (glvox, trimesh) in ~10 ms; else from a
+    forkserver whose server has imported the batch worker (and so glvox) once."""
+    global _forkserver
+    if threading.active_count() == 1 and not any_context():
+        return mp.get_context("fork")
+    if _forkserver is None:
+        _forkserver = mp.get_context("forkserver")
+        _forkserver.set_forkserver_preload(["glvox.batch.worker"])
+    return _forkserver
 
 
 def lp_threads(workers: int) -> str:
@@ -119,16 +128,23 @@ class _Worker:
         self.conn.close()
 
 
-def chunks(jobs: Sequence[Job]) -> deque[list[Job]]:
-    """Jobs in messages of up to :data:`CHUNK_MESHES` meshes and :data:`CHUNK_BYTES` of files."""
+def _size(job: Job) -> int:
+    try:
+        return os.path.getsize(job.input)
+    except OSError:
+        return 0
+
+
+def chunks(jobs: Sequence[Job], *, largest_first: bool = False) -> deque[list[Job]]:
+    """Jobs in messages of up to :data:`CHUNK_MESHES` meshes and :data:`CHUNK_BYTES` of files
+    (``largest_first``: the largest files first, so the workers finish together)."""
     out: deque[list[Job]] = deque()
     cur: list[Job] = []
     size = 0
-    for job in jobs:
-        try:
-            n = os.path.getsize(job.input)
-        except OSError:
-            n = 0
+    sized = [(job, _size(job)) for job in jobs]
+    if largest_first:
+        sized.sort(key=lambda js: -js[1])
+    for job, n in sized:
         if cur and (len(cur) >= CHUNK_MESHES or size + n > CHUNK_BYTES):
             out.append(cur)
             cur, size = [], 0
@@ -153,7 +169,7 @@ def run_local(jobs: Sequence[Job], settings: BatchSettings, *, workers: int, tas
         EGL device indices; worker i gets ``GLVOX_EGL_DEVICE = egl_devices[i % len]``.
     """
     ctx = _mp_context()
-    queue = chunks(jobs)
+    queue = chunks(jobs, largest_first=True)
     retries: deque[Job] = deque()
     crashes: dict[str, int] = {}
     envs = worker_envs(workers, egl_devices)
