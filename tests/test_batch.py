@@ -518,7 +518,8 @@ def test_small_meshes_travel_several_per_message_large_ones_alone(tmp_path):
         return Job(str(p), name, str(p) + ".npz", name + ".npz")
 
     small = [job(f"s{i}.obj", 100) for i in range(CHUNK_MESHES + 3)]
-    big = [job("big1.obj", CHUNK_BYTES + 1), job("big2.obj", CHUNK_BYTES // 2 + 1), job("big3.obj", CHUNK_BYTES // 2)]
+    big = [job("big1.obj", CHUNK_BYTES + 1), job("big2.obj", CHUNK_BYTES // 2 + 1),
+           job("big3.obj", CHUNK_BYTES // 2)]
     out = [[j.rel for j in c] for c in chunks(small + big)]
     assert out[0] == [j.rel for j in small[:CHUNK_MESHES]]
     assert out[1:] == [[j.rel for j in small[CHUNK_MESHES:]], ["big1.obj"], ["big2.obj"], ["big3.obj"]]

@@ -39,7 +39,8 @@ def test_points_trimesh_and_files_agree_with_the_dense_grid(tmp_path):
         np.testing.assert_array_equal(back.dense(), dense)
 
 
-DENSE_GPU = [n for n in method_names() if get_method(n).info.uses_gl and get_method(n).info.kind in ("surface", "solid")]
+DENSE_GPU = [n for n in method_names()
+             if get_method(n).info.uses_gl and get_method(n).info.kind in ("surface", "solid")]
 
 
 @pytest.mark.parametrize("name", DENSE_GPU)

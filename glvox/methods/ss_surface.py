@@ -73,17 +73,18 @@ def default_variant(n_triangles: int, dims) -> str:
     return "simple" if (n_triangles / AUTO_SIMPLE_DENSITY) ** 3 >= volume * volume else "sorted"
 
 
+def _auto(n_triangles: int, dims, max_groups: int) -> str:
+    """:func:`default_variant`, or :data:`AUTO_FALLBACK` where ``sorted`` cannot dispatch every triangle."""
+    variant = default_variant(n_triangles, dims)
+    return AUTO_FALLBACK if variant == "sorted" and n_triangles > max_groups * _LOCAL else variant
+
+
 class _SSSurface(Method):
     criterion = 0
 
     def _run(self, ctx, mesh, spec, timer, variant: str):
         n = mesh.n_triangles
         max_groups = int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])
-        if variant == "auto":
-            variant = default_variant(n, spec.dims)
-            if variant == "sorted" and n > max_groups * _LOCAL:
-                variant = AUTO_FALLBACK
-            timer.stats["variant"] = variant
         if variant == "sorted" and n > max_groups * _LOCAL:
             raise LimitError(
                 f"the sorted variant dispatches each bounding-box type at once, at most "
@@ -189,6 +190,9 @@ class SSConservative(_SSSurface):
     criterion = 0
 
     def run(self, mesh, spec, *, ctx, timer, variant):
+        if variant == "auto":
+            max_groups = int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])
+            variant = timer.stats["variant"] = _auto(mesh.n_triangles, spec.dims, max_groups)
         return self._run(ctx, mesh, spec, timer, variant)
 
 

@@ -98,7 +98,8 @@ def ratio_table(rows: Sequence[dict]) -> str:
             elif r["status"] != "ok":
                 vals.append(r["status"])
             elif is_peer:
-                vals.append(f"{_ms(r['wall_ms'])} ms (best {_ms(r['min_ms'])})" + (" bimodal" if r.get("bimodal") else ""))
+                flag = " bimodal" if r.get("bimodal") else ""
+                vals.append(f"{_ms(r['wall_ms'])} ms (best {_ms(r['min_ms'])}){flag}")
             elif r.get("ratio") is None:
                 vals.append(f"{_ms(r['wall_ms'])} ms (no peer)")
             else:

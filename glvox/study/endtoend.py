@@ -172,7 +172,10 @@ def report(times: dict[str, dict[str, Any]], n: int, repeat: int) -> str:
         cells = []
         for k in labels:
             t = times[k][f]
-            cells.append(t if isinstance(t, str) else
-                         f"{min(t) * 1e3:.1f} / {statistics.median(t) * 1e3:.1f}" + (" (bimodal)" if bimodal(t) else ""))
+            if isinstance(t, str):
+                cells.append(t)
+                continue
+            flag = " (bimodal)" if bimodal(t) else ""
+            cells.append(f"{min(t) * 1e3:.1f} / {statistics.median(t) * 1e3:.1f}{flag}")
         out.append(f"| {Path(f).name} | " + " | ".join(cells) + " |")
     return "\n".join(out)

@@ -126,7 +126,8 @@ class Samples:
         (GPU where timed, else wall; a stage's parts in one run summed), wall time outside
         the stages."""
         return {"runs": len(self.walls), "wall_ms": _median_ms(self.walls), "min_ms": min(self.walls) * 1e3,
-                "spread_ms": _spread_ms(self.walls), "bimodal": bimodal(self.walls), "gpu_ms": _median_ms(self.gpus),
+                "spread_ms": _spread_ms(self.walls), "bimodal": bimodal(self.walls),
+                "gpu_ms": _median_ms(self.gpus),
                 "gpu_min_ms": min(self.gpus) * 1e3 if self.gpus else None, "gpu_spread_ms": _spread_ms(self.gpus),
                 "overhead_ms": _median_ms(self.overheads),
                 "stages_ms": {k: statistics.median(v) * 1e3 for k, v in self.stages.items()}}
