@@ -16,7 +16,7 @@ with trimesh as before, so every other file, and every error message, is
 unchanged.
 
 Measured against trimesh's reader and Open3D's on the shared meshes:
-``python compare/bench_load.py`` (figures in README "Loading").
+``python compare/bench_load.py`` (figures in README "Loading, readback, cold start, workers").
 """
 
 from __future__ import annotations

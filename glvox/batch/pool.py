@@ -3,7 +3,7 @@
 Why not a local Dask cluster (still used with ``--scheduler``): measured
 here (``python compare/bench_batch.py``, 200 meshes at 32^3), Dask took
 1.3-1.9 s to start two workers and ~10 ms per task, so two Dask workers
-voxelized 19 meshes/s where one process voxelized 112.  This pool forks its
+voxelized 39-41 meshes/s where one process voxelized 156-160.  This pool forks its
 workers from the calling process when it has no GL context and no other
 thread (``glvox batch`` from the command line: ~10 ms, every import
 inherited), else starts them from a ``forkserver`` that has imported glvox
