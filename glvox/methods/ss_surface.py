@@ -52,13 +52,13 @@ _REQUIRES = Requirements(gl_version=430, limits={"GL_MAX_SHADER_STORAGE_BUFFER_B
 #: grid face has at most 1 / AUTO_SIMPLE_DENSITY voxels per triangle
 #: (F / N^2 >= AUTO_SIMPLE_DENSITY, N^2 = the geometric mean of the grid's
 #: face areas), ``sorted`` below.  Measured with compare/ss_variants.py on
-#: five shared meshes (3.5k to 203k triangles) at 64^3-1024^3: simple was
-#: fastest in every cell with F / N^2 >= 0.77 but one (fandisk 128^3, 0.88),
-#: sorted in every cell at 0.33 and below but two (featuretype 128^3, 5%
-#: behind simple; dragon 1024^3, 17% behind specialized); specialized, the
-#: former default, never led by more than noise; simple fell behind by up to
-#: 4x on large grids and sorted by up to 1.9x on small ones.  Figures in
-#: README "Methods".
+#: five shared meshes (3.5k to 203k triangles) at 64^3-1024^3, twice: simple
+#: led in 12 and 13 of the 13 cells with F / N^2 >= 0.77; below, sorted and
+#: specialized traded the lead within ~25% from run to run.  The rule's
+#: summed time was within 3% and 9% of always picking the fastest variant
+#: (worst cell 1.31x), where specialized, the former default, was 26% and 15%
+#: over (worst cell 3.8x: many voxels per triangle), simple 87% and 59%,
+#: sorted 11% and 22%.  Figures in README "Methods".
 AUTO_SIMPLE_DENSITY = 0.5
 
 #: The variant ``auto`` takes when ``sorted`` cannot run (more triangles than
