@@ -63,6 +63,8 @@ def _open3d_job(n: int, numpy_result: bool = True) -> Callable[[str], Any]:
     def job(path: str) -> Any:
         tm = o3d.io.read_triangle_mesh(path)
         v = np.asarray(tm.vertices)
+        if len(tm.triangles) == 0:
+            raise ValueError("Open3D read no triangles")  # e.g. OBJ polygons it skips
         lo, hi = v.min(axis=0), v.max(axis=0)
         h = float((hi - lo).max()) / n
         origin = 0.5 * (lo + hi) - 0.5 * n * h
