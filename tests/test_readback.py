@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import glvox
-from glvox.grid import GridSpec, pack_bits, set_indices, unpack_bits
+from glvox.grid import pack_bits, set_indices, unpack_bits
 from glvox.methods import method_names, get_method, run_method
 from glvox.results.voxels import c_order
 
