@@ -82,6 +82,9 @@ class Progress:
         if not self.enabled or self._total <= 0:
             return False
         if self.tty and self._bar is None:
+            # no monitor thread: a process with a thread forks its batch workers
+            # through a forkserver instead (slower, see glvox.batch.pool)
+            tqdm.monitor_interval = 0
             self._bar = tqdm(total=self._total, initial=self.done, unit=self.unit, file=self.stream,
                              bar_format=BAR_FORMAT, mininterval=0.1, dynamic_ncols=True, leave=True)
             # the bar's own clock, so that its rate and ETA are the ones line() gives

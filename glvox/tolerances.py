@@ -102,3 +102,21 @@ DECISION_RTOL = 1e-5
 #: fraction.  The same code measured twice on a quiet machine stays within a
 #: few percent; a shared machine needs the recheck the bench does on a flag.
 REGRESSION_TOLERANCE = 0.10
+
+#: (ratio) A contender's warm runs are flagged *bimodal* when two consecutive
+#: ones, sorted, differ by this factor: PyVista's 1024^3 call took 3.7-4.6 s
+#: in one run and 0.86 s in another (issue 23), while load from other work
+#: on this machine moved repeated runs by up to ~1.5x.
+BIMODAL_RATIO = 2.0
+
+#: Warm runs every contender gets in a cell of ``glvox bench`` / ``compare``,
+#: even past its time budget, so that best, median and the bimodal flag mean
+#: something for a slow peer too.
+MIN_WARM_RUNS = 3
+
+# -- mesh checks ----------------------------------------------------------------
+
+#: Decimal digits to which vertex positions are rounded before duplicates are
+#: merged for the watertight check (glvox.mesh.is_watertight): trimesh's
+#: tol.merge = 1e-8, so glvox's answer is trimesh's on every mesh.
+MERGE_DIGITS = 8

@@ -515,3 +515,53 @@ def test_cli_summary_and_quiet(dataset, tmp_path):
     assert "meshes/s" in p.stdout
     q = glvox("batch", root / "broken", "-o", tmp_path / "o", "-r", R, "--workers", 0, "-q")
     assert q.returncode == 3 and q.stdout == "" and q.stderr == ""
+
+
+# ---------------------------------------------------------------------------
+# local worker processes: messages of several meshes, llvmpipe threads and EGL devices per worker
+# ---------------------------------------------------------------------------
+
+
+def test_small_meshes_travel_several_per_message_large_ones_alone(tmp_path):
+    from glvox.batch.jobs import Job
+    from glvox.batch.pool import CHUNK_BYTES, CHUNK_MESHES, chunks
+
+    def job(name, size):
+        p = tmp_path / name
+        p.write_bytes(b"x" * size)
+        return Job(str(p), name, str(p) + ".npz", name + ".npz")
+
+    small = [job(f"s{i}.obj", 100) for i in range(CHUNK_MESHES + 3)]
+    big = [job("big1.obj", CHUNK_BYTES + 1), job("big2.obj", CHUNK_BYTES // 2 + 1),
+           job("big3.obj", CHUNK_BYTES // 2)]
+    out = [[j.rel for j in c] for c in chunks(small + big)]
+    assert out[0] == [j.rel for j in small[:CHUNK_MESHES]]
+    assert out[1:] == [[j.rel for j in small[CHUNK_MESHES:]], ["big1.obj"], ["big2.obj"], ["big3.obj"]]
+    assert sum(out, []) == [j.rel for j in small + big]  # every job once, in order
+    lpt = [[j.rel for j in c] for c in chunks(small + big, largest_first=True)]
+    assert lpt[:2] == [["big1.obj"], ["big2.obj"]] and lpt[2][0] == "big3.obj"  # then small ones fill up
+    assert sorted(sum(lpt, [])) == sorted(sum(out, []))
+
+
+def test_workers_divide_llvmpipe_threads_and_take_egl_devices_in_turn(dataset, tmp_path, monkeypatch):
+    from glvox.batch.pool import CHUNK_MESHES, lp_threads, worker_envs
+    from glvox.testing.worker_env import WorkerEnvTask
+
+    monkeypatch.delenv("LP_NUM_THREADS", raising=False)
+    root, files = dataset
+    rels = [r for r, i in files.items() if i["broken"] is None][:CHUNK_MESHES + 4]  # two messages
+    assert len(rels) == CHUNK_MESHES + 4
+    lst = tmp_path / "meshes.txt"
+    lst.write_text("\n".join(str(root / r) for r in rels) + "\n")
+    # one EGL device listed: every worker gets it (this machine has one; several GPUs would be 0, 1, ...)
+    s = run_batch(lst, tmp_path / "out", BatchSettings("ss-conservative", resolution=R), workers=2, quiet=True,
+                  task=WorkerEnvTask(), egl_devices=[0])
+    assert s.done == len(rels) and s.mode == "local cluster (2 workers)"
+    rows = manifest_rows(tmp_path / "out" / "manifest.csv")
+    want = f"LP_NUM_THREADS={lp_threads(2)} GLVOX_EGL_DEVICE=0"
+    assert {rows[r]["warnings"] for r in rels} == {want}
+    assert lp_threads(2) == str(max(1, (os.cpu_count() or 1) // 2)) and lp_threads(10**6) == "1"
+    assert len({rows[r]["worker"] for r in rels}) == 2  # both worker processes took meshes
+    # several GPUs: one device per worker, in turn
+    envs = worker_envs(3, egl_devices=[0, 1])
+    assert [e["GLVOX_EGL_DEVICE"] for e in envs] == ["0", "1", "0"] and "GLVOX_EGL_DEVICE" not in worker_envs(2)[0]

@@ -499,3 +499,48 @@ def test_against_exits_3_on_a_regressed_cell(monkeypatch, capsys):
     rows[0] = {**rows[0], **ab.verdict([10.0] * 3, [10.0] * 3, 0.10)}
     assert cli_main(["bench", "--against", "HEAD", "-m", "ss-solid", "--meshes", "gen:torus", "-r", "16",
                      "--peers", "-q"]) == 0
+
+
+# -- issue 23: best / median / bimodal, and the end-to-end mode ------------------------------
+
+def test_bimodal_flags_two_clusters_only():
+    from glvox.study.harness import bimodal
+
+    assert bimodal([0.86, 0.9, 3.7])          # PyVista's two modes (issue 23)
+    assert not bimodal([1.0, 1.3, 1.9])       # spread, no gap of 2x
+    assert not bimodal([1.0])
+    assert bimodal([1.0, 2.0])
+
+
+def test_min_warm_runs_past_the_budget():
+    from glvox.study import harness
+    from glvox.study.plan import Contender, Plan
+    from glvox.tolerances import MIN_WARM_RUNS
+
+    plan = Plan(meshes=["gen:sphere"], sizes=[16], contenders=[Contender.of_method("ss-conservative")],
+                repeat=MIN_WARM_RUNS + 2, budget=1e-9, check_max=0)
+    row = next(r for r in harness.run_plan(plan) if r["key"] == "ss-conservative")
+    assert row["runs"] == MIN_WARM_RUNS and row["min_ms"] <= row["wall_ms"] and row["bimodal"] in (True, False)
+
+
+def test_end_to_end_times_every_file_and_reports_meshes_per_second(tmp_path):
+    import trimesh
+
+    from glvox.study import endtoend
+
+    for i, m in enumerate([trimesh.creation.icosphere(2), trimesh.creation.box()]):
+        m.export(tmp_path / f"m{i}.{['ply', 'stl'][i]}")
+    (tmp_path / "notes.txt").write_text("not a mesh")
+    files = endtoend.files_of(str(tmp_path))
+    assert [p.rsplit("/", 1)[1] for p in files] == ["m0.ply", "m1.stl"]
+    seen = []
+    jobs = {"glvox ss-conservative": endtoend._glvox_job("ss-conservative", 16),
+            "counting": lambda path: seen.append(path) or np.zeros((16, 16, 16), bool)}
+    times = endtoend.run(files, jobs, repeat=2)
+    assert len(seen) == 3 * len(files)  # one untimed pass, then two timed rounds
+    assert all(len(t) == 2 for k in times for t in times[k].values())
+    assert endtoend._glvox_job("ss-conservative", 16)(files[0]).shape == (16, 16, 16)
+    text = endtoend.report(times, 16, 2)
+    assert "| glvox ss-conservative |" in text and "m1.stl" in text
+    with pytest.raises(GlvoxError, match="folder of meshes"):
+        endtoend.files_of(str(tmp_path / "m0.ply"))

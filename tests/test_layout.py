@@ -16,9 +16,9 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1] / "glvox"
 
 #: The README's Layout order, lowest first.
-LAYERS = ["_version", "errors", "tolerances", "progress", "grid", "mesh", "datasets", "results", "formats", "io",
-          "gl", "gpu", "reference", "methods", "metrics", "batch", "study", "testing", "preflight", "cli",
-          "__main__"]
+LAYERS = ["_version", "errors", "tolerances", "progress", "grid", "meshfiles", "mesh", "datasets", "results",
+          "formats", "io", "gl", "gpu", "reference", "methods", "metrics", "batch", "study", "testing",
+          "preflight", "cli", "__main__"]
 
 
 def _layer(module: str) -> str:

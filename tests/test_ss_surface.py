@@ -234,3 +234,19 @@ def test_triangle_below_float32_spacing_is_a_tie_not_an_error(gl_context):
     mesh = load_mesh((tris.reshape(-1, 3), np.arange(6).reshape(2, 3)), name="tiny")
     spec = glvox.grid_for(mesh, dims=(2, 65, 1))
     check_all(mesh, spec)
+
+
+def test_auto_variant_follows_the_measured_density_rule(gl_context):
+    from glvox.methods.ss_surface import AUTO_SIMPLE_DENSITY, default_variant
+
+    assert AUTO_SIMPLE_DENSITY == 0.5
+    assert default_variant(50, (10, 10, 10)) == "simple"        # 50 triangles on a 10 x 10 face: 0.5
+    assert default_variant(49, (10, 10, 10)) == "sorted"
+    assert default_variant(128, (8, 8, 64)) == "simple"          # face: (8 * 8 * 64) ** (2/3) = 256
+    assert default_variant(127, (8, 8, 64)) == "sorted"
+    mesh = glvox.load_mesh("gen:torus")                          # 9216 triangles
+    for n, expect in ((64, "simple"), (256, "sorted")):          # 9216 / 64^2 = 2.25; / 256^2 = 0.14
+        spec = glvox.grid_for(mesh, n)
+        auto = run_method("ss-conservative", mesh, spec, ctx=gl_context)
+        assert auto.run.stats["variant"] == expect and auto.run.options["variant"] == "auto"
+        assert auto.equal(run_method("ss-conservative", mesh, spec, ctx=gl_context, variant=expect))

@@ -14,15 +14,16 @@ single-file command's (binvox files are byte-identical).
 
 Execution
 ---------
-Workers are processes of a Dask distributed cluster, one thread each, so each
-worker has its own GL context (:func:`glvox.gl.context.get_context` is per
-process, and a GL context is never shared across processes).  Inside a worker
-every GL call runs on one dedicated thread, the one that made the context
-current.  Without ``scheduler`` a :class:`distributed.LocalCluster` of
-``workers`` processes is started and closed; with ``scheduler`` the batch runs
-on that existing cluster (its workers need glvox installed and the input and
-output folders at the same paths).  ``workers=0`` runs in the calling process
-without Dask: no start-up cost, but no crash isolation.
+With ``workers=K`` (default 1) the meshes go to K local worker processes
+(:mod:`glvox.batch.pool`: started from a forkserver that has imported glvox,
+several small meshes per message, one row back per mesh), each with its own
+GL context and compiled programs for the whole batch, llvmpipe's threads
+divided among them (``LP_NUM_THREADS``) and, with ``egl_devices``, one EGL
+device each.  With ``scheduler`` the batch runs on that existing Dask
+cluster instead (its workers need glvox installed and the input and output
+folders at the same paths); inside a Dask worker every GL call runs on one
+dedicated thread, the one that made the context current.  ``workers=0``
+runs in the calling process: no start-up cost, but no crash isolation.
 
 Resume and safety
 -----------------
@@ -44,7 +45,7 @@ reason (``MeshLoadError``, ``EmptyMeshError``, ``NonFiniteVertexError``,
 ``FaceIndexError``, ``NotWatertightError``, ...) and the error message, and
 the batch goes on.  A mesh whose worker process dies (segfault, out of
 memory) is retried once on a fresh worker and then recorded with the reason
-``WorkerCrashed`` (on a local cluster; an external scheduler applies its own
+``WorkerCrashed`` (with local workers; an external scheduler applies its own
 ``distributed.scheduler.allowed-failures``).
 
 Another task than :func:`voxelize_one` can handle each mesh
@@ -58,8 +59,9 @@ Modules
 ``atomic``    writes through a temporary file and a rename
 ``manifest``  the CSV manifest and the summary
 ``safety``    the output-folder lock, stale temporary files, held signals
-``cluster``   the Dask runner (local cluster or scheduler, crash retry)
-``run``       :func:`run_batch`: resume, run in this process or on Dask, keep the manifest
+``pool``      the local worker processes (chunks, threads and devices per worker, crash retry)
+``cluster``   the Dask runner (an existing scheduler, crash retry)
+``run``       :func:`run_batch`: resume, run in this process, in local workers or on Dask, keep the manifest
 
 The progress bar is the package's one reporter, :class:`glvox.progress.Progress`.
 """

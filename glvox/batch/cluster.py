@@ -76,14 +76,19 @@ def _connect(workers: int, scheduler: str | None, say: Callable[[str], None]):
     return client, cluster, f"local cluster ({workers} worker{'s' * (workers != 1)})"
 
 
-def _crashed_row(job: Job, settings: BatchSettings, exc: BaseException) -> dict[str, Any]:
+def crashed_row(job: Job, settings: BatchSettings, detail: str = "") -> dict[str, Any]:
+    """The row of a mesh whose worker died on the first try and on the retry (``detail``: what
+    is known of the last death, appended after a semicolon)."""
     row = base_row(job, settings)
-    last = getattr(exc, "last_worker", None)
-    where = f"; the last worker was {last.address}" if getattr(last, "address", None) else ""
     row.update(status="failed", reason=WORKER_CRASHED, finished=now(),
                error=f"worker crashed: the worker process died while voxelizing {job.rel}, and again on "
-                     f"the retry (a crash in a library, or out of memory){where}")
+                     f"the retry (a crash in a library, or out of memory){'; ' + detail if detail else ''}")
     return row
+
+
+def _crashed_row(job: Job, settings: BatchSettings, exc: BaseException) -> dict[str, Any]:
+    last = getattr(exc, "last_worker", None)
+    return crashed_row(job, settings, f"the last worker was {last.address}" if getattr(last, "address", None) else "")
 
 
 def _collect(client, jobs: Sequence[Job], settings: BatchSettings, task: Task,

@@ -13,6 +13,7 @@ from .cluster import run_dask
 from .jobs import BatchSettings, Job, mesh_suffixes, plan_jobs
 from .manifest import MANIFEST_COLUMNS, BatchSummary, base_row, read_manifest, write_manifest
 from ..progress import Progress
+from .pool import run_local
 from .safety import OutputLock, remove_stale_parts, signals_held
 from .worker import Task, voxelize_one
 
@@ -132,7 +133,8 @@ def _run_in_process(jobs: Sequence[Job], settings: BatchSettings, task: Task,
 def run_batch(source: str | os.PathLike, out_dir: str | os.PathLike, settings: BatchSettings, *,
               workers: int = 1, scheduler: str | None = None, overwrite: bool = False,
               manifest: str | os.PathLike | None = None, suffixes: Sequence[str] | None = None,
-              quiet: bool = False, stream=None, task: Task = voxelize_one) -> BatchSummary:
+              quiet: bool = False, stream=None, task: Task = voxelize_one,
+              egl_devices: Sequence[int] | None = None) -> BatchSummary:
     """Voxelize every mesh of ``source`` into ``out_dir`` (see :mod:`glvox.batch`).
 
     Parameters
@@ -143,8 +145,8 @@ def run_batch(source: str | os.PathLike, out_dir: str | os.PathLike, settings: B
         Output folder; outputs mirror the input tree.
     settings : BatchSettings
     workers : int
-        Worker processes of the local Dask cluster; 0 runs in this process
-        without Dask.  Ignored with ``scheduler``.
+        Local worker processes (:mod:`glvox.batch.pool`); 0 runs in this
+        process.  Ignored with ``scheduler``.
     scheduler : str, optional
         Address of an existing Dask scheduler (``tcp://host:8786``).
     overwrite : bool
@@ -166,6 +168,9 @@ def run_batch(source: str | os.PathLike, out_dir: str | os.PathLike, settings: B
         by module path, so it must be importable there (a module-level
         function, or an instance of a module-level class); it runs on each
         worker's GL thread.  :class:`glvox.testing.crash.CrashingTask` is one.
+    egl_devices : sequence of int, optional
+        With local workers: EGL device indices handed out round robin, one
+        per worker process (``GLVOX_EGL_DEVICE``), for machines with several GPUs.
 
     Returns
     -------
@@ -191,6 +196,9 @@ def run_batch(source: str | os.PathLike, out_dir: str | os.PathLike, settings: B
         try:
             if todo and scheduler is None and workers == 0:
                 _run_in_process(todo, settings, task, record)
+            elif todo and scheduler is None:
+                mode = f"local cluster ({workers} worker{'s' * (workers != 1)})"
+                run_local(todo, settings, workers=workers, task=task, on_result=record, egl_devices=egl_devices)
             elif todo:
                 mode, startup = run_dask(todo, settings, workers=workers, scheduler=scheduler,
                                          on_result=record, say=say, task=task)

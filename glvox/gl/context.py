@@ -478,6 +478,11 @@ def get_context(backend: str | None = None) -> GLContext:
         return _shared
 
 
+def any_context() -> bool:
+    """Whether this process has made a GL context (one a forked child must not inherit)."""
+    return _current is not None or _shared is not None
+
+
 def close_context() -> None:
     """Release the shared context (a later :func:`get_context` makes a new one)."""
     global _shared

@@ -48,13 +48,35 @@ _VARIANTS = {"simple": 0, "specialized": 1, "sorted": 2}
 _REQUIRES = Requirements(gl_version=430, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 7,
                                                  "GL_MAX_COMPUTE_WORK_GROUP_SIZE": 256})
 
-#: The default conservative variant.  No variant wins every cell of
-#: compare/table1_ss_surface.py (bunny and dragon, 128^3-1024^3):
-#: specialized takes the least time over all of them, winning at large
-#: grids, while simple wins on small grids, where bounding boxes are a few
-#: voxels and the case branches only cost divergence (figures in
-#: compare/README.md).
-DEFAULT_VARIANT = "specialized"
+#: ``ss-conservative``'s variant ``auto`` (the default) runs ``simple`` where a
+#: grid face has at most 1 / AUTO_SIMPLE_DENSITY voxels per triangle
+#: (F / N^2 >= AUTO_SIMPLE_DENSITY, N^2 = the geometric mean of the grid's
+#: face areas), ``sorted`` below.  Measured with compare/ss_variants.py on
+#: five shared meshes (3.5k to 203k triangles) at 64^3-1024^3, twice: simple
+#: led in 12 and 13 of the 13 cells with F / N^2 >= 0.77; below, sorted and
+#: specialized traded the lead within ~25% from run to run.  The rule's
+#: summed time was within 3% and 9% of always picking the fastest variant
+#: (worst cell 1.31x), where specialized, the former default, was 26% and 15%
+#: over (worst cell 3.8x: many voxels per triangle), simple 87% and 59%,
+#: sorted 11% and 22%.  Figures in README "Methods".
+AUTO_SIMPLE_DENSITY = 0.5
+
+#: The variant ``auto`` takes when ``sorted`` cannot run (more triangles than
+#: one indirect dispatch holds).
+AUTO_FALLBACK = "specialized"
+
+
+def default_variant(n_triangles: int, dims) -> str:
+    """The variant ``auto`` picks for ``n_triangles`` on a grid of ``dims`` (see :data:`AUTO_SIMPLE_DENSITY`)."""
+    # F / V^(2/3) >= d  <=>  (F / d)^3 >= V^2: exact in floats for every grid glvox takes
+    volume = float(np.prod(np.asarray(dims, dtype=np.float64)))
+    return "simple" if (n_triangles / AUTO_SIMPLE_DENSITY) ** 3 >= volume * volume else "sorted"
+
+
+def _auto(n_triangles: int, dims, max_groups: int) -> str:
+    """:func:`default_variant`, or :data:`AUTO_FALLBACK` where ``sorted`` cannot dispatch every triangle."""
+    variant = default_variant(n_triangles, dims)
+    return AUTO_FALLBACK if variant == "sorted" and n_triangles > max_groups * _LOCAL else variant
 
 
 class _SSSurface(Method):
@@ -143,13 +165,14 @@ class _SSSurface(Method):
     def _finish(self, spec, timer, grid, stats):
         with timer.stage("readback", gpu=False):
             words = read_grid_words(grid, spec)
-            cases = np.frombuffer(stats.read(size=12), dtype="<u4")
+            stat_words = np.frombuffer(stats.read(size=32), dtype="<u4")
+        cases, voxels = stat_words[:3], int(stat_words[7])  # ss/write.glsl counts the voxels
         if self.criterion == 0:
             total = int(cases.sum())
             timer.stats["cases_1d_2d_3d"] = [int(c) for c in cases]
             timer.stats["case_percent_1d_2d_3d"] = [round(100.0 * int(c) / total, 1) if total else 0.0
                                                     for c in cases]
-        return VoxelGrid(words=words, spec=spec)
+        return VoxelGrid(words=words, spec=spec, count=voxels)
 
 
 @register
@@ -160,11 +183,16 @@ class SSConservative(_SSSurface):
         summary="conservative (26-separating) surface, one compute invocation per triangle, atomicOr",
         reference="reference-conservative",
         requires=_REQUIRES,
-        options={"variant": Option(DEFAULT_VARIANT, "Table 1's realization", tuple(_VARIANTS))},
+        options={"variant": Option("auto", "Table 1's realization; auto: simple where triangles / N^2 >= "
+                                           f"{AUTO_SIMPLE_DENSITY}, else sorted (measured, "
+                                           "compare/ss_variants.py)", ("auto", *_VARIANTS))},
     )
     criterion = 0
 
     def run(self, mesh, spec, *, ctx, timer, variant):
+        if variant == "auto":
+            max_groups = int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])
+            variant = timer.stats["variant"] = _auto(mesh.n_triangles, spec.dims, max_groups)
         return self._run(ctx, mesh, spec, timer, variant)
 
 

@@ -21,6 +21,7 @@ Every method returns a :class:`Result` of its kind: a
 from __future__ import annotations
 
 import os
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, ClassVar
@@ -106,10 +107,23 @@ def write_npz(result: Result, path: Path) -> Path:
     """Write ``result``'s npz file: the common keys and its :meth:`Result.npz_arrays`."""
     run = result.run
     kind = result.file_kind if result.file_kind is not None else (run.kind if run is not None else "")
-    np.savez_compressed(
-        path, origin=np.asarray(result.origin, dtype=np.float64), voxel_size=np.float64(result.voxel_size),
-        method=np.str_(run.method if run is not None else ""), kind=np.str_(kind), **result.npz_arrays())
+    arrays = {"origin": np.asarray(result.origin, dtype=np.float64), "voxel_size": np.float64(result.voxel_size),
+              "method": np.str_(run.method if run is not None else ""), "kind": np.str_(kind),
+              **result.npz_arrays()}
+    # what np.savez_compressed writes, at NPZ_COMPRESSLEVEL instead of zlib's default 6
+    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=NPZ_COMPRESSLEVEL,
+                         allowZip64=True) as zf:
+        for key, value in arrays.items():
+            with zf.open(f"{key}.npy", "w", force_zip64=True) as f:
+                np.lib.format.write_array(f, np.asanyarray(value), allow_pickle=False)
     return path
+
+
+#: zlib level of npz files.  Occupancy grids are long runs of zeros: level 1
+#: wrote the bunny's 512^3 surface in 0.32 s instead of 0.65 s and reads it
+#: back in 0.13 s instead of 0.67 s, for a file of 1.5 MB instead of 0.78 MB
+#: (134 MB of bool before compression).
+NPZ_COMPRESSLEVEL = 1
 
 
 #: (marker key, type) pairs, tried in order by :func:`read_npz`; the last one

@@ -33,7 +33,7 @@ from glvox.methods import get_method, method_names
 from glvox.progress import Progress, Stages
 from glvox.tolerances import REGRESSION_TOLERANCE
 
-from . import ab, harness, regression
+from . import ab, endtoend, harness, regression
 from .bench_report import report
 from .coldstart import cold_start
 from ..datasets import resolve_mesh
@@ -43,7 +43,7 @@ from .plan import CALIBRATION_CONTENDER, Contender, Plan
 
 #: Variants benchmarked beside a method's default (their own rows).
 VARIANTS: dict[str, list[dict[str, Any]]] = {
-    "ss-conservative": [{"variant": "simple"}, {"variant": "sorted"}],
+    "ss-conservative": [{"variant": "simple"}, {"variant": "specialized"}, {"variant": "sorted"}],
 }
 
 #: Kinds of glvox method the bench races against the peers.
@@ -77,7 +77,8 @@ def peer_contenders(names: Sequence[str] | None, log: Callable[[str], None]) -> 
 
 def add_ratios(rows: list[dict[str, Any]]) -> None:
     """Put on each glvox row its ratio to the fastest peer of its group in its cell
-    (``ratio``, ``fastest_peer``) and to every peer of that group (``ratios``)."""
+    (``ratio``, medians, ``fastest_peer``), best run to best peer run (``ratio_best``),
+    and to every peer of that group (``ratios``)."""
     cells: dict[tuple, list[dict]] = {}
     for r in rows:
         cells.setdefault((r["mesh"], r["n"], r["group"]), []).append(r)
@@ -86,11 +87,13 @@ def add_ratios(rows: list[dict[str, Any]]) -> None:
         if not peers:
             continue
         fastest = min(peers, key=lambda r: r["wall_ms"])
+        best = min(p["min_ms"] for p in peers)
         for r in group_rows:
             if r["peer"] or r["status"] != "ok":
                 continue
             r["fastest_peer"] = fastest["method"]
             r["ratio"] = r["wall_ms"] / fastest["wall_ms"]
+            r["ratio_best"] = r["min_ms"] / best  # best run against the best run of any peer
             r["ratios"] = {p["method"]: r["wall_ms"] / p["wall_ms"] for p in peers}
 
 
@@ -216,6 +219,27 @@ def _cold_starts(plan: Plan, progress: Progress) -> list[dict[str, Any]]:
     return colds
 
 
+def _end_to_end(args, log, progress) -> int:
+    """``--end-to-end [FOLDER]``: whole jobs per file (:mod:`.endtoend`)."""
+    n = (args.sizes or [64])[0]
+    files = endtoend.files_of(args.end_to_end or None)
+    jobs = endtoend.contenders(args.methods, args.peers, n, log)
+    repeat = args.repeat or BENCH_REPEAT
+    load = os.getloadavg()
+    times = endtoend.run(files, jobs, repeat, progress)
+    text = endtoend.report(times, n, repeat)
+    text += (f"\n\nLoad average (1 min) {load[0]:.2f} at the start, {os.getloadavg()[0]:.2f} at the end "
+             f"({os.cpu_count()} CPUs).")
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "end_to_end.md").write_text(text + "\n")
+        (out / "end_to_end.json").write_text(json.dumps({"n": n, "repeat": repeat, "times_s": times}, indent=1))
+        log(f"wrote {out / 'end_to_end.md'}")
+    print(text)
+    return 0
+
+
 def main(args) -> int:
     """``glvox bench`` with parsed ``args`` (:func:`glvox.study.options.add_bench_arguments`);
     exit status 3 when ``--check`` or ``--against`` finds a regression."""
@@ -224,6 +248,8 @@ def main(args) -> int:
             print(msg, file=sys.stderr, flush=True)
 
     t_start = time.perf_counter()
+    if args.end_to_end is not None:
+        return _end_to_end(args, log, Stages(quiet=args.quiet))
     if args.against:
         code = _against(args, log, Stages(quiet=args.quiet))
         log(f"done in {time.perf_counter() - t_start:.0f} s")

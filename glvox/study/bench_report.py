@@ -72,7 +72,8 @@ def cell_tables(rows: Sequence[dict]) -> str:
             iou = f"{r['iou']:.6f}" if r.get("iou") is not None else "-"
             conv = f" (+{_ms(r['convert_ms'])} convert)" if r["peer"] else ""
             vs = _ratio(r.get("ratio")) + (f" vs {r['fastest_peer']}" if r.get("fastest_peer") else "")
-            out.append(f"| {label} | {_ms(r['wall_ms'])}{conv} | {_ms(r['min_ms'])} | {r['runs']} | "
+            mode = " (bimodal)" if r.get("bimodal") else ""
+            out.append(f"| {label} | {_ms(r['wall_ms'])}{conv} | {_ms(r['min_ms'])}{mode} | {r['runs']} | "
                        f"{_ms(r['cold_ms'])} | {_ms(r.get('gpu_ms'))} | {_ms(r.get('overhead_ms'))} | "
                        f"{r['voxels']:,} | {' | '.join(agree)} | {iou} | {vs if not r['peer'] else ''} |")
         out.append("")
@@ -80,7 +81,8 @@ def cell_tables(rows: Sequence[dict]) -> str:
 
 
 def ratio_table(rows: Sequence[dict]) -> str:
-    """Method x size, per mesh: ratio to the fastest peer of its kind (median / median)."""
+    """Method x size, per mesh: ratio to the fastest peer of its kind (median / median, and best run /
+    best peer run); peers: median and best ms, flagged when bimodal."""
     sizes = sorted({r["n"] for r in rows})
     out = ["| mesh | kind | method | " + " | ".join(f"{n}^3" for n in sizes) + " |",
            "|---|---|---|" + "---|" * len(sizes)]
@@ -96,11 +98,12 @@ def ratio_table(rows: Sequence[dict]) -> str:
             elif r["status"] != "ok":
                 vals.append(r["status"])
             elif is_peer:
-                vals.append(f"{_ms(r['wall_ms'])} ms")
+                flag = " bimodal" if r.get("bimodal") else ""
+                vals.append(f"{_ms(r['wall_ms'])} ms (best {_ms(r['min_ms'])}){flag}")
             elif r.get("ratio") is None:
                 vals.append(f"{_ms(r['wall_ms'])} ms (no peer)")
             else:
-                vals.append(f"{r['ratio']:.3f} ({_ms(r['wall_ms'])} ms)")
+                vals.append(f"{r['ratio']:.3f}, best {r['ratio_best']:.3f} ({_ms(r['wall_ms'])} ms)")
         label = f"peer {key[5:]}" if is_peer else key
         out.append(f"| {mesh} | {group} | {label} | " + " | ".join(vals) + " |")
     return "\n".join(out) + "\n"

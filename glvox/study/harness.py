@@ -7,8 +7,11 @@ Per mesh and grid size, every contender of the plan with a cell there:
 * then in up to ``repeat`` timed warm rounds in which the contenders take
   turns (the order rotates each round), so a burst of load from elsewhere on
   a shared machine slows all of them alike; a contender stops repeating once
-  its warm runs in the cell add up to the plan's ``budget`` seconds;
-* its time is the median wall clock of its warm runs: for glvox, the whole
+  its warm runs in the cell add up to the plan's ``budget`` seconds, and not
+  before :data:`~glvox.tolerances.MIN_WARM_RUNS` runs;
+* its time is the median wall clock of its warm runs, beside the best, with
+  a *bimodal* flag when the runs fall into two clusters
+  (:data:`~glvox.tolerances.BIMODAL_RATIO` apart): for glvox, the whole
   ``run_method`` call (validation, GPU work, readback); for a peer, the one
   library call (:meth:`glvox.study.peers.Peer.run`), with the mesh already in
   the library's type; converting a peer's result to glvox's grid is
@@ -49,6 +52,7 @@ from glvox.methods import get_method, run_method
 from glvox.methods.envelope import INSIDE_KINDS
 from glvox.metrics import agreement, popcount, tie_set
 from glvox.results.voxels import VoxelGrid
+from glvox.tolerances import BIMODAL_RATIO, MIN_WARM_RUNS
 
 from .calibration import Calibration
 from .peers import get_peer
@@ -87,6 +91,12 @@ def _spread_ms(values: Sequence[float]) -> float | None:
     return (max(values) - min(values)) * 1e3 if values else None
 
 
+def bimodal(values: Sequence[float]) -> bool:
+    """Two clusters of run times: sorted, two consecutive runs differ by :data:`BIMODAL_RATIO` or more."""
+    s = sorted(values)
+    return any(a > 0 and b / a >= BIMODAL_RATIO for a, b in zip(s, s[1:]))
+
+
 @dataclass
 class Samples:
     """The warm runs of one contender in one cell (seconds)."""
@@ -116,7 +126,8 @@ class Samples:
         (GPU where timed, else wall; a stage's parts in one run summed), wall time outside
         the stages."""
         return {"runs": len(self.walls), "wall_ms": _median_ms(self.walls), "min_ms": min(self.walls) * 1e3,
-                "spread_ms": _spread_ms(self.walls), "gpu_ms": _median_ms(self.gpus),
+                "spread_ms": _spread_ms(self.walls), "bimodal": bimodal(self.walls),
+                "gpu_ms": _median_ms(self.gpus),
                 "gpu_min_ms": min(self.gpus) * 1e3 if self.gpus else None, "gpu_spread_ms": _spread_ms(self.gpus),
                 "overhead_ms": _median_ms(self.overheads),
                 "stages_ms": {k: statistics.median(v) * 1e3 for k, v in self.stages.items()}}
@@ -280,7 +291,8 @@ def _rounds(plan: Plan, runners: Sequence[_Contestant]) -> None:
         for r in active[k:] + active[:k]:
             r.warm()
         active = [r for r in active if r.error is None
-                  and (plan.budget is None or sum(r.samples.walls) < plan.budget)]
+                  and (plan.budget is None or len(r.samples.walls) < MIN_WARM_RUNS
+                       or sum(r.samples.walls) < plan.budget)]
 
 
 # ---------------------------------------------------------------------------

@@ -121,5 +121,10 @@ def add_bench_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--cold-start", action="store_true",
                    help="also time each method's first call in a fresh process (Mesa's shader disk cache off) "
                         "on the first mesh at the smallest size")
+    p.add_argument("--end-to-end", nargs="?", const="", default=None, metavar="FOLDER",
+                   help="time whole jobs per file instead (read, fit the N^3 grid, voxelize, dense numpy "
+                        "occupancy) over FOLDER (default: the shared meshes) at the first -r size (default "
+                        "64): glvox's methods (-m, default ss-conservative) against Open3D (--peers "
+                        "open3d trimesh-subdivide); meshes/s from best and median of --repeat rounds")
     p.add_argument("--json", action="store_true", help="print the rows as JSON instead of the tables")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")

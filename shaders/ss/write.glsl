@@ -7,15 +7,22 @@
 // invocation about 65535 loop iterations in total (see glvox/methods/_gpu.py,
 // LOOP_BUDGET), and every iteration of a slot loop would count.
 
+//
+// The voxel count comes for free: atomicOr returns the word before the write,
+// so the bits this flush sets first are b & ~old; each invocation adds its
+// count to stats[7] once at the end (exact: every bit is new to one flush).
+
 layout(std430, binding = 3) buffer Grid { uint grid[]; };
+layout(std430, binding = 4) buffer Stats { uint stats[]; };  // [7]: voxels set
 
 uint w0, w1, w2, w3;   // word indices
 uint b0, b1, b2, b3;   // pending bits (0: slot free)
 uint victim;           // next slot to evict, round robin
+uint n_new;            // voxels this invocation set first
 
-void writes_begin() { b0 = b1 = b2 = b3 = 0u; victim = 0u; }
+void writes_begin() { b0 = b1 = b2 = b3 = 0u; victim = 0u; n_new = 0u; }
 
-void flush_word(uint w, uint b) { if (b != 0u) atomicOr(grid[w], b); }
+void flush_word(uint w, uint b) { if (b != 0u) n_new += uint(bitCount(b & ~atomicOr(grid[w], b))); }
 
 void set_voxel(ivec3 v) {
     uint w = word_index(v);
@@ -40,4 +47,5 @@ void writes_end() {
     flush_word(w1, b1);
     flush_word(w2, b2);
     flush_word(w3, b3);
+    if (n_new != 0u) atomicAdd(stats[7], n_new);
 }
