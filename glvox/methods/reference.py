@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..grid import snap_to_planes
 from ..reference import conservative_surface, six_separating_surface, solid, solid_ties, surface_ties
 from ..reference.ldi import crossings
 from ..results.ldi import LDI, close_odd
@@ -22,17 +23,19 @@ _SS = "Schwarz & Seidel 2010"
 
 
 class _CpuReference(Method):
-    """Voxel-space triangles in float64, then one reference function; ``ties``
-    gives the tie set of that function's definition."""
+    """Voxel-space triangles in float64 (snapped, as every method sees them), then
+    one reference function; ``ties`` gives the tie set of that function's
+    definition, given the triangles before the snap too."""
 
     has_ties = True
 
     @staticmethod
-    def ties(tris, dims, eps):
+    def ties(tris, dims, eps, unsnapped):
         raise NotImplementedError
 
     def tie_set(self, mesh, spec, eps):
-        return self.ties(mesh.triangles_voxel(spec), spec.dims, eps)
+        raw = spec.world_to_voxel(mesh.triangles())
+        return self.ties(snap_to_planes(raw), spec.dims, eps, raw)
 
     @staticmethod
     def compute(tris, dims, **options):
@@ -55,7 +58,7 @@ class ReferenceConservative(_CpuReference):
         reference="reference-conservative",
     )
     compute = staticmethod(conservative_surface)
-    ties = staticmethod(lambda tris, dims, eps: surface_ties(tris, dims, "conservative", eps))
+    ties = staticmethod(lambda tris, dims, eps, raw: surface_ties(tris, dims, "conservative", eps, raw))
 
 
 @register
@@ -67,7 +70,7 @@ class Reference6Sep(_CpuReference):
         reference="reference-6sep",
     )
     compute = staticmethod(six_separating_surface)
-    ties = staticmethod(lambda tris, dims, eps: surface_ties(tris, dims, "6sep", eps))
+    ties = staticmethod(lambda tris, dims, eps, raw: surface_ties(tris, dims, "6sep", eps, raw))
 
 
 @register

@@ -5,9 +5,18 @@ references in float64.  A mismatch between them is acceptable only where it
 is proven to be a tie (DESIGN.md, "Ties"):
 
 - surfaces: the voxel's verdict changes when the tested box half-size goes
-  from ``0.5 - TIE_EPS`` to ``0.5 + TIE_EPS``;
+  from ``0.5 - TIE_EPS`` to ``0.5 + TIE_EPS``, along the axes where rounding
+  can move the triangle (:func:`exact_axes`);
 - solids: the voxel's verdict can change when the mesh moves by at most
   ``TIE_EPS``.
+
+Every method and reference sees the vertices snapped to the voxel face and
+center planes (:func:`glvox.grid.snap_to_planes`), so a triangle lying in a
+voxel plane with its coordinates on those planes is decided exactly by the
+float32 GPU methods and the float64 references alike: such geometry yields no
+ties.  What rounding can still decide is the snap itself for a coordinate
+within rounding of the snap distance (:func:`snap_ambiguous`); given the
+unsnapped coordinates, the tie sets add what that changes.
 """
 
 from __future__ import annotations
@@ -16,21 +25,84 @@ from typing import Literal, Sequence
 
 import numpy as np
 
-from ..tolerances import SHORT_EDGE_MOTIONS, TIE_EPS
+from ..tolerances import SHORT_EDGE_MOTIONS, SNAP_EPS, TIE_EPS
 from ._candidates import check_dims, check_tris, pruned_candidates, scatter
 from .surface import conservative_surface, six_separating_surface
 
 
+def exact_axes(tris: np.ndarray) -> np.ndarray:
+    """(T, 3) bool: the axes along which a triangle's surface verdicts are exact.
+
+    Axis ``a`` of a triangle is exact when the triangle lies in a plane
+    ``x_c = const`` (its three ``c`` coordinates equal) and its three ``a``
+    coordinates are multiples of 1/2 (on the snap planes; the normal axis
+    ``c`` itself included).  Such coordinates are the same numbers in float32
+    and float64, the normal has exact zeros, and every test along ``a``
+    multiplies or subtracts them exactly, so the GPU decides a voxel touched
+    along ``a`` (a face on a voxel plane, an edge on a voxel line) exactly as
+    the reference does, and perturbing the box along ``a`` would only excuse
+    a dropped wall.  Slanted triangles have no exact axis: they keep every tie.
+
+    Parameters
+    ----------
+    tris : (T, 3, 3) float64
+        Snapped voxel-space triangles.
+
+    Returns
+    -------
+    (T, 3) bool
+    """
+    tris = check_tris(tris)
+    flat = ((tris[:, 0] == tris[:, 1]) & (tris[:, 1] == tris[:, 2])).any(axis=1)
+    on_planes = (np.floor(2.0 * tris) == 2.0 * tris).all(axis=1)
+    return flat[:, None] & on_planes
+
+
+def snap_ambiguous(unsnapped: np.ndarray, dims: Sequence[int]) -> np.ndarray:
+    """(T, 3, 3) bool: coordinates whose snap the GPU's rounding could decide otherwise.
+
+    The GPU snaps its own rounding of a coordinate (within
+    :func:`float32_motion` of the float64 one); a coordinate whose distance to
+    the nearest multiple of 1/2 is that close to ``SNAP_EPS`` may be snapped on
+    one side and not on the other.
+
+    Parameters
+    ----------
+    unsnapped : (T, 3, 3) float64
+        Voxel-space triangles before :func:`glvox.grid.snap_to_planes`.
+    dims : (3,) int
+    """
+    u = check_tris(unsnapped)
+    d = np.abs(u - np.floor(2.0 * u + 0.5) * 0.5)
+    return np.abs(d - SNAP_EPS) <= float32_motion(dims)
+
+
+def _other_snap(tris: np.ndarray, unsnapped: np.ndarray, amb: np.ndarray) -> np.ndarray:
+    """``tris`` with each ambiguous coordinate snapped the other way."""
+    r = np.floor(2.0 * unsnapped + 0.5) * 0.5
+    other = np.where(np.abs(unsnapped - r) <= SNAP_EPS, unsnapped, r)
+    return np.where(amb, other, tris)
+
+
+def _check_unsnapped(unsnapped, tris: np.ndarray) -> np.ndarray:
+    u = check_tris(unsnapped)
+    if u.shape != tris.shape:
+        raise ValueError(f"unsnapped must have the shape of tris {tris.shape}, got {u.shape}")
+    return u
+
+
 def surface_ties(tris: np.ndarray, dims: Sequence[int],
                  criterion: Literal["conservative", "6sep"] = "conservative",
-                 eps: float = TIE_EPS) -> np.ndarray:
-    """Voxels whose surface verdict differs between box half-sizes ``0.5 - eps`` and ``0.5 + eps``,
-    or with the orientation of a nearly edge-on projection.
+                 eps: float = TIE_EPS, unsnapped: np.ndarray | None = None) -> np.ndarray:
+    """Voxels whose surface verdict differs between box half-sizes ``0.5 - eps`` and ``0.5 + eps``
+    along the inexact axes, or with the orientation of a nearly edge-on projection.
 
     Both criteria are monotone in the half-size (a larger box or cross only
     meets more), so the first part is the set accepted at ``0.5 + eps`` but
     not at ``0.5 - eps``: voxels that a triangle touches or misses by at most
-    about ``eps`` voxel (DESIGN.md's definition).  The second part extends it
+    about ``eps`` voxel (DESIGN.md's definition), where the box keeps its
+    half-size 0.5 along a triangle's :func:`exact_axes` (a face on a voxel
+    plane touches both layers exactly: no tie).  The second part extends it
     to what the float32 copy of the mesh on the GPU can legitimately change:
     for a projection whose orientation is ambiguous under an ``eps`` motion of
     the vertices (:func:`orientation_ambiguous`), the voxels whose verdict
@@ -42,16 +114,22 @@ def surface_ties(tris: np.ndarray, dims: Sequence[int],
     without that projection's test.  A float32 result that differs from the float64
     reference only on these voxels is correct up to rounding.
 
+    Given ``unsnapped``, a triangle with a :func:`snap_ambiguous` coordinate
+    adds the voxels whose verdict differs between its two snaps, and the
+    ties of the other snap.
+
     Parameters
     ----------
     tris : (T, 3, 3) float64
-        Triangle vertices in voxel space.
+        Triangle vertices in voxel space, snapped (:meth:`glvox.mesh.Mesh.triangles_voxel`).
     dims : (3,) int
         Grid size ``(nx, ny, nz)``.
     criterion : {'conservative', '6sep'}
         :func:`conservative_surface` or :func:`six_separating_surface`.
     eps : float
         Half-size perturbation, in voxels; 0 < eps < 0.5.
+    unsnapped : (T, 3, 3) float64, optional
+        The same triangles before the snap.
 
     Returns
     -------
@@ -63,8 +141,23 @@ def surface_ties(tris: np.ndarray, dims: Sequence[int],
     if not 0.0 < eps < 0.5:
         raise ValueError(f"eps must be in (0, 0.5) voxel, got {eps!r}")
     f = funcs[criterion]
-    ties = f(tris, dims, 0.5 + eps) ^ f(tris, dims, 0.5 - eps)
     tris = check_tris(tris)
+    ties = _rounding_ties(f, tris, dims, criterion, eps)
+    if unsnapped is not None:
+        amb = snap_ambiguous(_check_unsnapped(unsnapped, tris), dims)
+        some = amb.any(axis=(1, 2))
+        if some.any():
+            mine = tris[some]
+            other = _other_snap(mine, np.asarray(unsnapped, np.float64)[some], amb[some])
+            ties |= f(mine, dims, 0.5) ^ f(other, dims, 0.5)
+            ties |= _rounding_ties(f, other, dims, criterion, eps)
+    return ties
+
+
+def _rounding_ties(f, tris: np.ndarray, dims, criterion: str, eps: float) -> np.ndarray:
+    """:func:`surface_ties` of snapped triangles: half-size, orientation and short-edge ties."""
+    e = np.where(exact_axes(tris), 0.0, eps)
+    ties = f(tris, dims, 0.5 + e) ^ f(tris, dims, 0.5 - e)
     _add_orientation_ties(ties, f, tris, dims, criterion, eps)
     if criterion == "6sep":
         _add_short_edge_ties(ties, f, tris, dims, eps)
@@ -73,8 +166,14 @@ def surface_ties(tris: np.ndarray, dims: Sequence[int],
 
 def _add_orientation_ties(ties: np.ndarray, f, tris: np.ndarray, dims, criterion: str, eps: float) -> None:
     """Orientation ties, into ``ties``: where a projection's orientation is ambiguous
-    under an eps motion of the vertices, every voxel whose verdict depends on it."""
+    under an eps motion of the vertices, every voxel whose verdict depends on it.
+    A triangle lying in a plane ``x_c = const`` has ``n_w = 0`` exactly in the other
+    two projections, in float32 and float64 alike (its ``c`` coordinates are equal
+    numbers on both sides): those orientations are not ambiguous."""
     amb = orientation_ambiguous(tris, eps)
+    flat = (tris[:, 0] == tris[:, 1]) & (tris[:, 1] == tris[:, 2])  # (T, 3): the plane's axis c
+    # projection p (yz, zx, xy) is along axis p; it is edge-on when the triangle is flat along another axis
+    amb &= ~(flat.any(axis=1, keepdims=True) & ~flat)
     some = amb.any(axis=1)
     if not some.any():
         return
@@ -217,7 +316,8 @@ def point_triangle_distance(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
     return np.where(inside, np.minimum(plane, d), d)
 
 
-def solid_ties(tris: np.ndarray, dims: Sequence[int], eps: float = TIE_EPS) -> np.ndarray:
+def solid_ties(tris: np.ndarray, dims: Sequence[int], eps: float = TIE_EPS,
+               unsnapped: np.ndarray | None = None) -> np.ndarray:
     """Voxels whose solid verdict can change when the mesh moves by at most ``eps``.
 
     These are exactly the voxels whose center lies within Euclidean distance
@@ -240,14 +340,24 @@ def solid_ties(tris: np.ndarray, dims: Sequence[int], eps: float = TIE_EPS) -> n
     its plane; the point/triangle distances are computed for those candidate
     pairs only, a plane-distance test first.
 
+    A face snapped onto a voxel face plane leaves every center half a voxel
+    away; one snapped onto a center plane puts centers exactly on it, where
+    the half-open and top-left rules decide, and those depend on the ray
+    direction (a method along another axis than its reference legitimately
+    differs there): they stay ties.  Given ``unsnapped``, the triangles with a
+    :func:`snap_ambiguous` coordinate add the centers within the snap's motion
+    of them.
+
     Parameters
     ----------
     tris : (T, 3, 3) float64
-        Triangle vertices in voxel space.
+        Triangle vertices in voxel space, snapped (:meth:`glvox.mesh.Mesh.triangles_voxel`).
     dims : (3,) int
         Grid size ``(nx, ny, nz)``.
     eps : float
         Largest motion of the mesh, in voxels; 0 < eps < 0.5.
+    unsnapped : (T, 3, 3) float64, optional
+        The same triangles before the snap.
 
     Returns
     -------
@@ -257,6 +367,18 @@ def solid_ties(tris: np.ndarray, dims: Sequence[int], eps: float = TIE_EPS) -> n
     dims = check_dims(dims)
     if not 0.0 < eps < 0.5:
         raise ValueError(f"eps must be in (0, 0.5) voxel, got {eps!r}")
+    out = _near_surface(tris, dims, eps)
+    if unsnapped is not None:
+        some = snap_ambiguous(_check_unsnapped(unsnapped, tris), dims).any(axis=(1, 2))
+        if some.any():
+            # the other snap moves a vertex by at most SNAP_EPS + rounding per coordinate
+            motion = np.sqrt(3.0) * (SNAP_EPS + float32_motion(dims))
+            out |= _near_surface(tris[some], dims, eps + motion)
+    return out
+
+
+def _near_surface(tris: np.ndarray, dims: tuple[int, int, int], eps: float) -> np.ndarray:
+    """Voxels whose center lies within Euclidean distance ``eps`` of a triangle."""
     n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
     nlen = np.linalg.norm(n, axis=1)
     out = np.zeros(dims, dtype=bool)
