@@ -117,6 +117,13 @@ def _planar_test(tris: np.ndarray, n: np.ndarray, o1: np.ndarray, o2: np.ndarray
     return test
 
 
+def _edge_shift(shift, n_tris: int) -> np.ndarray:
+    s = np.asarray(shift, dtype=np.float64)
+    if s.shape != (n_tris, 3, 3) or not np.isfinite(s).all():
+        raise ValueError(f"edge_shift must be a finite (T, 3, 3) array with T = {n_tris}, got shape {s.shape}")
+    return s
+
+
 def _pad(halves: np.ndarray) -> float:
     """The candidates' half-size: the largest of ``halves`` (a superset for the others)."""
     return float(halves.max()) if halves.size else 0.5
@@ -131,6 +138,7 @@ def _run(tris: np.ndarray, dims: tuple[int, int, int],
 
 
 def conservative_surface(tris: np.ndarray, dims: Sequence[int], half: float | np.ndarray = 0.5, *,
+                         edge_shift: np.ndarray | None = None,
                          flip: np.ndarray | None = None,
                          no_plane: np.ndarray | None = None,
                          no_proj: np.ndarray | None = None) -> np.ndarray:
@@ -160,6 +168,11 @@ def conservative_surface(tris: np.ndarray, dims: Sequence[int], half: float | np
         Half-size of the box tested for each voxel, in voxels, or one per
         triangle and axis.  0.5 is the voxel itself; ``0.5 +/- TIE_EPS`` on
         the axes that rounding can move gives the tie sets.
+    edge_shift : (T, 3, 3) float64, optional
+        Move the lines of the marked projected edges (yz, zx, xy; edges
+        v0v1, v1v2, v2v0) outwards by this much (inwards when negative), in
+        voxels along the edge normal's largest component; only the tie sets
+        use it (slanted edges of a triangle lying in a voxel plane).
     flip : (T, 3) bool, optional
         Invert the orientation of the marked projections (yz, zx, xy) of the
         marked triangles; only the tie sets use it (see
@@ -190,11 +203,14 @@ def conservative_surface(tris: np.ndarray, dims: Sequence[int], half: float | np
     for p, (a, b, _) in enumerate(_PLANES):
         oe[:, p] = (np.maximum(0.0, dp[:, a, None] * ne[:, p, :, 0])
                     + np.maximum(0.0, dp[:, b, None] * ne[:, p, :, 1]))
+    if edge_shift is not None:
+        oe += _edge_shift(edge_shift, len(tris)) * np.abs(ne).max(axis=-1)
     test = _planar_test(tris, n, o1, o2, ne, oe, 0.5 - halves, no_plane, no_proj)
     return _run(tris, dims, pruned_candidates(tris, dims, _pad(halves)), test)
 
 
 def six_separating_surface(tris: np.ndarray, dims: Sequence[int], half: float | np.ndarray = 0.5, *,
+                           edge_shift: np.ndarray | None = None,
                            flip: np.ndarray | None = None,
                            no_plane: np.ndarray | None = None,
                          no_proj: np.ndarray | None = None) -> np.ndarray:
@@ -224,7 +240,7 @@ def six_separating_surface(tris: np.ndarray, dims: Sequence[int], half: float | 
         voxels, or one per triangle and axis: the plane test uses the
         normal's dominant axis, each edge test the dominant axis of its
         edge normal.
-    flip, no_plane, no_proj : optional
+    edge_shift, flip, no_plane, no_proj : optional
         As in :func:`conservative_surface` (tie sets only).
 
     Returns
@@ -247,6 +263,8 @@ def six_separating_surface(tris: np.ndarray, dims: Sequence[int], half: float | 
     for p, (a, b, _) in enumerate(_PLANES):
         h = np.where(ane[:, p, :, 0] >= ane[:, p, :, 1], halves[:, a, None], halves[:, b, None])
         oe[:, p] = h * ane[:, p].max(axis=-1)
+    if edge_shift is not None:
+        oe += _edge_shift(edge_shift, len(tris)) * ane.max(axis=-1)
     test = _planar_test(tris, n, t, -t, ne, oe, np.full_like(halves, 0.5), no_plane, no_proj)
     return _run(tris, dims, pruned_candidates(tris, dims, _pad(halves)), test)
 

@@ -6,7 +6,7 @@ is proven to be a tie (DESIGN.md, "Ties"):
 
 - surfaces: the voxel's verdict changes when the tested box half-size goes
   from ``0.5 - TIE_EPS`` to ``0.5 + TIE_EPS``, along the axes where rounding
-  can move the triangle (:func:`exact_axes`);
+  can move the triangle (:func:`rounding_perturbation`);
 - solids: the voxel's verdict can change when the mesh moves by at most
   ``TIE_EPS``.
 
@@ -30,32 +30,46 @@ from ._candidates import check_dims, check_tris, pruned_candidates, scatter
 from .surface import conservative_surface, six_separating_surface
 
 
-def exact_axes(tris: np.ndarray) -> np.ndarray:
-    """(T, 3) bool: the axes along which a triangle's surface verdicts are exact.
+def flat_axes(tris: np.ndarray) -> np.ndarray:
+    """(T, 3) bool: the axes ``c`` along which a triangle's three coordinates are equal
+    (the triangle lies in the plane ``x_c = const``).  Equal float64 coordinates stay
+    equal in float32, so such a triangle's normal has exact zeros on both sides."""
+    tris = check_tris(tris)
+    return (tris[:, 0] == tris[:, 1]) & (tris[:, 1] == tris[:, 2])
 
-    Axis ``a`` of a triangle is exact when the triangle lies in a plane
-    ``x_c = const`` (its three ``c`` coordinates equal) and its three ``a``
-    coordinates are multiples of 1/2 (on the snap planes; the normal axis
-    ``c`` itself included).  Such coordinates are the same numbers in float32
-    and float64, the normal has exact zeros, and every test along ``a``
-    multiplies or subtracts them exactly, so the GPU decides a voxel touched
-    along ``a`` (a face on a voxel plane, an edge on a voxel line) exactly as
-    the reference does, and perturbing the box along ``a`` would only excuse
-    a dropped wall.  Slanted triangles have no exact axis: they keep every tie.
 
-    Parameters
-    ----------
-    tris : (T, 3, 3) float64
-        Snapped voxel-space triangles.
+def rounding_perturbation(tris: np.ndarray, eps: float = TIE_EPS) -> tuple[np.ndarray, np.ndarray]:
+    """Where rounding can move a snapped triangle relative to the voxels, as box half-size
+    perturbations per axis and edge shifts: ``(half (T, 3), edge (T, 3, 3))``, each 0 or eps.
 
-    Returns
-    -------
-    (T, 3) bool
+    A slanted triangle: every axis (DESIGN.md's definition).  A triangle lying in a
+    plane ``x_c = const`` (:func:`flat_axes`) is decided exactly, by float32 and float64
+    alike, except where a coordinate is off the snap planes: its verdicts turn where
+    the plane or an extreme coordinate meets a voxel face plane, or where one of its
+    slanted edges passes a voxel corner.  After the snap a coordinate is on a plane
+    (a multiple of 1/2: exact in float32, and every test multiplies it by the exact
+    zeros of the normal or by small integers) or farther than SNAP_EPS (> eps) from
+    every plane; so only an axis with a coordinate within ``2 eps`` of a voxel face
+    plane but not on it is perturbed (unsnapped input), and in the triangle's own
+    projection each slanted edge with an end coordinate off the snap planes is
+    shifted.  A face on a voxel plane, its edges on voxel lines, its corners on
+    voxel corners: no ties.
     """
     tris = check_tris(tris)
-    flat = ((tris[:, 0] == tris[:, 1]) & (tris[:, 1] == tris[:, 2])).any(axis=1)
-    on_planes = (np.floor(2.0 * tris) == 2.0 * tris).all(axis=1)
-    return flat[:, None] & on_planes
+    flat = flat_axes(tris).any(axis=1)
+    off = np.abs(tris - np.round(tris))  # distance to the nearest voxel face plane
+    near = ((off > 0.0) & (off <= 2.0 * eps)).any(axis=1)
+    half = np.where(flat[:, None] & ~near, 0.0, eps)
+    edge = np.zeros((len(tris), 3, 3))
+    on_planes = np.floor(2.0 * tris) == 2.0 * tris  # (T, 3 vertices, 3 axes)
+    e = np.roll(tris, -1, axis=1) - tris
+    exact_ends = on_planes & np.roll(on_planes, -1, axis=1)  # per edge (from vertex i) and axis
+    for p, (a, b, w) in enumerate(((1, 2, 0), (2, 0, 1), (0, 1, 2))):
+        mine = flat & flat_axes(tris)[:, w]
+        slanted = (e[:, :, a] != 0.0) & (e[:, :, b] != 0.0)
+        inexact = ~(exact_ends[:, :, a] & exact_ends[:, :, b])
+        edge[:, p] = np.where(mine[:, None] & slanted & inexact, eps, 0.0)
+    return half, edge
 
 
 def snap_ambiguous(unsnapped: np.ndarray, dims: Sequence[int]) -> np.ndarray:
@@ -100,9 +114,9 @@ def surface_ties(tris: np.ndarray, dims: Sequence[int],
     Both criteria are monotone in the half-size (a larger box or cross only
     meets more), so the first part is the set accepted at ``0.5 + eps`` but
     not at ``0.5 - eps``: voxels that a triangle touches or misses by at most
-    about ``eps`` voxel (DESIGN.md's definition), where the box keeps its
-    half-size 0.5 along a triangle's :func:`exact_axes` (a face on a voxel
-    plane touches both layers exactly: no tie).  The second part extends it
+    about ``eps`` voxel (DESIGN.md's definition), perturbed only where rounding
+    can move the triangle (:func:`rounding_perturbation`: a face on a voxel
+    plane touches both layers exactly, no tie).  The second part extends it
     to what the float32 copy of the mesh on the GPU can legitimately change:
     for a projection whose orientation is ambiguous under an ``eps`` motion of
     the vertices (:func:`orientation_ambiguous`), the voxels whose verdict
@@ -155,9 +169,9 @@ def surface_ties(tris: np.ndarray, dims: Sequence[int],
 
 
 def _rounding_ties(f, tris: np.ndarray, dims, criterion: str, eps: float) -> np.ndarray:
-    """:func:`surface_ties` of snapped triangles: half-size, orientation and short-edge ties."""
-    e = np.where(exact_axes(tris), 0.0, eps)
-    ties = f(tris, dims, 0.5 + e) ^ f(tris, dims, 0.5 - e)
+    """:func:`surface_ties` without the snap: half-size (and edge), orientation and short-edge ties."""
+    half, edge = rounding_perturbation(tris, eps)
+    ties = f(tris, dims, 0.5 + half, edge_shift=edge) ^ f(tris, dims, 0.5 - half, edge_shift=-edge)
     _add_orientation_ties(ties, f, tris, dims, criterion, eps)
     if criterion == "6sep":
         _add_short_edge_ties(ties, f, tris, dims, eps)
