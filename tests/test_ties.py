@@ -60,6 +60,7 @@ from glvox.gpu.transform import gpu_vertices_voxel, transform_vertices
 from glvox.grid import GridSpec, snap_to_planes
 from glvox.methods import get_method, method_names, run_method
 from glvox.metrics import tie_set
+from glvox.reference import conservative_surface, snap_ambiguous, solid_ties, surface_ties
 from glvox.tolerances import SNAP_EPS
 
 SURFACES = [n for n in method_names() if get_method(n).info.kind == "surface"]
@@ -480,3 +481,47 @@ def test_mirror_of_a_curved_mesh_up_to_ties(gl_context, axis):
         got = np.flip(run(name, vm, mesh.faces[:, ::-1], spec), axis)
         diff = got ^ run(name, mesh.vertices, mesh.faces, spec)
         assert not (diff & ~ties).any(), name
+
+
+def test_ties_of_a_triangle_do_not_depend_on_far_triangles():
+    """A slanted triangle whose vertex lies on the voxel plane x = 45 (snapped there, as
+    on messy_tower_holes.obj at 128^3) touches voxel 44 only at that vertex: a tie.  A
+    far-away triangle in a voxel plane, whose own verdicts are exact, leaves it a tie
+    (it once did not: its unperturbed half-size widened the candidates of the others)."""
+    slanted = np.array([[45.168595857637065, 13.183192149901213, 76.54046551015048],
+                        [45.0, 12.74363981843829, 76.91210729351486],
+                        [45.10323554399834, 13.328369735440878, 77.24375599607912]])
+    flat = np.array([[10.0, 10.25, 10.5], [10.0, 20.5, 10.75], [10.0, 15.0, 30.25]])
+    dims = (128, 128, 128)
+    alone = surface_ties(slanted[None], dims)
+    assert alone[44, 12, 76] and conservative_surface(slanted[None], dims)[44, 12, 76]
+    for criterion in ("conservative", "6sep"):
+        both = surface_ties(np.stack([slanted, flat]), dims, criterion)
+        np.testing.assert_array_equal(both, surface_ties(slanted[None], dims, criterion))
+
+
+def test_a_coordinate_at_the_snap_distance_is_a_tie():
+    """A coordinate SNAP_EPS from a plane up to rounding: one side snaps it, the GPU's own
+    rounding may not.  Given the unsnapped triangles, the tie sets hold what that decides;
+    a coordinate on a plane up to rounding is not ambiguous."""
+    dims = (8, 8, 8)
+    # in the plane z = 1.4; x of vertex 0 just inside the snap distance of x = 3: snapped
+    raw = np.array([[[3.0 + SNAP_EPS * (1 - 1e-9), 1.3, 1.4], [5.6, 2.7, 1.4], [4.2, 1.1, 1.4]]])
+    snapped = snap_to_planes(raw)
+    assert snapped[0, 0, 0] == 3.0 and snap_ambiguous(raw, dims).sum() == 1
+    v = (2, 1, 1)  # touches the snapped triangle at x = 3 only
+    assert conservative_surface(snapped, dims)[v] and not conservative_surface(raw, dims)[v]
+    assert not surface_ties(snapped, dims)[v]  # the snapped face is decided exactly ...
+    assert surface_ties(snapped, dims, unsnapped=raw)[v]  # ... unless the snap itself is not
+    near = raw.copy()
+    near[0, 0, 0] = 3.0 + 1e-12
+    assert not snap_ambiguous(near, dims).any()
+    assert not surface_ties(snap_to_planes(near), dims, unsnapped=near).any()
+    # a face just beyond the snap distance of the center plane z = 1.5: kept off it, but
+    # the GPU may snap it onto the centers below it
+    raw = np.array([[[1.2, 1.3, 1.5 + SNAP_EPS * (1 + 1e-9)], [5.6, 2.7, 1.5 + SNAP_EPS * (1 + 1e-9)],
+                     [4.2, 5.1, 1.5 + SNAP_EPS * (1 + 1e-9)]]])
+    snapped = snap_to_planes(raw)
+    assert (snapped == raw).all() and snap_ambiguous(raw, dims)[..., 2].all()
+    assert not solid_ties(snapped, dims).any()
+    assert solid_ties(snapped, dims, unsnapped=raw)[4, 2, 1]  # center (4.5, 2.5, 1.5) under the face

@@ -73,7 +73,7 @@ def _edge_normals(tris: np.ndarray, n: np.ndarray, flip: np.ndarray | None = Non
 
 
 def _planar_test(tris: np.ndarray, n: np.ndarray, o1: np.ndarray, o2: np.ndarray,
-                 ne: np.ndarray, oe: np.ndarray, shift: np.ndarray,
+                 ne: np.ndarray, oe: np.ndarray, shift: np.ndarray, halves: np.ndarray,
                  no_plane: np.ndarray | None = None, no_proj: np.ndarray | None = None) -> Test:
     """Per-pair test shared by both S&S criteria.
 
@@ -88,11 +88,23 @@ def _planar_test(tris: np.ndarray, n: np.ndarray, o1: np.ndarray, o2: np.ndarray
     ``<n, v>`` and ``<n, x>``, so that, e.g., a box touching a triangle that
     lies on a voxel plane is found exactly (as the separating-axis test finds
     it).  Pairs are dropped as soon as one test fails.
+
+    The bounding-box part of the test is the candidate set (voxels whose box
+    of the largest half-size in ``halves`` meets the triangle's bounding box);
+    where the half-sizes differ between triangles or axes, the box of each
+    pair's own half-size is checked against the bounding box too.
     """
+    lo_t, hi_t = tris.min(axis=1), tris.max(axis=1)
+    uneven = halves.size > 0 and halves.min() != halves.max()
+
     def test(tri: np.ndarray, ijk: np.ndarray) -> np.ndarray:
         keep = np.arange(len(tri))
-        x = ijk + shift[tri]
         t = tri
+        if uneven:
+            c, r = ijk + 0.5, halves[t]
+            ok = ((c + r >= lo_t[t]) & (c - r <= hi_t[t])).all(axis=1)
+            keep, ijk, t = keep[ok], ijk[ok], t[ok]
+        x = ijk + shift[t]
         s = np.einsum("ij,ij->i", n[t], x - tris[t, 0])
         lo = s + o1[t]
         hi = s + o2[t]
@@ -205,7 +217,7 @@ def conservative_surface(tris: np.ndarray, dims: Sequence[int], half: float | np
                     + np.maximum(0.0, dp[:, b, None] * ne[:, p, :, 1]))
     if edge_shift is not None:
         oe += _edge_shift(edge_shift, len(tris)) * np.abs(ne).max(axis=-1)
-    test = _planar_test(tris, n, o1, o2, ne, oe, 0.5 - halves, no_plane, no_proj)
+    test = _planar_test(tris, n, o1, o2, ne, oe, 0.5 - halves, halves, no_plane, no_proj)
     return _run(tris, dims, pruned_candidates(tris, dims, _pad(halves)), test)
 
 
@@ -265,7 +277,7 @@ def six_separating_surface(tris: np.ndarray, dims: Sequence[int], half: float | 
         oe[:, p] = h * ane[:, p].max(axis=-1)
     if edge_shift is not None:
         oe += _edge_shift(edge_shift, len(tris)) * ane.max(axis=-1)
-    test = _planar_test(tris, n, t, -t, ne, oe, np.full_like(halves, 0.5), no_plane, no_proj)
+    test = _planar_test(tris, n, t, -t, ne, oe, np.full_like(halves, 0.5), halves, no_plane, no_proj)
     return _run(tris, dims, pruned_candidates(tris, dims, _pad(halves)), test)
 
 

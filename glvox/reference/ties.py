@@ -75,20 +75,25 @@ def rounding_perturbation(tris: np.ndarray, eps: float = TIE_EPS) -> tuple[np.nd
 def snap_ambiguous(unsnapped: np.ndarray, dims: Sequence[int]) -> np.ndarray:
     """(T, 3, 3) bool: coordinates whose snap the GPU's rounding could decide otherwise.
 
-    The GPU snaps its own rounding of a coordinate (within
-    :func:`float32_motion` of the float64 one); a coordinate whose distance to
-    the nearest multiple of 1/2 is that close to ``SNAP_EPS`` may be snapped on
+    The GPU snaps its own value of a coordinate, computed in double from the
+    float32 upload relative to the mesh's center: within 2^-25 of the model's
+    extent (in voxels) of the float64 one.  A coordinate whose distance to the
+    nearest multiple of 1/2 is within four times that (or of ``2^-23 N`` for a
+    grid of N voxels, whichever is larger) of ``SNAP_EPS`` may be snapped on
     one side and not on the other.
 
     Parameters
     ----------
     unsnapped : (T, 3, 3) float64
-        Voxel-space triangles before :func:`glvox.grid.snap_to_planes`.
+        Voxel-space triangles before :func:`glvox.grid.snap_to_planes` (the
+        whole mesh: its extent sets the rounding).
     dims : (3,) int
     """
     u = check_tris(unsnapped)
+    extent = float(np.ptp(u.reshape(-1, 3), axis=0).max()) if len(u) else 0.0
+    motion = 2.0 ** -23 * max(extent, max(int(d) for d in dims))
     d = np.abs(u - np.floor(2.0 * u + 0.5) * 0.5)
-    return np.abs(d - SNAP_EPS) <= float32_motion(dims)
+    return np.abs(d - SNAP_EPS) <= motion
 
 
 def _other_snap(tris: np.ndarray, unsnapped: np.ndarray, amb: np.ndarray) -> np.ndarray:
