@@ -4,17 +4,12 @@ excusing it, and metamorphic invariances over the registry.
 Every method and reference sees the vertices snapped to the voxel face and
 center planes (glvox.grid.snap_to_planes, shaders/common/snap.glsl), so a face
 on such a plane is decided by the definitions, not by rounding.  The shapes
-here are unions of axis-aligned cells (boxes, L-shapes, stairs: CAD-like),
-with breakpoints on planes, within rounding of them, or anywhere else; their
-exact results are computed here from the breakpoints alone:
-
-- conservative surface: every voxel whose closed box meets a boundary face;
-- parity solid along ray axis a (S&S Sec. 4.1): a center on the surface
-  follows the half-open rule along the ray (inside iff center > entering
-  crossing) and the top-left rule across it, i.e. it counts iff the center
-  nudged by (-d, +d', -d'') along (a, a+1, a+2) is inside: per cell, the
-  half-open box (x0, x1] x [u0, u1) x (v0, v1].  Methods that AND several
-  views (karabassi, passalis-*) give the AND of those axes.
+here are unions of axis-aligned cells (boxes, L-shapes, stairs: CAD-like;
+glvox.testing.cells) with breakpoints on planes, within rounding of them, or
+anywhere else; their exact conservative surfaces and parity solids (half-open
+rule along the ray, top-left rule across it) follow from the breakpoints
+alone.  Methods that AND several views (karabassi, passalis-*) give the AND of
+the three axes' solids.
 
 What each kind and method must do (stated; every registered method is held
 to its class, so a new method is covered by registering it):
@@ -61,6 +56,8 @@ from glvox.grid import GridSpec, snap_to_planes
 from glvox.methods import get_method, method_names, run_method
 from glvox.metrics import tie_set
 from glvox.reference import conservative_surface, snap_ambiguous, solid_ties, surface_ties
+from glvox.testing.cells import (SHAPES, boundary_faces, cells_mesh, conservative_expected, occupancy,
+                                 on_surface, solid_expected)
 from glvox.tolerances import SNAP_EPS
 
 SURFACES = [n for n in method_names() if get_method(n).info.kind == "surface"]
@@ -69,10 +66,6 @@ SOLIDS = [n for n in method_names() if get_method(n).info.kind in ("solid", "spa
 APPROXIMATE = {"scanline-slv": "conservative", "scanline-rlv": "thin", "scanline-ilv": "thin",
                "eisemann-surface": "slices"}
 
-SHAPES = {"box": ((1, 1, 1), [(0, 0, 0)]),
-          "L": ((2, 2, 1), [(0, 0, 0), (1, 0, 0), (0, 1, 0)]),
-          "stairs": ((3, 1, 3), [(i, 0, k) for i in range(3) for k in range(i + 1)])}
-
 
 def surface_class(name: str) -> str:
     info = get_method(name).info
@@ -80,85 +73,6 @@ def surface_class(name: str) -> str:
         return "conservative"
     assert name in APPROXIMATE, f"{name} is approximate: state the properties of its definition in APPROXIMATE"
     return APPROXIMATE[name]
-
-
-# ----------------------------------------------------------------------------
-# shapes: unions of cells of a breakpoint lattice
-
-
-def occupancy(shape: str) -> np.ndarray:
-    dims, cells = SHAPES[shape]
-    occ = np.zeros(dims, bool)
-    for c in cells:
-        occ[c] = True
-    return occ
-
-
-def boundary_faces(occ: np.ndarray):
-    """(axis a, cell index along a of the face's plane, cell (i, j, k), outward sign) of every boundary face."""
-    pad = np.pad(occ, 1)
-    for idx in zip(*np.nonzero(occ)):
-        for a in range(3):
-            for s in (-1, 1):
-                nb = np.array(idx) + 1
-                nb[a] += s
-                if not pad[tuple(nb)]:
-                    yield a, idx[a] + (s > 0), idx, s
-
-
-def cells_mesh(bp, occ: np.ndarray):
-    """A closed, outward-oriented mesh of the cells (breakpoints ``bp[a]`` per axis, world units)."""
-    shape = tuple(len(b) for b in bp)
-    grid = np.stack(np.meshgrid(*bp, indexing="ij"), axis=-1).reshape(-1, 3)
-    faces = []
-    for a, plane, idx, s in boundary_faces(occ):
-        u, v = (a + 1) % 3, (a + 2) % 3
-        quad = []
-        for du, dv in ((0, 0), (1, 0), (1, 1), (0, 1)):  # counter-clockwise seen from +a
-            p = list(idx)
-            p[a], p[u], p[v] = plane, idx[u] + du, idx[v] + dv
-            quad.append(np.ravel_multi_index(p, shape))
-        if s < 0:
-            quad = quad[::-1]
-        faces += [quad[:3], [quad[0], quad[2], quad[3]]]
-    return grid, np.array(faces)
-
-
-def conservative_expected(bpv, occ, dims) -> np.ndarray:
-    """Voxels whose closed box meets a boundary face (voxel-space breakpoints ``bpv``)."""
-    out = np.zeros(dims, bool)
-    for a, plane, idx, _ in boundary_faces(occ):
-        sl = []
-        for ax in range(3):
-            lo, hi = (bpv[a][plane],) * 2 if ax == a else (bpv[ax][idx[ax]], bpv[ax][idx[ax] + 1])
-            sl.append(slice(max(int(np.ceil(lo)) - 1, 0), max(min(int(np.floor(hi)), dims[ax] - 1) + 1, 0)))
-        out[tuple(sl)] = True
-    return out
-
-
-def solid_expected(bpv, occ, dims, axis: int) -> np.ndarray:
-    """The parity solid along ``axis`` with the half-open and top-left rules (module docstring)."""
-    u = (axis + 1) % 3
-    out = np.zeros(dims, bool)
-    for idx in zip(*np.nonzero(occ)):
-        m = []
-        for ax in range(3):
-            c = np.arange(dims[ax]) + 0.5
-            lo, hi = bpv[ax][idx[ax]], bpv[ax][idx[ax] + 1]
-            m.append((c >= lo) & (c < hi) if ax == u else (c > lo) & (c <= hi))
-        out |= m[0][:, None, None] & m[1][None, :, None] & m[2][None, None, :]
-    return out
-
-
-def on_surface(bpv, occ, dims) -> np.ndarray:
-    """Voxels whose center lies exactly on a boundary face."""
-    out = np.zeros(dims, bool)
-    c = [np.arange(n) + 0.5 for n in dims]
-    for a, plane, idx, _ in boundary_faces(occ):
-        m = [(c[a] == bpv[a][plane]) if ax == a else (c[ax] >= bpv[ax][idx[ax]]) & (c[ax] <= bpv[ax][idx[ax] + 1])
-             for ax in range(3)]
-        out |= m[0][:, None, None] & m[1][None, :, None] & m[2][None, None, :]
-    return out
 
 
 class Case:
@@ -242,6 +156,19 @@ def issue_box(padding: int) -> Case:
 # the snap itself
 
 
+@pytest.mark.parametrize("shape", sorted(SHAPES))
+def test_cell_shapes_are_closed_outward_solids(shape):
+    """The shapes' meshes are watertight and outward (positive volume: the cells' sum),
+    so the exact sets of glvox.testing.cells describe the meshes the methods get."""
+    bp = [np.array([0.0, 1.0, 3.0, 6.0])[:n + 1] for n in SHAPES[shape][0]]
+    occ = occupancy(shape)
+    m = trimesh.Trimesh(*cells_mesh(bp, occ), process=True)
+    sizes = [np.diff(b) for b in bp]
+    volume = sum(sizes[0][i] * sizes[1][j] * sizes[2][k] for i, j, k in zip(*np.nonzero(occ)))
+    assert m.is_watertight and m.is_winding_consistent and m.volume == pytest.approx(volume)
+    assert {"box": 1.0, "L": 5.0, "stairs": 1 + 2 + 3 + 2 * 2 + 2 * 3 + 3 * 3}[shape] == volume
+
+
 def test_snap_to_planes_by_hand():
     e = SNAP_EPS
     p = np.array([3.0 - 1e-17, 3.0 + e, 3.0 + 1.01 * e, 2.5 - e, 2.5 - 1.01 * e, -0.0001, 7.25, 1e-300])
@@ -273,8 +200,6 @@ def test_gpu_transform_is_the_cpu_mirror_bit_for_bit(gl_context):
 
 def snap_ambiguous_case(case: Case) -> bool:
     """A breakpoint within rounding of the snap distance: CPU and GPU may snap it differently."""
-    from glvox.reference import snap_ambiguous
-
     raw = [(b - case.spec.origin[a]) / case.spec.voxel_size for a, b in enumerate(case.bp_world)]
     return any(snap_ambiguous(np.resize(r, (1, 3, 3)), case.dims).any() for r in raw)
 
