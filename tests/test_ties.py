@@ -64,8 +64,22 @@ from glvox.testing.cells import (SHAPES, boundary_faces, cells_mesh, conservativ
                                  on_surface, solid_expected)
 from glvox.tolerances import SNAP_EPS
 
-SURFACES = [n for n in method_names() if get_method(n).info.kind == "surface"]
-SOLIDS = [n for n in method_names() if get_method(n).info.kind in ("solid", "sparse", "ldi")]
+def registered_runs(kinds) -> list[tuple[str, dict]]:
+    """(method, options) of every registered method of these kinds, with each choice of its
+    ``variant`` option (realizations of one definition, which must give the same set)."""
+    out = []
+    for n in method_names():
+        info = get_method(n).info
+        if info.kind in kinds:
+            out.append((n, {}))
+            opt = info.options.get("variant")
+            if opt is not None:
+                out += [(n, {"variant": c}) for c in opt.choices if c != opt.default]
+    return out
+
+
+SURFACES = registered_runs(("surface",))
+SOLIDS = registered_runs(("solid", "sparse", "ldi"))
 #: Surface methods that are not exact, by the class of their definition (module docstring).
 APPROXIMATE = {"scanline-slv": "conservative", "scanline-rlv": "thin", "scanline-ilv": "thin",
                "eisemann-surface": "slices"}
@@ -228,10 +242,10 @@ def face_columns(case: Case, touched: np.ndarray):
         yield a, block.sum(axis=0)
 
 
-def check_surface(name: str, case: Case, got: np.ndarray, exp: np.ndarray) -> None:
+def check_surface(name: str, case: Case, got: np.ndarray, exp: np.ndarray, opts: dict) -> None:
     info = get_method(name).info
     cls = surface_class(name)
-    msg = f"{name} on {case!r}"
+    msg = f"{name} {opts} on {case!r}"
     if cls == "conservative":
         if info.reference == "reference-conservative":
             assert np.array_equal(got, exp), f"{msg}: {int((got ^ exp).sum())} voxels off the exact set"
@@ -246,11 +260,11 @@ def check_surface(name: str, case: Case, got: np.ndarray, exp: np.ndarray) -> No
         assert (counts == 1).all(), f"{msg}: a face normal to axis {axis} has walls {np.unique(counts)} thick"
 
 
-def check_solid(name: str, case: Case, got: np.ndarray) -> None:
+def check_solid(name: str, case: Case, got: np.ndarray, opts: dict) -> None:
     allowed = [solid_expected(case.bpv, case.occ, case.dims, a) for a in range(3)]
     allowed.append(allowed[0] & allowed[1] & allowed[2])
     on = on_surface(case.bpv, case.occ, case.dims)
-    msg = f"{name} on {case!r}"
+    msg = f"{name} {opts} on {case!r}"
     bad = (got ^ allowed[0]) & ~on
     assert not bad.any(), f"{msg}: {int(bad.sum())} centers off the surface wrong, first {np.argwhere(bad)[:3]}"
     info = get_method(name).info
@@ -272,10 +286,10 @@ def test_walls_and_fill(gl_context, case):
     definition says); every solid method: full, centers on the surface by the rules; the tie
     sets excuse nothing on these shapes but centers exactly on the surface."""
     exp = conservative_expected(case.bpv, case.occ, case.dims)
-    for name in SURFACES:
-        check_surface(name, case, run(name, case.v, case.f, case.spec), exp)
-    for name in SOLIDS:
-        check_solid(name, case, run(name, case.v, case.f, case.spec))
+    for name, opts in SURFACES:
+        check_surface(name, case, run(name, case.v, case.f, case.spec, **opts), exp, opts)
+    for name, opts in SOLIDS:
+        check_solid(name, case, run(name, case.v, case.f, case.spec, **opts), opts)
     if not snap_ambiguous_case(case):
         assert not tie_set("reference-conservative", case.mesh, case.spec).any()
         assert not tie_set("reference-6sep", case.mesh, case.spec).any()
@@ -352,10 +366,10 @@ def test_mirror(gl_context, case, axis):
     center = case.spec.origin[axis] + 0.5 * case.dims[axis] * case.spec.voxel_size
     vm = case.v.copy()
     vm[:, axis] = 2.0 * center - vm[:, axis]
-    for name in SURFACES + SOLIDS:
+    for name, opts in SURFACES + SOLIDS:
         if mirror_allowed(name, case, axis):
-            got = run(name, vm, case.f[:, ::-1], case.spec)
-            assert_same(name, case, np.flip(got, axis), run(name, case.v, case.f, case.spec), f"mirror {axis}")
+            got = np.flip(run(name, vm, case.f[:, ::-1], case.spec, **opts), axis)
+            assert_same(name, case, got, run(name, case.v, case.f, case.spec, **opts), f"mirror {axis} {opts}")
 
 
 @settings(max_examples=300 if SLOW else 20, **SETTINGS)
@@ -372,11 +386,11 @@ def test_translation_by_whole_voxels(gl_context, case, axis, k):
     big = Case(case.shape, case.bp_world, GridSpec(tuple(dims), origin, h), case.label)
     vt = case.v.copy()
     vt[:, axis] += k * h
-    for name in SURFACES + SOLIDS:
-        base = run(name, case.v, case.f, big.spec)
+    for name, opts in SURFACES + SOLIDS:
+        base = run(name, case.v, case.f, big.spec, **opts)
         assert not np.take(base, range(abs(k) + 1), axis=axis).any()
-        moved = np.roll(run(name, vt, case.f, big.spec), -k, axis=axis)
-        assert_same(name, big, moved, base, f"a {k}-voxel move")
+        moved = np.roll(run(name, vt, case.f, big.spec, **opts), -k, axis=axis)
+        assert_same(name, big, moved, base, f"a {k}-voxel move {opts}")
 
 
 @settings(max_examples=300 if SLOW else 20, **SETTINGS)
@@ -386,10 +400,10 @@ def test_swapping_x_and_y(gl_context, case):
     s = case.spec
     spec = GridSpec((s.dims[1], s.dims[0], s.dims[2]), s.origin[[1, 0, 2]], s.voxel_size)
     vs = case.v[:, [1, 0, 2]]
-    for name in SURFACES + SOLIDS:
+    for name, opts in SURFACES + SOLIDS:
         if swap_allowed(name, case):
-            got = run(name, vs, case.f[:, ::-1], spec).transpose(1, 0, 2)
-            assert_same(name, case, got, run(name, case.v, case.f, case.spec), "swapping x and y")
+            got = run(name, vs, case.f[:, ::-1], spec, **opts).transpose(1, 0, 2)
+            assert_same(name, case, got, run(name, case.v, case.f, case.spec, **opts), f"swapping x and y {opts}")
 
 
 @pytest.mark.parametrize("axis", [0, 1, 2])
@@ -404,14 +418,14 @@ def test_mirror_of_a_curved_mesh_up_to_ties(gl_context, axis):
     vm = mesh.vertices.copy()
     vm[:, axis] = 2.0 * center - vm[:, axis]
     mirrored = glvox.load_mesh((vm, mesh.faces[:, ::-1]))
-    for name in SURFACES:
+    for name, opts in SURFACES:
         info = get_method(name).info
         if not info.exact:
             continue
         ties = tie_set(info.reference, mesh, spec) | np.flip(tie_set(info.reference, mirrored, spec), axis)
-        got = np.flip(run(name, vm, mesh.faces[:, ::-1], spec), axis)
-        diff = got ^ run(name, mesh.vertices, mesh.faces, spec)
-        assert not (diff & ~ties).any(), name
+        got = np.flip(run(name, vm, mesh.faces[:, ::-1], spec, **opts), axis)
+        diff = got ^ run(name, mesh.vertices, mesh.faces, spec, **opts)
+        assert not (diff & ~ties).any(), (name, opts)
 
 
 def test_ties_of_a_triangle_do_not_depend_on_far_triangles():
