@@ -54,6 +54,22 @@ def rounding_perturbation(tris: np.ndarray, eps: float = TIE_EPS) -> tuple[np.nd
     projection each slanted edge with an end coordinate off the snap planes is
     shifted.  A face on a voxel plane, its edges on voxel lines, its corners on
     voxel corners: no ties.
+
+    Parameters
+    ----------
+    tris : (T, 3, 3) float64
+        Voxel-space triangles (snapped, as every method sees them).
+    eps : float
+        The perturbation, voxels.
+
+    Returns
+    -------
+    half : (T, 3) float64
+        Box half-size perturbation per triangle and axis (0 or ``eps``), for
+        ``half=0.5 +/- half`` of the reference surface functions.
+    edge : (T, 3, 3) float64
+        Edge shifts per triangle, projection (yz, zx, xy) and edge (0 or
+        ``eps``), for their ``edge_shift=+/- edge``.
     """
     tris = check_tris(tris)
     flat = flat_axes(tris).any(axis=1)
