@@ -32,7 +32,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from .errors import GridError
-from .tolerances import FIT_CEIL_SLACK, PLACEMENT_RTOL
+from .tolerances import FIT_CEIL_SLACK, PLACEMENT_RTOL, SNAP_EPS
 
 #: Largest voxel count of a *dense* result (2^31 - 1 keeps flat indices in
 #: int32 on the GPU; the bit array of such a grid is 256 MiB).  Sparse methods
@@ -120,6 +120,11 @@ class GridSpec:
         """World points (..., 3) -> voxel-space points (..., 3), float64."""
         return (np.asarray(points, dtype=np.float64) - self.origin) / self.voxel_size
 
+    def vertices_to_voxel(self, points: np.ndarray) -> np.ndarray:
+        """Mesh vertices (..., 3) -> voxel space as every method sees them, float64:
+        :meth:`world_to_voxel`, then :func:`snap_to_planes`."""
+        return snap_to_planes(self.world_to_voxel(points))
+
     def voxel_to_world(self, points: np.ndarray) -> np.ndarray:
         """Voxel-space points (..., 3) -> world points (..., 3), float64."""
         return np.asarray(points, dtype=np.float64) * self.voxel_size + self.origin
@@ -152,6 +157,35 @@ class GridSpec:
     def __repr__(self) -> str:
         o = ", ".join(f"{x:.6g}" for x in self.origin)
         return f"GridSpec(dims={self.dims}, origin=({o}), voxel_size={self.voxel_size:.6g})"
+
+
+def snap_to_planes(points: np.ndarray, eps: float = SNAP_EPS) -> np.ndarray:
+    """Voxel-space coordinates within ``eps`` of a multiple of 1/2 moved onto it.
+
+    The one tie policy for geometry on voxel planes (README, "Ties"): every
+    method and reference sees mesh vertices through this rule, the GPU in
+    double before its float32 rounding (``shaders/common/snap.glsl``, the
+    same operations), so a face that lies on a voxel face plane (integer) or
+    a voxel center plane (integer + 1/2) up to rounding lies exactly on it
+    for all of them, and the definitions (touching counts; the half-open and
+    top-left rules of solids) decide it, not the rounding.
+
+    Parameters
+    ----------
+    points : (..., 3) float64
+        Voxel-space coordinates.
+    eps : float
+        Snap distance, voxels (:data:`glvox.tolerances.SNAP_EPS`); 0 snaps
+        only coordinates already on a plane (returns them unchanged).
+
+    Returns
+    -------
+    (..., 3) float64
+        A new array; multiples of 1/2 below 2^23 are exact in float32 too.
+    """
+    p = np.asarray(points, dtype=np.float64)
+    r = np.floor(2.0 * p + 0.5) * 0.5
+    return np.where(np.abs(p - r) <= eps, r, p)
 
 
 def fit_grid(

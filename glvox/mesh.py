@@ -90,8 +90,9 @@ class Mesh:
         return self.vertices[self.faces]
 
     def triangles_voxel(self, spec) -> np.ndarray:
-        """(F, 3, 3) float64 triangles in the voxel space of ``spec``."""
-        return spec.world_to_voxel(self.triangles())
+        """(F, 3, 3) float64 triangles in the voxel space of ``spec``, snapped to
+        the lattice as every method sees them (:meth:`GridSpec.vertices_to_voxel`)."""
+        return spec.vertices_to_voxel(self.triangles())
 
     def gpu_arrays(self, anchor: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(V, 3) float32 vertices relative to :attr:`anchor` (pass it when

@@ -24,6 +24,25 @@ from __future__ import annotations
 #: surface (DESIGN.md, "Ties"; :mod:`glvox.reference.ties`).
 TIE_EPS = 1e-4
 
+#: (voxels) The plane snap, the one tie policy for geometry on voxel planes
+#: (:func:`glvox.grid.snap_to_planes`, ``shaders/common/snap.glsl``): a
+#: voxel-space vertex coordinate within this distance of a multiple of 1/2
+#: voxel (a voxel face plane, where surface verdicts turn, or a voxel center
+#: plane, where solid verdicts turn) is moved onto it, on the CPU in float64
+#: and on the GPU in double before the float32 rounding, before any method or
+#: reference sees it.  Rounding alone puts a face that lies on a voxel plane
+#: (the default fit puts the bounding box on the grid's boundary planes) at
+#: +-1e-17 voxel on the CPU and up to 2^-25 N voxel off on the GPU (the float32
+#: upload relative to the mesh's center, N voxels across: 1.2e-4 at 4096), on
+#: either side, so rounding kept or dropped the touching layer.  2^-11
+#: (4.9e-4) is four times that rounding at 4096 voxels (the largest ss-octree
+#: grid) and twice it at 8192; about five times TIE_EPS, so a coordinate left
+#: unsnapped lies farther than TIE_EPS from every such plane for CPU and GPU
+#: alike; a power of two, so the GLSL literal is the same number.  It moves
+#: geometry by less than 1/2000 voxel: only verdicts that close to a knife
+#: edge can change, which is what it is for.
+SNAP_EPS = 2.0 ** -11
+
 #: (multiples of :func:`glvox.reference.ties.float32_motion`) A projected edge
 #: shorter than this many times the float32 motion of its end points can turn
 #: by more than ~0.02 rad under rounding; the projection test it belongs to is

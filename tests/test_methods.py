@@ -84,11 +84,13 @@ def test_registering_a_name_twice_is_refused():
 
 def test_reference_check_accepts_ties_and_catches_real_errors():
     """The tie proof: a result differing only on ties passes; one wrong voxel fails."""
-    mesh = load_mesh((np.array([[0, 0, 1.0], [4, 0, 1.0], [0, 4, 1.0]]), np.array([[0, 1, 2]])))
-    spec = GridSpec((4, 4, 3), (0, 0, 0), 1.0)  # the triangle lies exactly on the plane z = 1
+    # the plane x + y + z = 3 passes through voxel corners: voxel (1, 1, 1) only
+    # touches it at its corner (1, 1, 1), a slanted knife edge that rounding decides
+    mesh = load_mesh((np.array([[3, 0, 0.0], [0, 3, 0.0], [0, 0, 3.0]]), np.array([[0, 1, 2]])))
+    spec = GridSpec((4, 4, 3), (0, 0, 0), 1.0)
     ref = run_method("reference-conservative", mesh, spec)
     ties = tie_set("reference-conservative", mesh, spec)
-    assert ties.any()
+    assert ties[1, 1, 1] and ref.dense()[1, 1, 1]
     # drop every tie voxel: still correct up to ties
     on_ties = VoxelGrid(ref.dense() & ~ties, spec)
     on_ties.run = ref.run

@@ -17,10 +17,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial import ConvexHull
 
+from glvox.grid import snap_to_planes
 from glvox.metrics import separation_leaks
 from glvox.reference import (TIE_EPS, conservative_surface, conservative_surface_sat, float32_motion,
                              mismatch_is_tie, orientation_ambiguous, point_triangle_distance, short_edges,
-                             six_separating_surface, solid, solid_ties, surface_ties)
+                             rounding_perturbation, six_separating_surface, solid, solid_ties, surface_ties)
 from glvox.testing.plugin import mesh_or_skip
 
 
@@ -190,8 +191,11 @@ def test_box_with_faces_on_voxel_planes():
     # {1, 2} x [1..6] x [1..6], and the union of the six faces is the block
     # [1..6]^3 minus the voxels touching no face, [3..4]^3: 216 - 8 = 208,
     # a shell two voxels thick.  Every one of them only touches the surface:
-    # with boxes shrunk to half-size 0.5 - eps nothing is hit, so every set
-    # voxel is a tie.  Solid: centers in (2, 6), i.e. 2..5 -> 64, no ties.
+    # with boxes shrunk to half-size 0.5 - eps nothing is hit.  But the faces
+    # lie exactly on voxel planes (multiples of 1/2, exact in float32 too), and
+    # every method decides them exactly: no ties (the old isotropic rule made
+    # all 208 ties, and excused a dropped wall).  Solid: centers in (2, 6), i.e.
+    # 2..5 -> 64, no ties.
     tris = box_tris(2.0, 6.0)
     dims = (8, 8, 8)
     shell = np.zeros(dims, bool)
@@ -201,8 +205,10 @@ def test_box_with_faces_on_voxel_planes():
     for name, f in SURFACES.items():
         np.testing.assert_array_equal(f(tris, dims), shell, err_msg=name)
         assert not f(tris, dims, half=0.5 - TIE_EPS).any(), name
-    np.testing.assert_array_equal(surface_ties(tris, dims), shell)
-    np.testing.assert_array_equal(surface_ties(tris, dims, "6sep"), shell)
+        np.testing.assert_array_equal(f(tris, dims, 0.5 + TIE_EPS) ^ f(tris, dims, 0.5 - TIE_EPS), shell)
+    assert not any(x.any() for x in rounding_perturbation(tris))
+    assert not surface_ties(tris, dims).any()
+    assert not surface_ties(tris, dims, "6sep").any()
     inner = np.zeros(dims, bool)
     inner[2:6, 2:6, 2:6] = True
     for axis in range(3):
@@ -575,25 +581,38 @@ def test_clipping_matches_a_larger_grid(sphere):
 # ----------------------------------------------------------------------------
 # tie sets
 
-def test_surface_ties_of_a_triangle_on_a_voxel_plane():
-    # A triangle in the plane x = 3, generic in y and z: the voxel layers 2
-    # and 3 only touch it, so at half-size 0.5 - eps nothing is set and at
-    # 0.5 + eps exactly the conservative set: all ties, all in layers 2, 3.
-    tri = np.array([[[3.0, 0.3, 0.4], [3.0, 4.6, 0.7], [3.0, 1.2, 4.8]]])
+#: A triangle in the plane x = 3 + 1e-5, generic in y and z: closer to the
+#: voxel plane x = 3 than rounding can tell apart, farther than nothing.
+OFF_PLANE = np.array([[[3.00001, 0.3, 0.4], [3.00001, 4.6, 0.7], [3.00001, 1.2, 4.8]]])
+
+
+def test_surface_ties_of_a_triangle_near_and_on_a_voxel_plane():
+    # Near the plane: the voxel layers 2 and 3 are within 1e-5 of touching it,
+    # so with the box shrunk along x by eps nothing is set and grown by eps
+    # both layers are: all ties, all in layers 2, 3, the touched set of the
+    # triangle moved onto the plane.
+    tri = OFF_PLANE
     dims = (6, 6, 6)
-    cons = conservative_surface(tri, dims)
+    on = snap_to_planes(tri)
+    assert (on[..., 0] == 3.0).all() and (on[..., 1:] == tri[..., 1:]).all()
     ties = surface_ties(tri, dims)
-    np.testing.assert_array_equal(ties, cons)
+    np.testing.assert_array_equal(ties, conservative_surface(on, dims))
     assert {i for i, _, _ in voxel_set(ties)} == {2, 3}
     # Its yz projection is the same for both layers.
     np.testing.assert_array_equal(ties[2], ties[3])
-    np.testing.assert_array_equal(surface_ties(tri, dims, "6sep"), six_separating_surface(tri, dims))
+    np.testing.assert_array_equal(surface_ties(tri, dims, "6sep"), six_separating_surface(on, dims))
+    # Snapped onto the plane (what every method sees), both layers touch it
+    # exactly and no tie remains: the face keeps both layers for everyone.
+    # Only its slanted edges (off the snap planes) stay movable by rounding.
+    half, edge = rounding_perturbation(on)
+    assert not half.any() and edge[0, 0].all() and not edge[0, 1:].any()
+    assert not surface_ties(on, dims).any() and not surface_ties(on, dims, "6sep").any()
     # Moved off the plane, no ties remain.
     assert not surface_ties(tri + [0.25, 0, 0], dims).any()
 
 
 def test_mismatch_is_tie_reports_unexplained_voxels():
-    tri = np.array([[[3.0, 0.3, 0.4], [3.0, 4.6, 0.7], [3.0, 1.2, 4.8]]])
+    tri = OFF_PLANE
     dims = (6, 6, 6)
     ref = conservative_surface(tri, dims)
     ties = surface_ties(tri, dims)

@@ -1,32 +1,47 @@
-"""The shared vertex transform of every compute method (S&S Sec. 6):
-``shaders/common/transform.comp``."""
+"""The shared vertex transform of every GPU method (S&S Sec. 6).
+
+``shaders/common/snap.glsl`` holds the one world -> voxel transform with the
+plane snap (the GLSL side of :func:`glvox.grid.snap_to_planes`), used by
+``shaders/common/transform.comp`` (:func:`transform_vertices`: the compute
+methods) and by the raster and scanline shaders that transform vertices
+themselves; :func:`gpu_vertices_voxel` repeats it in numpy, bit for bit.
+"""
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..gl.shaders import compute_program
+from ..grid import snap_to_planes
+from ..tolerances import SNAP_EPS
 from .buffers import mesh_buffers
 from .dispatch import barrier, dispatch_1d, set_uniforms
 
+#: Defines of every program that includes ``common/snap.glsl`` (it refuses
+#: to compile without them): the snap distance named once in glvox.tolerances.
+SNAP_DEFINES = {"SNAP_EPS": float(SNAP_EPS)}
 
-def transform_vertices(ctx, mesh, spec, timer, pool, *, double: bool = False, scale=None, shift=(0.0, 0.0, 0.0),
-                       name: str | None = None, stage: str = "transform"):
+
+def transform_vertices(ctx, mesh, spec, timer, pool, *, double: bool = False, stretch=(1.0, 1.0, 1.0),
+                       shift=(0.0, 0.0, 0.0), name: str | None = None, stage: str = "transform"):
     """Stage ``transform`` (S&S Sec. 6): the mesh's vertices in voxel space,
-    ``(v - origin) * scale - shift`` computed in double (``common/transform.comp``).
+    ``snap((v - origin) / h) * stretch - shift`` computed in double
+    (``common/transform.comp``; ``snap`` is :func:`glvox.grid.snap_to_planes`).
 
-    ``scale`` defaults to ``1 / h`` on every axis; ``double`` keeps the result
-    in double instead of rounding it to float32 once.  Returns ``(bufs, vox)``:
-    the mesh's :class:`MeshBuffers` and a pooled buffer (``name``) of x, y, z
-    per vertex, ready for the next stage.
+    ``stretch`` rescales axes after the snap (the LDI's LOD-C cells along its
+    rays); ``double`` keeps the result in double instead of rounding it to
+    float32 once.  Returns ``(bufs, vox)``: the mesh's :class:`MeshBuffers`
+    and a pooled buffer (``name``) of x, y, z per vertex, ready for the next
+    stage.
     """
     bufs = mesh_buffers(ctx, mesh)
     size = 8 if double else 4
     vox = pool.get(name or ("vox_vertices_d" if double else "vox_vertices"), bufs.n_vertices * 3 * size,
                    what="voxel-space vertices" + (" (double)" if double else ""), clear=False)
-    if scale is None:
-        scale = (1.0 / spec.voxel_size,) * 3
-    prog = compute_program(ctx, "common/transform.comp", {"VOX_DOUBLE": int(double)})
+    prog = compute_program(ctx, "common/transform.comp", {"VOX_DOUBLE": int(double), **SNAP_DEFINES})
     set_uniforms(prog, {"u_origin_d": tuple(float(x) for x in spec.origin - bufs.anchor),
-                        "u_scale_d": tuple(float(x) for x in scale), "u_shift_d": tuple(float(x) for x in shift),
+                        "u_inv_h_d": 1.0 / spec.voxel_size,
+                        "u_stretch_d": tuple(float(x) for x in stretch), "u_shift_d": tuple(float(x) for x in shift),
                         "u_vertices": bufs.n_vertices})
     with timer.stage(stage):
         bufs.vertices.bind_to_storage_buffer(0)
@@ -34,3 +49,17 @@ def transform_vertices(ctx, mesh, spec, timer, pool, *, double: bool = False, sc
         dispatch_1d(ctx, prog, bufs.n_vertices, 256)
         barrier(ctx)
     return bufs, vox
+
+
+def gpu_vertices_voxel(mesh, spec) -> np.ndarray:
+    """The mesh's vertices in voxel space exactly as the GPU methods see them, (V, 3) float32.
+
+    ``vertex_to_voxel`` of ``shaders/common/snap.glsl`` in numpy: the float32
+    upload relative to the anchor (:meth:`glvox.mesh.Mesh.gpu_arrays`),
+    ``(v - (origin - anchor)) * (1 / h)`` in float64, the plane snap, one
+    rounding to float32.  What :func:`transform_vertices` writes (``double=False``),
+    bit for bit (``tests/test_ties.py`` checks it).
+    """
+    v32, _ = mesh.gpu_arrays()
+    origin = np.asarray(spec.origin, dtype=np.float64) - mesh.anchor
+    return snap_to_planes((v32.astype(np.float64) - origin) * (1.0 / spec.voxel_size)).astype(np.float32)

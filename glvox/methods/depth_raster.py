@@ -33,6 +33,7 @@ from ..gl import raw as rawgl
 from ..gl.shaders import render_program
 from ..gpu.buffers import object_cache
 from ..gpu.dispatch import set_uniforms
+from ..gpu.transform import SNAP_DEFINES
 
 #: Largest count the 8-bit stencil holds (GL_INCR saturates there).  A view
 #: whose first peeling pass counts this many crossings keeps peeling until a
@@ -234,7 +235,8 @@ class RasterPass:
 
     def __init__(self, ctx, bufs, uniforms) -> None:
         self.ctx, self.bufs = ctx, bufs
-        self.program = render_program(ctx, "depth/raster.vert", "depth/raster.frag", "depth/raster.geom")
+        self.program = render_program(ctx, "depth/raster.vert", "depth/raster.frag", "depth/raster.geom",
+                                      defines=SNAP_DEFINES)
         set_uniforms(self.program, {**uniforms, "u_prev": 0})
         self.vao = None
         #: raster passes drawn so far

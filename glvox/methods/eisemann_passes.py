@@ -316,6 +316,7 @@ def _pass_programs(ctx, render: SliceRender, spec, anchor, tg: _Targets, used: i
     base = {"EIS_AXIS": render.axis, "EIS_TARGETS": used}
     draw = render_program(ctx, "eisemann/slices.vert", "eisemann/slices.frag",
                           defines={**base, **render.kind_defines, "EIS_MASKS": MASKS.index(render.masks)})
+    set_uniforms(draw, {"u_axis_n": spec.dims[render.axis]})
     if render.masks == "texture":
         set_uniforms(draw, {"u_mask_table": _MASK_UNIT})
     clear = render_program(ctx, "eisemann/clear.vert", "eisemann/clear.frag", defines=base)

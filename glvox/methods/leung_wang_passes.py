@@ -200,12 +200,11 @@ def prepare(ctx, mesh, frame: Frame, pool, tag: str, timer, suffix: str = "") ->
     then Eisemann & Decoret's per-triangle setup (column box, drawn corners)."""
     spec, a = frame.spec, frame.axis
     # across the rays the grid's voxels; along them LOD-C cells, shifted by half a cell
-    h = spec.voxel_size
-    scale = [1.0 / h] * 3
-    scale[a] = frame.cells / (frame.n_a * h)
+    stretch = [1.0] * 3
+    stretch[a] = frame.cells / frame.n_a
     shift = [0.0] * 3
     shift[a] = 0.5
-    bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool, double=True, scale=scale, shift=shift,
+    bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool, double=True, stretch=stretch, shift=shift,
                                    name=f"vox_{tag}", stage=f"transform{suffix}")
     setup = pool.get(f"setup_{tag}", bufs.n_triangles * 48, what="per-triangle setup", clear=False)
     prog = compute_program(ctx, "eisemann/setup.comp", {"EIS_AXIS": a, "EIS_OP": 0, "EIS_COVERAGE": 0})

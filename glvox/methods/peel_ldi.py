@@ -24,6 +24,7 @@ from ..errors import MethodError
 from ..gl.shaders import compute_program
 from ..gpu.buffers import buffer_pool, check_buffer_size, mesh_buffers
 from ..gpu.dispatch import barrier, dispatch_1d, grid_uniforms, set_uniforms
+from ..gpu.transform import SNAP_DEFINES
 from ..results.ldi import LDI
 from .base import Method, MethodInfo, Option, Requirements, register
 from .depth_raster import RasterPass, depth_target, peel_behind, stencil_layers, tile_origins, tile_side
@@ -79,7 +80,7 @@ class _Peeling:
         self.bufs = mesh_buffers(ctx, mesh)
         self.uniforms = grid_uniforms(rays.spec, self.bufs.anchor)
         self.count_prog = compute_program(ctx, "ldi/peel_count.comp")
-        self.record = compute_program(ctx, "ldi/peel_record.comp", {"EIS_AXIS": rays.axis})
+        self.record = compute_program(ctx, "ldi/peel_record.comp", {"EIS_AXIS": rays.axis, **SNAP_DEFINES})
         set_uniforms(self.count_prog, {"u_stencil": 0})
         set_uniforms(self.record, {"u_layer": 0, "u_axis": rays.axis, "u_grid_uv": (rays.n_u, rays.n_v),
                                    "u_depth_n": rays.n_a, "u_origin_d": self.uniforms["u_origin_d"],

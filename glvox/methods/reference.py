@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..grid import snap_to_planes
 from ..reference import conservative_surface, six_separating_surface, solid, solid_ties, surface_ties
 from ..reference.ldi import crossings
 from ..results.ldi import LDI, close_odd
@@ -22,17 +23,23 @@ _SS = "Schwarz & Seidel 2010"
 
 
 class _CpuReference(Method):
-    """Voxel-space triangles in float64, then one reference function; ``ties``
-    gives the tie set of that function's definition."""
+    """Voxel-space triangles in float64 (snapped, as every method sees them), then
+    one reference function; ``ties(tris, dims, eps)`` gives the tie set of that
+    function's definition, and with ``ties_see_unsnapped`` it also gets the
+    triangles before the snap (``unsnapped=``, for the coordinates the GPU may
+    snap otherwise: :func:`glvox.reference.ties.snap_ambiguous`)."""
 
     has_ties = True
+    ties_see_unsnapped = False
 
     @staticmethod
-    def ties(tris, dims, eps):
+    def ties(tris, dims, eps, **unsnapped):
         raise NotImplementedError
 
     def tie_set(self, mesh, spec, eps):
-        return self.ties(mesh.triangles_voxel(spec), spec.dims, eps)
+        raw = spec.world_to_voxel(mesh.triangles())
+        extra = {"unsnapped": raw} if self.ties_see_unsnapped else {}
+        return self.ties(snap_to_planes(raw), spec.dims, eps, **extra)
 
     @staticmethod
     def compute(tris, dims, **options):
@@ -55,7 +62,9 @@ class ReferenceConservative(_CpuReference):
         reference="reference-conservative",
     )
     compute = staticmethod(conservative_surface)
-    ties = staticmethod(lambda tris, dims, eps: surface_ties(tris, dims, "conservative", eps))
+    ties = staticmethod(lambda tris, dims, eps, unsnapped=None: surface_ties(tris, dims, "conservative", eps,
+                                                                             unsnapped))
+    ties_see_unsnapped = True
 
 
 @register
@@ -67,7 +76,8 @@ class Reference6Sep(_CpuReference):
         reference="reference-6sep",
     )
     compute = staticmethod(six_separating_surface)
-    ties = staticmethod(lambda tris, dims, eps: surface_ties(tris, dims, "6sep", eps))
+    ties = staticmethod(lambda tris, dims, eps, unsnapped=None: surface_ties(tris, dims, "6sep", eps, unsnapped))
+    ties_see_unsnapped = True
 
 
 @register
@@ -81,6 +91,7 @@ class ReferenceSolid(_CpuReference):
     )
     compute = staticmethod(solid)
     ties = staticmethod(solid_ties)
+    ties_see_unsnapped = True
 
 
 @register

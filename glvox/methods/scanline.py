@@ -53,6 +53,7 @@ from ..errors import LimitError
 from ..gl.shaders import compute_program
 from ..gpu.buffers import buffer_pool, mesh_buffers, read_grid_words
 from ..gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set_uniforms
+from ..gpu.transform import SNAP_DEFINES, gpu_vertices_voxel
 from ..reference.scanline import (ILV_BOUNDARY_SNAP, ILV_COORD_LIMIT, RLV_BOUNDARY_SNAP, SCANLINE_SLACK,
                                   TUNNELS)
 from ..results.voxels import VoxelGrid
@@ -76,18 +77,13 @@ _TUNNEL_OPTION = Option(26, "26: the paper's 26-tunnel-free cover; 18, 6: thinne
 def gpu_voxel_coords(mesh, spec) -> np.ndarray:
     """The triangles in voxel space exactly as the shader computes them, (T, 3, 3).
 
-    float32 ``(v - (origin - anchor)) * (1 / h)`` on the float32 vertices of
-    :meth:`glvox.mesh.Mesh.gpu_arrays` (the shader marks this ``precise``),
-    returned as float64 holding those float32 values.  Feeding them to
+    The one world -> voxel transform of every GPU method with its plane snap
+    (:func:`glvox.gpu.transform.gpu_vertices_voxel`), returned as float64
+    holding the float32 values.  Feeding them to
     :func:`glvox.reference.scanline.scanline_surface` reproduces the GPU's ILV
     result exactly.
     """
-    v32, faces = mesh.gpu_arrays()
-    u = grid_uniforms(spec, mesh.anchor)
-    origin = np.asarray(u["u_origin"], dtype=np.float32)
-    inv_h = np.float32(u["u_inv_h"])
-    vox = (v32 - origin) * inv_h
-    return vox[faces].astype(np.float64)
+    return gpu_vertices_voxel(mesh, spec)[mesh.faces].astype(np.float64)
 
 
 def simd_lanes(ctx) -> int:
@@ -112,7 +108,7 @@ class _Scanline(Method):
         defines = {"LINE_MODE": _MODES[self.mode], "TUNNEL": int(tunnel), "PASS": pass_,
                    "LOCAL_SIZE": _LOCAL if pass_ == 0 else 1, "SCANLINE_SLACK": float(SCANLINE_SLACK),
                    "ILV_COORD_LIMIT": int(ILV_COORD_LIMIT), "ILV_BOUNDARY_SNAP": float(ILV_BOUNDARY_SNAP),
-                   "RLV_BOUNDARY_SNAP": float(RLV_BOUNDARY_SNAP)}
+                   "RLV_BOUNDARY_SNAP": float(RLV_BOUNDARY_SNAP), **SNAP_DEFINES}
         return compute_program(ctx, "scanline/voxelize.comp", defines)
 
     def release(self, ctx) -> None:

@@ -14,24 +14,32 @@ Solids (:mod:`.solid`)
     :func:`solid` (parity of crossings along an axis, top-left fill rule).
 Ties (:mod:`.ties`)
     :func:`surface_ties`, :func:`solid_ties`, :func:`mismatch_is_tie`,
-    :func:`orientation_ambiguous` and the tolerance :data:`TIE_EPS`.
+    :func:`orientation_ambiguous`, :func:`rounding_perturbation`, :func:`snap_ambiguous`
+    and the tolerance :data:`TIE_EPS`.
+
+The triangles are snapped (:meth:`glvox.mesh.Mesh.triangles_voxel`, the plane
+snap of :func:`glvox.grid.snap_to_planes` that every method applies).
 """
 
 from .solid import solid
 from .surface import conservative_surface, conservative_surface_sat, six_separating_surface
-from .ties import (TIE_EPS, float32_motion, mismatch_is_tie, orientation_ambiguous, point_triangle_distance,
-                   short_edges, solid_ties, surface_ties)
+from .ties import (TIE_EPS, flat_axes, float32_motion, mismatch_is_tie, orientation_ambiguous,
+                   point_triangle_distance, rounding_perturbation, short_edges, snap_ambiguous, solid_ties,
+                   surface_ties)
 
 __all__ = [
     "TIE_EPS",
     "conservative_surface",
     "conservative_surface_sat",
+    "flat_axes",
     "float32_motion",
     "mismatch_is_tie",
     "orientation_ambiguous",
     "point_triangle_distance",
+    "rounding_perturbation",
     "short_edges",
     "six_separating_surface",
+    "snap_ambiguous",
     "solid",
     "solid_ties",
     "surface_ties",

@@ -9,10 +9,11 @@ Three formulations of two criteria:
 - :func:`six_separating_surface`: the thinner 6-separating criterion of S&S
   Sec. 3.4.
 
-Voxel ``(i, j, k)`` is tested as the axis-aligned cube centered at
+Voxel ``(i, j, k)`` is tested as the axis-aligned box centered at
 ``(i+.5, j+.5, k+.5)`` with half-size ``half`` (0.5 is the voxel itself; the
-tie sets of :mod:`glvox.reference.ties` use ``0.5 +/- TIE_EPS``).  All
-comparisons are inclusive, so boxes that merely touch a triangle count.
+tie sets of :mod:`glvox.reference.ties` use ``0.5 +/- TIE_EPS``, per triangle
+and axis).  All comparisons are inclusive, so boxes that merely touch a
+triangle count.
 
 Zero-area triangles (which callers normally drop) are harmless: with a zero
 normal the plane test of Eq. 1 always passes and the 2D edge tests with
@@ -29,6 +30,20 @@ import numpy as np
 
 from ._candidates import (bbox_candidates, check_dims, check_half, check_tris, normals,
                           pruned_candidates, scatter)
+
+
+
+def _halves(half, n_tris: int) -> np.ndarray:
+    """``half`` as (T, 3) float64 half-sizes per triangle and axis (a float: the same
+    for all), each positive and finite."""
+    if np.ndim(half) == 0:
+        return np.full((n_tris, 3), check_half(half))
+    h = np.asarray(half, dtype=np.float64)
+    if h.shape != (n_tris, 3):
+        raise ValueError(f"half must be a float or a (T, 3) array with T = {n_tris}, got shape {h.shape}")
+    if not (np.isfinite(h).all() and (h > 0.0).all()):
+        raise ValueError("half must be positive and finite on every axis")
+    return h
 
 # Projection planes as (a, b, w): the 2D axes and the axis normal to them, in
 # cyclic order so that n_w is the signed area of the projection in (a, b).
@@ -58,12 +73,13 @@ def _edge_normals(tris: np.ndarray, n: np.ndarray, flip: np.ndarray | None = Non
 
 
 def _planar_test(tris: np.ndarray, n: np.ndarray, o1: np.ndarray, o2: np.ndarray,
-                 ne: np.ndarray, oe: np.ndarray, shift: float,
+                 ne: np.ndarray, oe: np.ndarray, shift: np.ndarray, halves: np.ndarray,
                  no_plane: np.ndarray | None = None, no_proj: np.ndarray | None = None) -> Test:
     """Per-pair test shared by both S&S criteria.
 
-    With ``x = ijk + shift`` (the box's minimum corner for the conservative
-    test, its center for the 6-separating one) the pair passes iff
+    With ``x = ijk + shift`` (``shift`` (T, 3) per triangle and axis: the
+    box's minimum corner for the conservative test, its center for the
+    6-separating one) the pair passes iff
     ``s = <n, x - v0>`` has ``(s + o1)(s + o2) <= 0`` (Eq. 1) and
     ``<n_e, x_ab - v_i,ab> + o_e >= 0`` for all 9 projected edges (Eq. 3).
     This is Eq. 1-3 with the paper's ``d = -<n, v> + offset`` split so that
@@ -72,11 +88,23 @@ def _planar_test(tris: np.ndarray, n: np.ndarray, o1: np.ndarray, o2: np.ndarray
     ``<n, v>`` and ``<n, x>``, so that, e.g., a box touching a triangle that
     lies on a voxel plane is found exactly (as the separating-axis test finds
     it).  Pairs are dropped as soon as one test fails.
+
+    The bounding-box part of the test is the candidate set (voxels whose box
+    of the largest half-size in ``halves`` meets the triangle's bounding box);
+    where the half-sizes differ between triangles or axes, the box of each
+    pair's own half-size is checked against the bounding box too.
     """
+    lo_t, hi_t = tris.min(axis=1), tris.max(axis=1)
+    uneven = halves.size > 0 and halves.min() != halves.max()
+
     def test(tri: np.ndarray, ijk: np.ndarray) -> np.ndarray:
         keep = np.arange(len(tri))
-        x = ijk + shift
         t = tri
+        if uneven:
+            c, r = ijk + 0.5, halves[t]
+            ok = ((c + r >= lo_t[t]) & (c - r <= hi_t[t])).all(axis=1)
+            keep, ijk, t = keep[ok], ijk[ok], t[ok]
+        x = ijk + shift[t]
         s = np.einsum("ij,ij->i", n[t], x - tris[t, 0])
         lo = s + o1[t]
         hi = s + o2[t]
@@ -101,6 +129,18 @@ def _planar_test(tris: np.ndarray, n: np.ndarray, o1: np.ndarray, o2: np.ndarray
     return test
 
 
+def _edge_shift(shift, n_tris: int) -> np.ndarray:
+    s = np.asarray(shift, dtype=np.float64)
+    if s.shape != (n_tris, 3, 3) or not np.isfinite(s).all():
+        raise ValueError(f"edge_shift must be a finite (T, 3, 3) array with T = {n_tris}, got shape {s.shape}")
+    return s
+
+
+def _pad(halves: np.ndarray) -> float:
+    """The candidates' half-size: the largest of ``halves`` (a superset for the others)."""
+    return float(halves.max()) if halves.size else 0.5
+
+
 def _run(tris: np.ndarray, dims: tuple[int, int, int],
          candidates: Iterator[tuple[np.ndarray, np.ndarray]], test: Test) -> np.ndarray:
     out = np.zeros(dims, dtype=bool)
@@ -109,7 +149,8 @@ def _run(tris: np.ndarray, dims: tuple[int, int, int],
     return out
 
 
-def conservative_surface(tris: np.ndarray, dims: Sequence[int], half: float = 0.5, *,
+def conservative_surface(tris: np.ndarray, dims: Sequence[int], half: float | np.ndarray = 0.5, *,
+                         edge_shift: np.ndarray | None = None,
                          flip: np.ndarray | None = None,
                          no_plane: np.ndarray | None = None,
                          no_proj: np.ndarray | None = None) -> np.ndarray:
@@ -135,9 +176,15 @@ def conservative_surface(tris: np.ndarray, dims: Sequence[int], half: float = 0.
         grid; voxels outside are clipped.
     dims : (3,) int
         Grid size ``(nx, ny, nz)``.
-    half : float
-        Half-size of the box tested for each voxel, in voxels.  0.5 is the
-        voxel itself; ``0.5 +/- TIE_EPS`` gives the tie sets.
+    half : float or (T, 3) float64
+        Half-size of the box tested for each voxel, in voxels, or one per
+        triangle and axis.  0.5 is the voxel itself; ``0.5 +/- TIE_EPS`` on
+        the axes that rounding can move gives the tie sets.
+    edge_shift : (T, 3, 3) float64, optional
+        Move the lines of the marked projected edges (yz, zx, xy; edges
+        v0v1, v1v2, v2v0) outwards by this much (inwards when negative), in
+        voxels along the edge normal's largest component; only the tie sets
+        use it (slanted edges of a triangle lying in a voxel plane).
     flip : (T, 3) bool, optional
         Invert the orientation of the marked projections (yz, zx, xy) of the
         marked triangles; only the tie sets use it (see
@@ -156,20 +203,26 @@ def conservative_surface(tris: np.ndarray, dims: Sequence[int], half: float = 0.
     """
     tris = check_tris(tris)
     dims = check_dims(dims)
-    half = check_half(half)
-    dp = 2.0 * half
+    halves = _halves(half, len(tris))
+    dp = 2.0 * halves  # box extent per triangle and axis
     n = normals(tris)
     # <n, c> and <n, dp - c> for the critical point c of Eq. 1.
-    o1 = dp * np.maximum(n, 0.0).sum(axis=1)
-    o2 = dp * np.minimum(n, 0.0).sum(axis=1)
+    o1 = (dp * np.maximum(n, 0.0)).sum(axis=1)
+    o2 = (dp * np.minimum(n, 0.0)).sum(axis=1)
     ne = _edge_normals(tris, n, flip)
     # Eq. 2 without the -<n_e, v_i> term: the most interior box corner.
-    oe = np.maximum(0.0, dp * ne[..., 0]) + np.maximum(0.0, dp * ne[..., 1])
-    test = _planar_test(tris, n, o1, o2, ne, oe, 0.5 - half, no_plane, no_proj)
-    return _run(tris, dims, pruned_candidates(tris, dims, half), test)
+    oe = np.empty(ne.shape[:3])
+    for p, (a, b, _) in enumerate(_PLANES):
+        oe[:, p] = (np.maximum(0.0, dp[:, a, None] * ne[:, p, :, 0])
+                    + np.maximum(0.0, dp[:, b, None] * ne[:, p, :, 1]))
+    if edge_shift is not None:
+        oe += _edge_shift(edge_shift, len(tris)) * np.abs(ne).max(axis=-1)
+    test = _planar_test(tris, n, o1, o2, ne, oe, 0.5 - halves, halves, no_plane, no_proj)
+    return _run(tris, dims, pruned_candidates(tris, dims, _pad(halves)), test)
 
 
-def six_separating_surface(tris: np.ndarray, dims: Sequence[int], half: float = 0.5, *,
+def six_separating_surface(tris: np.ndarray, dims: Sequence[int], half: float | np.ndarray = 0.5, *,
+                           edge_shift: np.ndarray | None = None,
                            flip: np.ndarray | None = None,
                            no_plane: np.ndarray | None = None,
                          no_proj: np.ndarray | None = None) -> np.ndarray:
@@ -194,9 +247,12 @@ def six_separating_surface(tris: np.ndarray, dims: Sequence[int], half: float = 
         Triangle vertices in voxel space.
     dims : (3,) int
         Grid size ``(nx, ny, nz)``.
-    half : float
-        Half the voxel extent ``Delta p / 2`` used by the criterion, in voxels.
-    flip, no_plane, no_proj : optional
+    half : float or (T, 3) float64
+        Half the voxel extent ``Delta p / 2`` used by the criterion, in
+        voxels, or one per triangle and axis: the plane test uses the
+        normal's dominant axis, each edge test the dominant axis of its
+        edge normal.
+    edge_shift, flip, no_plane, no_proj : optional
         As in :func:`conservative_surface` (tie sets only).
 
     Returns
@@ -205,15 +261,24 @@ def six_separating_surface(tris: np.ndarray, dims: Sequence[int], half: float = 
     """
     tris = check_tris(tris)
     dims = check_dims(dims)
-    half = check_half(half)
+    halves = _halves(half, len(tris))
     n = normals(tris)
     # Offsets of Sec. 3.4 relative to the box center: +/- half |n_dom| for the
-    # plane, half * max(|n_e,a|, |n_e,b|) for the edges.
-    t = half * np.abs(n).max(axis=1)
+    # plane, half * max(|n_e,a|, |n_e,b|) for the edges (half along the
+    # dominant axis of each normal).
+    absn = np.abs(n)
+    rows = np.arange(len(tris))
+    t = halves[rows, np.argmax(absn, axis=1)] * absn.max(axis=1)
     ne = _edge_normals(tris, n, flip)
-    oe = half * np.abs(ne).max(axis=-1)
-    test = _planar_test(tris, n, t, -t, ne, oe, 0.5, no_plane, no_proj)
-    return _run(tris, dims, pruned_candidates(tris, dims, half), test)
+    ane = np.abs(ne)
+    oe = np.empty(ne.shape[:3])
+    for p, (a, b, _) in enumerate(_PLANES):
+        h = np.where(ane[:, p, :, 0] >= ane[:, p, :, 1], halves[:, a, None], halves[:, b, None])
+        oe[:, p] = h * ane[:, p].max(axis=-1)
+    if edge_shift is not None:
+        oe += _edge_shift(edge_shift, len(tris)) * ane.max(axis=-1)
+    test = _planar_test(tris, n, t, -t, ne, oe, np.full_like(halves, 0.5), halves, no_plane, no_proj)
+    return _run(tris, dims, pruned_candidates(tris, dims, _pad(halves)), test)
 
 
 def conservative_surface_sat(tris: np.ndarray, dims: Sequence[int], half: float = 0.5) -> np.ndarray:

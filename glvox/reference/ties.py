@@ -5,9 +5,18 @@ references in float64.  A mismatch between them is acceptable only where it
 is proven to be a tie (DESIGN.md, "Ties"):
 
 - surfaces: the voxel's verdict changes when the tested box half-size goes
-  from ``0.5 - TIE_EPS`` to ``0.5 + TIE_EPS``;
+  from ``0.5 - TIE_EPS`` to ``0.5 + TIE_EPS``, along the axes where rounding
+  can move the triangle (:func:`rounding_perturbation`);
 - solids: the voxel's verdict can change when the mesh moves by at most
   ``TIE_EPS``.
+
+Every method and reference sees the vertices snapped to the voxel face and
+center planes (:func:`glvox.grid.snap_to_planes`), so a triangle lying in a
+voxel plane with its coordinates on those planes is decided exactly by the
+float32 GPU methods and the float64 references alike: such geometry yields no
+ties.  What rounding can still decide is the snap itself for a coordinate
+within rounding of the snap distance (:func:`snap_ambiguous`); given the
+unsnapped coordinates, the tie sets add what that changes.
 """
 
 from __future__ import annotations
@@ -16,21 +25,119 @@ from typing import Literal, Sequence
 
 import numpy as np
 
-from ..tolerances import SHORT_EDGE_MOTIONS, TIE_EPS
+from ..tolerances import SHORT_EDGE_MOTIONS, SNAP_EPS, TIE_EPS
 from ._candidates import check_dims, check_tris, pruned_candidates, scatter
 from .surface import conservative_surface, six_separating_surface
 
 
+def flat_axes(tris: np.ndarray) -> np.ndarray:
+    """(T, 3) bool: the axes ``c`` along which a triangle's three coordinates are equal
+    (the triangle lies in the plane ``x_c = const``).  Equal float64 coordinates stay
+    equal in float32, so such a triangle's normal has exact zeros on both sides."""
+    tris = check_tris(tris)
+    return (tris[:, 0] == tris[:, 1]) & (tris[:, 1] == tris[:, 2])
+
+
+def rounding_perturbation(tris: np.ndarray, eps: float = TIE_EPS) -> tuple[np.ndarray, np.ndarray]:
+    """Where rounding can move a snapped triangle relative to the voxels, as box half-size
+    perturbations per axis and edge shifts: ``(half (T, 3), edge (T, 3, 3))``, each 0 or eps.
+
+    A slanted triangle: every axis (DESIGN.md's definition).  A triangle lying in a
+    plane ``x_c = const`` (:func:`flat_axes`) is decided exactly, by float32 and float64
+    alike, except where a coordinate is off the snap planes: its verdicts turn where
+    the plane or an extreme coordinate meets a voxel face plane, or where one of its
+    slanted edges passes a voxel corner.  After the snap a coordinate is on a plane
+    (a multiple of 1/2: exact in float32, and every test multiplies it by the exact
+    zeros of the normal or by small integers) or farther than SNAP_EPS (> eps) from
+    every plane; so only an axis with a coordinate within ``2 eps`` of a voxel face
+    plane but not on it is perturbed (unsnapped input), and in the triangle's own
+    projection each slanted edge with an end coordinate off the snap planes is
+    shifted.  A face on a voxel plane, its edges on voxel lines, its corners on
+    voxel corners: no ties.
+
+    Parameters
+    ----------
+    tris : (T, 3, 3) float64
+        Voxel-space triangles (snapped, as every method sees them).
+    eps : float
+        The perturbation, voxels.
+
+    Returns
+    -------
+    half : (T, 3) float64
+        Box half-size perturbation per triangle and axis (0 or ``eps``), for
+        ``half=0.5 +/- half`` of the reference surface functions.
+    edge : (T, 3, 3) float64
+        Edge shifts per triangle, projection (yz, zx, xy) and edge (0 or
+        ``eps``), for their ``edge_shift=+/- edge``.
+    """
+    tris = check_tris(tris)
+    flat = flat_axes(tris).any(axis=1)
+    off = np.abs(tris - np.round(tris))  # distance to the nearest voxel face plane
+    near = ((off > 0.0) & (off <= 2.0 * eps)).any(axis=1)
+    half = np.where(flat[:, None] & ~near, 0.0, eps)
+    edge = np.zeros((len(tris), 3, 3))
+    on_planes = np.floor(2.0 * tris) == 2.0 * tris  # (T, 3 vertices, 3 axes)
+    e = np.roll(tris, -1, axis=1) - tris
+    exact_ends = on_planes & np.roll(on_planes, -1, axis=1)  # per edge (from vertex i) and axis
+    for p, (a, b, w) in enumerate(((1, 2, 0), (2, 0, 1), (0, 1, 2))):
+        mine = flat & flat_axes(tris)[:, w]
+        slanted = (e[:, :, a] != 0.0) & (e[:, :, b] != 0.0)
+        inexact = ~(exact_ends[:, :, a] & exact_ends[:, :, b])
+        edge[:, p] = np.where(mine[:, None] & slanted & inexact, eps, 0.0)
+    return half, edge
+
+
+def snap_ambiguous(unsnapped: np.ndarray, dims: Sequence[int]) -> np.ndarray:
+    """(T, 3, 3) bool: coordinates whose snap the GPU's rounding could decide otherwise.
+
+    The GPU snaps its own value of a coordinate, computed in double from the
+    float32 upload relative to the mesh's center: within 2^-25 of the model's
+    extent (in voxels) of the float64 one.  A coordinate whose distance to the
+    nearest multiple of 1/2 is within four times that (or of ``2^-23 N`` for a
+    grid of N voxels, whichever is larger) of ``SNAP_EPS`` may be snapped on
+    one side and not on the other.
+
+    Parameters
+    ----------
+    unsnapped : (T, 3, 3) float64
+        Voxel-space triangles before :func:`glvox.grid.snap_to_planes` (the
+        whole mesh: its extent sets the rounding).
+    dims : (3,) int
+    """
+    u = check_tris(unsnapped)
+    extent = float(np.ptp(u.reshape(-1, 3), axis=0).max()) if len(u) else 0.0
+    motion = 2.0 ** -23 * max(extent, max(int(d) for d in dims))
+    d = np.abs(u - np.floor(2.0 * u + 0.5) * 0.5)
+    return np.abs(d - SNAP_EPS) <= motion
+
+
+def _other_snap(tris: np.ndarray, unsnapped: np.ndarray, amb: np.ndarray) -> np.ndarray:
+    """``tris`` with each ambiguous coordinate snapped the other way."""
+    r = np.floor(2.0 * unsnapped + 0.5) * 0.5
+    other = np.where(np.abs(unsnapped - r) <= SNAP_EPS, unsnapped, r)
+    return np.where(amb, other, tris)
+
+
+def _check_unsnapped(unsnapped, tris: np.ndarray) -> np.ndarray:
+    u = check_tris(unsnapped)
+    if u.shape != tris.shape:
+        raise ValueError(f"unsnapped must have the shape of tris {tris.shape}, got {u.shape}")
+    return u
+
+
 def surface_ties(tris: np.ndarray, dims: Sequence[int],
                  criterion: Literal["conservative", "6sep"] = "conservative",
-                 eps: float = TIE_EPS) -> np.ndarray:
-    """Voxels whose surface verdict differs between box half-sizes ``0.5 - eps`` and ``0.5 + eps``,
-    or with the orientation of a nearly edge-on projection.
+                 eps: float = TIE_EPS, unsnapped: np.ndarray | None = None) -> np.ndarray:
+    """Voxels whose surface verdict differs between box half-sizes ``0.5 - eps`` and ``0.5 + eps``
+    along the inexact axes, or with the orientation of a nearly edge-on projection.
 
     Both criteria are monotone in the half-size (a larger box or cross only
     meets more), so the first part is the set accepted at ``0.5 + eps`` but
     not at ``0.5 - eps``: voxels that a triangle touches or misses by at most
-    about ``eps`` voxel (DESIGN.md's definition).  The second part extends it
+    about ``eps`` voxel (DESIGN.md's definition), perturbed only where rounding
+    can move the triangle (:func:`rounding_perturbation`: a face on a voxel
+    plane touches both layers exactly, no tie).  The second part extends it
     to what the float32 copy of the mesh on the GPU can legitimately change:
     for a projection whose orientation is ambiguous under an ``eps`` motion of
     the vertices (:func:`orientation_ambiguous`), the voxels whose verdict
@@ -42,16 +149,22 @@ def surface_ties(tris: np.ndarray, dims: Sequence[int],
     without that projection's test.  A float32 result that differs from the float64
     reference only on these voxels is correct up to rounding.
 
+    Given ``unsnapped``, a triangle with a :func:`snap_ambiguous` coordinate
+    adds the voxels whose verdict differs between its two snaps, and the
+    ties of the other snap.
+
     Parameters
     ----------
     tris : (T, 3, 3) float64
-        Triangle vertices in voxel space.
+        Triangle vertices in voxel space, snapped (:meth:`glvox.mesh.Mesh.triangles_voxel`).
     dims : (3,) int
         Grid size ``(nx, ny, nz)``.
     criterion : {'conservative', '6sep'}
         :func:`conservative_surface` or :func:`six_separating_surface`.
     eps : float
         Half-size perturbation, in voxels; 0 < eps < 0.5.
+    unsnapped : (T, 3, 3) float64, optional
+        The same triangles before the snap.
 
     Returns
     -------
@@ -63,8 +176,23 @@ def surface_ties(tris: np.ndarray, dims: Sequence[int],
     if not 0.0 < eps < 0.5:
         raise ValueError(f"eps must be in (0, 0.5) voxel, got {eps!r}")
     f = funcs[criterion]
-    ties = f(tris, dims, 0.5 + eps) ^ f(tris, dims, 0.5 - eps)
     tris = check_tris(tris)
+    ties = _rounding_ties(f, tris, dims, criterion, eps)
+    if unsnapped is not None:
+        amb = snap_ambiguous(_check_unsnapped(unsnapped, tris), dims)
+        some = amb.any(axis=(1, 2))
+        if some.any():
+            mine = tris[some]
+            other = _other_snap(mine, np.asarray(unsnapped, np.float64)[some], amb[some])
+            ties |= f(mine, dims, 0.5) ^ f(other, dims, 0.5)
+            ties |= _rounding_ties(f, other, dims, criterion, eps)
+    return ties
+
+
+def _rounding_ties(f, tris: np.ndarray, dims, criterion: str, eps: float) -> np.ndarray:
+    """:func:`surface_ties` without the snap: half-size (and edge), orientation and short-edge ties."""
+    half, edge = rounding_perturbation(tris, eps)
+    ties = f(tris, dims, 0.5 + half, edge_shift=edge) ^ f(tris, dims, 0.5 - half, edge_shift=-edge)
     _add_orientation_ties(ties, f, tris, dims, criterion, eps)
     if criterion == "6sep":
         _add_short_edge_ties(ties, f, tris, dims, eps)
@@ -73,8 +201,14 @@ def surface_ties(tris: np.ndarray, dims: Sequence[int],
 
 def _add_orientation_ties(ties: np.ndarray, f, tris: np.ndarray, dims, criterion: str, eps: float) -> None:
     """Orientation ties, into ``ties``: where a projection's orientation is ambiguous
-    under an eps motion of the vertices, every voxel whose verdict depends on it."""
+    under an eps motion of the vertices, every voxel whose verdict depends on it.
+    A triangle lying in a plane ``x_c = const`` has ``n_w = 0`` exactly in the other
+    two projections, in float32 and float64 alike (its ``c`` coordinates are equal
+    numbers on both sides): those orientations are not ambiguous."""
     amb = orientation_ambiguous(tris, eps)
+    flat = (tris[:, 0] == tris[:, 1]) & (tris[:, 1] == tris[:, 2])  # (T, 3): the plane's axis c
+    # projection p (yz, zx, xy) is along axis p; it is edge-on when the triangle is flat along another axis
+    amb &= ~(flat.any(axis=1, keepdims=True) & ~flat)
     some = amb.any(axis=1)
     if not some.any():
         return
@@ -217,7 +351,8 @@ def point_triangle_distance(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
     return np.where(inside, np.minimum(plane, d), d)
 
 
-def solid_ties(tris: np.ndarray, dims: Sequence[int], eps: float = TIE_EPS) -> np.ndarray:
+def solid_ties(tris: np.ndarray, dims: Sequence[int], eps: float = TIE_EPS,
+               unsnapped: np.ndarray | None = None) -> np.ndarray:
     """Voxels whose solid verdict can change when the mesh moves by at most ``eps``.
 
     These are exactly the voxels whose center lies within Euclidean distance
@@ -240,14 +375,24 @@ def solid_ties(tris: np.ndarray, dims: Sequence[int], eps: float = TIE_EPS) -> n
     its plane; the point/triangle distances are computed for those candidate
     pairs only, a plane-distance test first.
 
+    A face snapped onto a voxel face plane leaves every center half a voxel
+    away; one snapped onto a center plane puts centers exactly on it, where
+    the half-open and top-left rules decide, and those depend on the ray
+    direction (a method along another axis than its reference legitimately
+    differs there): they stay ties.  Given ``unsnapped``, the triangles with a
+    :func:`snap_ambiguous` coordinate add the centers within the snap's motion
+    of them.
+
     Parameters
     ----------
     tris : (T, 3, 3) float64
-        Triangle vertices in voxel space.
+        Triangle vertices in voxel space, snapped (:meth:`glvox.mesh.Mesh.triangles_voxel`).
     dims : (3,) int
         Grid size ``(nx, ny, nz)``.
     eps : float
         Largest motion of the mesh, in voxels; 0 < eps < 0.5.
+    unsnapped : (T, 3, 3) float64, optional
+        The same triangles before the snap.
 
     Returns
     -------
@@ -257,6 +402,18 @@ def solid_ties(tris: np.ndarray, dims: Sequence[int], eps: float = TIE_EPS) -> n
     dims = check_dims(dims)
     if not 0.0 < eps < 0.5:
         raise ValueError(f"eps must be in (0, 0.5) voxel, got {eps!r}")
+    out = _near_surface(tris, dims, eps)
+    if unsnapped is not None:
+        some = snap_ambiguous(_check_unsnapped(unsnapped, tris), dims).any(axis=(1, 2))
+        if some.any():
+            # the other snap moves a vertex by at most SNAP_EPS + rounding per coordinate
+            motion = np.sqrt(3.0) * (SNAP_EPS + float32_motion(dims))
+            out |= _near_surface(tris[some], dims, eps + motion)
+    return out
+
+
+def _near_surface(tris: np.ndarray, dims: tuple[int, int, int], eps: float) -> np.ndarray:
+    """Voxels whose center lies within Euclidean distance ``eps`` of a triangle."""
     n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
     nlen = np.linalg.norm(n, axis=1)
     out = np.zeros(dims, dtype=bool)

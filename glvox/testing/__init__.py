@@ -23,6 +23,10 @@ trimesh and glvox.batch, which this package does not import):
   a folder of small meshes with deliberately broken files (:data:`~glvox.testing.datasets.BROKEN`);
 * :mod:`glvox.testing.crash`: :class:`~glvox.testing.crash.CrashingTask`, a
   batch task that kills its own worker process on chosen meshes.
+
+And :mod:`glvox.testing.cells`: boxes, L-shapes and stairs made of lattice
+cells, with their exact conservative surfaces and parity solids computed from
+the breakpoints alone (numpy only).
 """
 
 from .harness import run_compute, run_fragment

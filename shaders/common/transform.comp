@@ -1,20 +1,24 @@
 #version 450
 // Schwarz & Seidel Sec. 6: every method first transforms the vertices to voxel
 // space (once per run; the later stages only read the result):
-// p = (v - origin) * scale - shift, in double.  scale is 1/h on every axis for
-// the voxel grid; the LDI (Leung & Wang Sec. III-A) counts LOD-C cells along
-// its rays and shifts them by half a cell (ldi/cells.glsl has why).
+// p = vertex_to_voxel(v) * stretch - shift, in double.  vertex_to_voxel is the
+// one world -> voxel transform with the plane snap (common/snap.glsl); the LDI
+// (Leung & Wang Sec. III-A) stretches its ray axis into LOD-C cells and shifts
+// them by half a cell (ldi/cells.glsl has why), after the snap, so it snaps in
+// voxel space like everyone else.
 //
-// VOX_DOUBLE 0: float32 out, one rounding at the end (ss-*, scanline):
-// float32 arithmetic would add up to ~1e-4 voxel of rounding at 1024^3, as
-// much as the tie tolerance.  VOX_DOUBLE 1: double out (eisemann-*, ldi), so
-// the only rounding of the mesh left is its float32 upload relative to the
-// anchor (eisemann/column.glsl has the precision argument).
+// VOX_DOUBLE 0: float32 out, one rounding at the end (ss-*): float32
+// arithmetic would add up to ~1e-4 voxel of rounding at 1024^3, as much as the
+// tie tolerance.  VOX_DOUBLE 1: double out (eisemann-*, ldi), so the only
+// rounding of the mesh left is its float32 upload relative to the anchor
+// (eisemann/column.glsl has the precision argument).
 uniform dvec3 u_origin_d;  // grid origin relative to the mesh anchor, world units
-uniform dvec3 u_scale_d;
+uniform double u_inv_h_d;
+uniform dvec3 u_stretch_d;
 uniform dvec3 u_shift_d;
 layout(local_size_x = 256) in;
 #include "common/dispatch.glsl"
+#include "common/snap.glsl"
 #if VOX_DOUBLE
 #define VOX_T double
 #else
@@ -26,8 +30,8 @@ uniform uint u_vertices;
 void main() {
     uint i = global_index_1d();
     if (i >= u_vertices) return;
-    dvec3 p = (dvec3(verts[3u * i], verts[3u * i + 1u], verts[3u * i + 2u]) - u_origin_d) * u_scale_d
-              - u_shift_d;
+    vec3 w = vec3(verts[3u * i], verts[3u * i + 1u], verts[3u * i + 2u]);
+    dvec3 p = vertex_to_voxel(w, u_origin_d, u_inv_h_d) * u_stretch_d - u_shift_d;
     vox[3u * i] = VOX_T(p.x);
     vox[3u * i + 1u] = VOX_T(p.y);
     vox[3u * i + 2u] = VOX_T(p.z);

@@ -91,5 +91,10 @@ int eis_to_int(double x) { return int(clamp(x, -2.0, 1073741824.0)); }
 // First slice a crossing at q flips: voxel k flips iff its center k + 0.5 > q.
 int eis_first_flipped(double q) { return eis_to_int(floor(q + 0.5)); }
 
-// The slice holding the crossing point (the voxel whose [k, k+1] contains q).
-int eis_slice_of(double q) { return eis_to_int(floor(q)); }
+// The slice holding the crossing point (the voxel whose [k, k+1] contains q;
+// a crossing on the face k belongs to slice k).  On the grid's far face (q = n,
+// n slices) it belongs to the last slice, the one voxel inside the grid that the
+// face touches: geometry on the grid's boundary planes is voxelized like geometry
+// inside, so a face there (the default fit puts the bounding box on them) keeps
+// its wall.
+int eis_slice_of(double q, int n) { return q == double(n) ? n - 1 : eis_to_int(floor(q)); }

@@ -59,7 +59,7 @@ void main() {
 #if EIS_OP == 0
     ivec2 slices = ivec2(eis_first_flipped(a_lo), 1073741824);
 #else
-    ivec2 slices = ivec2(eis_slice_of(a_lo), eis_slice_of(a_hi));
+    ivec2 slices = ivec2(eis_slice_of(a_lo, u_dims[EIS_AXIS]), eis_slice_of(a_hi, u_dims[EIS_AXIS]));
 #endif
     EisSetup s;
     s.slices = slices;

@@ -10,6 +10,7 @@
 
 uniform ivec2 u_tile_lo;
 uniform int u_slice_lo;
+uniform int u_axis_n;  // slices of the whole grid along EIS_AXIS
 
 flat in uint v_tri;
 
@@ -28,7 +29,7 @@ void main() {
     if (first >= EIS_SLICES) discard;  // XOR with zeros
     eis_write_suffix(first);
 #else
-    int s = eis_slice_of(q) - u_slice_lo;
+    int s = eis_slice_of(q, u_axis_n) - u_slice_lo;
     if (s < 0 || s >= EIS_SLICES) discard;
     eis_write_bit(s);
 #endif

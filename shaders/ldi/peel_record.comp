@@ -2,7 +2,7 @@
 // Depth-peeling LDI: record one peeled layer (depth/raster.frag's RGBA32UI layer: key bits,
 // triangle id, first voxel beyond, valid) as the layer's depth in voxel units.  The depth is
 // recomputed from the triangle id in double exactly as depth/raster.frag computes it (the
-// same float32 voxel-space vertices as depth/raster.vert, the plane at the pixel center,
+// same snapped float32 voxel-space vertices as depth/raster.vert, the plane at the pixel center,
 // clamped to the triangle's extent), then clamped to the grid [0, n_axis] and rounded to
 // float32.  Peeling orders crossings by (float32 key, triangle id); crossings whose keys
 // tie can come out of depth order by less than a key step, so each ray keeps the running
@@ -10,6 +10,7 @@
 layout(local_size_x = 8, local_size_y = 8) in;
 #include "depth/view.glsl"
 #include "ldi/pixels.glsl"
+#include "common/snap.glsl"
 
 uniform usampler2D u_layer;
 uniform ivec2 u_tile_origin;
@@ -26,8 +27,8 @@ layout(std430, binding = 3) buffer Last { float last[]; };               // per 
 layout(std430, binding = 6) buffer Counts { uint counts[]; };
 
 vec3 vertex(uint vi) {
-    dvec3 p = dvec3(verts[3u * vi], verts[3u * vi + 1u], verts[3u * vi + 2u]);
-    return to_view(vec3((p - u_origin_d) * u_inv_h_d));
+    vec3 p = vec3(verts[3u * vi], verts[3u * vi + 1u], verts[3u * vi + 2u]);
+    return to_view(vec3(vertex_to_voxel(p, u_origin_d, u_inv_h_d)));
 }
 
 void main() {

@@ -15,6 +15,7 @@
 //               (constants of the CPU module)
 #include "common/bits.glsl"
 #include "common/voxel_space.glsl"
+#include "common/snap.glsl"
 
 layout(local_size_x = LOCAL_SIZE) in;
 
@@ -30,12 +31,14 @@ uniform uint u_budget;  // loop iterations this invocation may charge (budget.gl
 #include "scanline/budget.glsl"
 #include "scanline/lines.glsl"
 
-// Vertex i in voxel space.  `precise`: no contraction, so the CPU can repeat
-// this float32 arithmetic exactly (glvox.methods.scanline.gpu_voxel_coords).
+// Vertex i in voxel space: the one transform of every method (double, plane
+// snap, then float32: common/snap.glsl), which the CPU repeats exactly
+// (glvox.methods.scanline.gpu_voxel_coords).
+uniform dvec3 u_origin_d;
+uniform double u_inv_h_d;
 vec3 vertex(uint i) {
     vec3 p = vec3(verts[3u * i], verts[3u * i + 1u], verts[3u * i + 2u]);
-    precise vec3 v = (p - u_origin) * u_inv_h;
-    return v;
+    return vec3(vertex_to_voxel(p, u_origin_d, u_inv_h_d));
 }
 
 // Largest |n| component; ties prefer z, then y, then x.
