@@ -9,12 +9,15 @@ from .dispatch import barrier, dispatch_1d, set_uniforms
 
 
 def transform_vertices(ctx, mesh, spec, timer, pool, *, double: bool = False, scale=None, shift=(0.0, 0.0, 0.0),
-                       name: str | None = None, stage: str = "transform"):
+                       name: str | None = None, stage: str = "transform", axes=(0, 1, 2)):
     """Stage ``transform`` (S&S Sec. 6): the mesh's vertices in voxel space,
     ``(v - origin) * scale - shift`` computed in double (``common/transform.comp``).
 
     ``scale`` defaults to ``1 / h`` on every axis; ``double`` keeps the result
-    in double instead of rounding it to float32 once.  Returns ``(bufs, vox)``:
+    in double instead of rounding it to float32 once.  ``axes``: output
+    coordinate c is voxel-space coordinate ``axes[c]``, so ``(1, 2, 0)`` gives
+    the mesh in a frame whose x is the grid's y (``spec`` stays the
+    unpermuted grid; scale and shift apply before the permutation).  Returns ``(bufs, vox)``:
     the mesh's :class:`MeshBuffers` and a pooled buffer (``name``) of x, y, z
     per vertex, ready for the next stage.
     """
@@ -27,7 +30,7 @@ def transform_vertices(ctx, mesh, spec, timer, pool, *, double: bool = False, sc
     prog = compute_program(ctx, "common/transform.comp", {"VOX_DOUBLE": int(double)})
     set_uniforms(prog, {"u_origin_d": tuple(float(x) for x in spec.origin - bufs.anchor),
                         "u_scale_d": tuple(float(x) for x in scale), "u_shift_d": tuple(float(x) for x in shift),
-                        "u_vertices": bufs.n_vertices})
+                        "u_vertices": bufs.n_vertices, "u_axes": tuple(int(a) for a in axes)})
     with timer.stage(stage):
         bufs.vertices.bind_to_storage_buffer(0)
         vox.bind_to_storage_buffer(1)

@@ -98,6 +98,11 @@ class MethodInfo:
         ties); False for approximate-by-design methods.
     requires : Requirements
     options : mapping of str to Option
+    any_mesh : bool
+        True for solid methods whose inside is defined for any mesh (open,
+        multi-part, self-intersecting): the run envelope lets them run on
+        meshes that are not watertight without ``allow_open`` and without a
+        warning.
     """
 
     name: str
@@ -109,6 +114,7 @@ class MethodInfo:
     exact: bool = True
     requires: Requirements = field(default_factory=Requirements)
     options: Mapping[str, Option] = field(default_factory=dict)
+    any_mesh: bool = False
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
@@ -124,6 +130,7 @@ class MethodInfo:
         return {
             "name": self.name, "kind": self.kind, "family": self.family, "paper": self.paper,
             "summary": self.summary, "reference": self.reference, "exact": self.exact,
+            "any_mesh": self.any_mesh,
             "requires": {"gl_version": self.requires.gl_version,
                          "extensions": list(self.requires.extensions),
                          "limits": dict(self.requires.limits)},

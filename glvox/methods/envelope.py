@@ -31,13 +31,14 @@ def _what(info: MethodInfo) -> str:
 
 def check_inputs(info: MethodInfo, meshes: Sequence[Any], spec: GridSpec, allow_open: bool) -> None:
     """The checks done before any work: dense size, closed meshes for inside kinds
-    (a warning when ``allow_open`` lets an open one through)."""
+    (a warning when ``allow_open`` lets an open one through) unless the method's
+    inside is defined for any mesh (``info.any_mesh``)."""
     if info.kind != "sparse" and spec.n_voxels > MAX_VOXELS:
         raise LimitError(
             f"method {info.name!r} returns a dense grid, and {spec.dims} has {spec.n_voxels} voxels, more "
             f"than the {MAX_VOXELS} glvox keeps dense; use a smaller grid or the sparse ss-octree"
         )
-    if info.kind not in INSIDE_KINDS:
+    if info.kind not in INSIDE_KINDS or info.any_mesh:
         return
     for mesh in meshes:
         if mesh.watertight:

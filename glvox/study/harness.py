@@ -308,7 +308,7 @@ def _not_run(plan: Plan, c: Contender, mesh, n: int) -> str | None:
             return (f"N = {n} over this peer's limit {limit} (--peer-max {c.peer}=N runs it; see "
                     "glvox/study/peers.py for why)")
     elif c.method is not None and not plan.open_solids and not mesh.watertight \
-            and get_method(c.method).info.kind in INSIDE_KINDS:
+            and get_method(c.method).info.kind in INSIDE_KINDS and not get_method(c.method).info.any_mesh:
         return "mesh not watertight: inside is undefined for a solid method"
     return None
 
