@@ -16,7 +16,7 @@ import numpy as np
 from scipy import ndimage
 
 from .grid import pack_bits, unpack_bits
-from .methods import get_method, method_infos, run_method
+from .methods import get_method, method_infos, run_method, validate_options
 from .reference import TIE_EPS
 from .results.voxels import Comparison, VoxelGrid
 
@@ -50,12 +50,15 @@ class ReferenceCheck:
                 + (f" (first: {self.unexplained[:5].tolist()})" if len(self.unexplained) else ""))
 
 
-def tie_set(reference: str, mesh, spec, eps: float = TIE_EPS) -> np.ndarray:
-    """Dense (nx, ny, nz) bool tie set of ``reference`` for ``mesh`` on ``spec``."""
+def tie_set(reference: str, mesh, spec, eps: float = TIE_EPS, **options) -> np.ndarray:
+    """Dense (nx, ny, nz) bool tie set of ``reference`` for ``mesh`` on ``spec``
+    (``options``: the reference's own, for a reference run with them)."""
     method = get_method(reference)
     if not method.has_ties:
         known = sorted(i.name for i in method_infos() if get_method(i.name).has_ties)
         raise ValueError(f"no tie set is defined for {reference!r}; known: {known}")
+    if options:
+        return method.tie_set(mesh, spec, eps, **validate_options(method.info, options))
     return method.tie_set(mesh, spec, eps)
 
 

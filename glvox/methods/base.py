@@ -173,11 +173,13 @@ class Method:
     #: True for references that define :meth:`tie_set`.
     has_ties: ClassVar[bool] = False
 
-    def tie_set(self, mesh, spec, eps: float) -> np.ndarray:
+    def tie_set(self, mesh, spec, eps: float, **options) -> np.ndarray:
         """Dense (nx, ny, nz) bool: the voxels whose verdict under this method's
         definition is a proven tie (DESIGN.md, "Ties") for ``mesh`` on ``spec``,
-        with tolerance ``eps`` voxel.  Defined by the exact references
-        (:attr:`has_ties`), which results are checked against."""
+        with tolerance ``eps`` voxel and the method's ``options`` (validated, for
+        references whose definition has options, e.g. ``reference-carve``'s
+        ``close``).  Defined by the exact references (:attr:`has_ties`), which
+        results are checked against."""
         raise ValueError(f"no tie set is defined for {self.info.name!r}")
 
     def release(self, ctx) -> None:

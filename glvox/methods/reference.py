@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..reference import conservative_surface, six_separating_surface, solid, solid_ties, surface_ties
+from ..reference.carve import MAX_CLOSE, carve_ties, carved_solid
 from ..reference.ldi import crossings
 from ..results.ldi import LDI, close_odd
 from ..results.voxels import VoxelGrid
@@ -81,6 +82,30 @@ class ReferenceSolid(_CpuReference):
     )
     compute = staticmethod(solid)
     ties = staticmethod(solid_ties)
+
+
+#: carve-solid's and reference-carve's ``close`` option (one definition: the two
+#: are compared with the same value).
+CLOSE_OPTION = Option(0, "first seal gaps of up to this many empty voxels between surface voxels (a "
+                         f"morphological closing by a box of side close + 1; 0 to {MAX_CLOSE})",
+                      tuple(range(MAX_CLOSE + 1)))
+
+
+@register
+class ReferenceCarve(_CpuReference):
+    info = MethodInfo(
+        name="reference-carve", kind="solid", family="cpu",
+        paper="exterior carving (DESIGN.md's carved solid, binvox-style): a 6-connected flood fill "
+              f"(scipy.ndimage.label) around the exact conservative surface of {_SS}, Sec. 3.1",
+        summary="exact carved solid: every voxel not 6-connected to the grid boundary outside the "
+                "conservative surface (closed first with close=K), surface included",
+        reference="reference-carve", any_mesh=True,
+        options={"close": CLOSE_OPTION},
+    )
+    compute = staticmethod(carved_solid)
+
+    def tie_set(self, mesh, spec, eps, close=0):
+        return carve_ties(mesh.triangles_voxel(spec), spec.dims, close, eps)
 
 
 @register
