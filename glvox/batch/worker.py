@@ -62,6 +62,7 @@ def voxelize_one(job: Job, settings: BatchSettings) -> dict[str, Any]:
             result = run_method(settings.method, mesh, spec, backend=settings.backend,
                                 allow_open=settings.allow_open, **dict(settings.options))
         run = result.run
+        row["method"] = run.method  # an alias (-m solid) records the method it ran
         row["warnings"] = "; ".join(str(w.message) for w in caught)
         row["voxels"] = run.stats.get("voxels", "")
         gpu = run.timings.gpu_s

@@ -170,6 +170,12 @@ class Method:
         """
         raise NotImplementedError
 
+    def resolve(self, mesh) -> str:
+        """The registry name of the method that runs on ``mesh``: this one's, except
+        for aliases that pick a method by the mesh (``solid``); :func:`run_method`
+        runs that one and records it in the run info."""
+        return self.info.name
+
     #: True for references that define :meth:`tie_set`.
     has_ties: ClassVar[bool] = False
 

@@ -175,13 +175,16 @@ class References:
             self.seconds += time.perf_counter() - t0
         return self._refs[key]
 
-    def ties(self, name: str) -> np.ndarray:
-        """The tie set of the reference ``name``, packed like :meth:`words`."""
-        if name not in self._ties:
+    def ties(self, name: str, options: tuple = ()) -> np.ndarray:
+        """The tie set of the reference ``name`` (run with ``options``), packed like :meth:`words`."""
+        # a ray axis does not change a solid's tie set (the voxels near the surface)
+        own = tuple((k, v) for k, v in options if k != "axis")
+        key = (name, own)
+        if key not in self._ties:
             t0 = time.perf_counter()
-            self._ties[name] = pack_bits(tie_set(name, self.mesh, self.spec))
+            self._ties[key] = pack_bits(tie_set(name, self.mesh, self.spec, **dict(own)))
             self.seconds += time.perf_counter() - t0
-        return self._ties[name]
+        return self._ties[key]
 
 
 def reference_of(c: Contender, mesh) -> tuple[str | None, tuple]:
@@ -193,11 +196,13 @@ def reference_of(c: Contender, mesh) -> tuple[str | None, tuple]:
     """
     if c.is_peer:
         return get_peer(c.peer).reference, ()
-    info = get_method(c.method).info
+    info = get_method(get_method(c.method).resolve(mesh)).info  # an alias: the method it runs
     if info.reference == "reference-solid" and not mesh.watertight and "axis" in info.options:
         axis = dict(c.options).get("axis", info.options["axis"].default)
         return info.reference, (("axis", int(axis)),)
-    return info.reference, ()
+    # other options the reference shares define the same thing there (carve's close)
+    ref_options = get_method(info.reference).info.options
+    return info.reference, tuple((k, v) for k, v in c.options if k in ref_options and k != "axis")
 
 
 # ---------------------------------------------------------------------------
@@ -357,7 +362,7 @@ def _finish_row(plan: Plan, row: dict[str, Any], r: _Contestant, refs: Reference
     if ref is not None and plan.checks(row["n"]):
         progress(f"{row['mesh']} {row['n']}^3: checking {r.c.key} against {ref}")
         row["reference"] = ref + (f"[{','.join(f'{k}={v}' for k, v in ref_opts)}]" if ref_opts else "")
-        row.update(agreement(words, refs.words(ref, ref_opts), refs.ties(ref)))
+        row.update(agreement(words, refs.words(ref, ref_opts), refs.ties(ref, ref_opts)))
     for analyse in analyses:
         analyse(row, grid, refs)
 
