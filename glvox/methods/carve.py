@@ -13,7 +13,8 @@ Pipeline, all on the GPU until the final readback:
 * ``transform``, ``classify``, ``voxelize``: ss-conservative's surface
   (:func:`glvox.methods.ss_surface.surface_on_gpu`, the same passes and buffers);
 * ``close`` (close > 0): three dilations and three erosions along x, y and z
-  (``carve/close.comp``);
+  (``carve/close.comp``) on a copy of the grid padded with empty voxels
+  (``carve/pad.comp``), so the grid's border neither seals nor opens a gap;
 * ``flood``: rounds of sweeps along x, y and z (``carve/sweep.comp``): the
   first x sweep seeds the free voxels on the grid's boundary, every sweep
   fills the free runs along its axis that hold an exterior voxel, forward and
@@ -32,6 +33,7 @@ import numpy as np
 from ..gl.shaders import compute_program
 from ..gpu.buffers import buffer_pool, mesh_buffers, read_grid_words
 from ..gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set_uniforms
+from ..grid import GridSpec
 from ..reference.carve import close_window
 from ..results.voxels import VoxelGrid
 from .base import Method, MethodInfo, Requirements, register
@@ -56,9 +58,10 @@ _REQUIRES = Requirements(gl_version=430, limits={"GL_MAX_SHADER_STORAGE_BUFFER_B
                                                  "GL_MAX_COMPUTE_WORK_GROUP_SIZE": 256})
 
 
-def surface_slices(spec, bufs, margin: int) -> tuple[int, int]:
-    """``(k0, nk)``: the z slices of ``spec`` that can hold a voxel of the surface of
-    the mesh of ``bufs`` grown by ``margin`` voxels (the closing's reach).
+def surface_slices(spec, bufs) -> tuple[int, int]:
+    """``(k0, nk)``: the z slices of ``spec`` that can hold a voxel of the conservative
+    surface of the mesh of ``bufs``, hence of its closing (a closing by a box stays in
+    the set's bounding box) and of its carved solid.
 
     A triangle touches voxel k only if its z range meets [k, k + 1]; one more
     slice each way covers the GPU's float32 rounding of the vertices.
@@ -68,29 +71,52 @@ def surface_slices(spec, bufs, margin: int) -> tuple[int, int]:
     nz = spec.dims[2]
     if not (np.isfinite(z0) and np.isfinite(z1)):
         return 0, nz
-    k0 = int(max(np.floor(z0) - 2 - margin, 0))
-    k1 = int(min(np.floor(z1) + 1 + margin, nz - 1))
+    k0 = int(max(np.floor(z0) - 2, 0))
+    k1 = int(min(np.floor(z1) + 1, nz - 1))
     return (k0, k1 - k0 + 1) if k1 >= k0 else (0, 0)
 
 
-def close_on_gpu(ctx, spec, timer, surface, scratch, k: int) -> None:
+def padded_spec(spec, k: int) -> GridSpec:
+    """The grid the closing runs on: one word more on each side along x, ``hi`` voxels
+    along y and z (:func:`close_window`; the dilation reaches ``lo <= hi`` voxels past
+    the border, where the erosion reads it): ``carve/pad.comp``'s layout."""
+    m = close_window(k)[1]
+    _, ny, nz = spec.dims
+    return GridSpec((32 * (spec.words_per_row + 2), ny + 2 * m, nz + 2 * m), (0, 0, 0), 1.0)
+
+
+def close_on_gpu(ctx, spec, timer, pool, surface, k: int) -> None:
     """Stage ``close``: ``surface`` := its closing by a box of side ``k + 1``
-    (:func:`glvox.reference.carve.close`), ``scratch`` a buffer of the same size."""
+    (:func:`glvox.reference.carve.close`), computed on a padded grid (pool buffers
+    ``padded`` and ``padded_tmp``) so that the grid's border plays no part."""
     lo, hi = close_window(k)
-    uniforms = {**grid_uniforms(spec, np.zeros(3)), "u_lo": lo, "u_hi": hi}
-    src, dst = surface, scratch
+    pspec = padded_spec(spec, k)
+    a = pool.get("padded", pspec.n_words * 4, what=f"the {pspec.dims} padded grid of the closing", clear=False)
+    b = pool.get("padded_tmp", pspec.n_words * 4, what=f"the {pspec.dims} padded grid of the closing",
+                 clear=False)
+    pad = [compute_program(ctx, "carve/pad.comp", {"UNPAD": u}) for u in (0, 1)]
+    for p in pad:
+        set_uniforms(p, {**grid_uniforms(spec, np.zeros(3)), "u_margin": hi})
+    uniforms = {**grid_uniforms(pspec, np.zeros(3)), "u_lo": lo, "u_hi": hi}
     with timer.stage("close"):
+        surface.bind_to_storage_buffer(0)
+        a.bind_to_storage_buffer(1)
+        dispatch_1d(ctx, pad[0], pspec.n_words, _LOCAL)
+        barrier(ctx)
+        src, dst = a, b
         for erode in (0, 1):
             for axis in range(3):
                 prog = compute_program(ctx, "carve/close.comp", {"AXIS": axis, "ERODE": erode})
                 set_uniforms(prog, uniforms)
                 src.bind_to_storage_buffer(0)
                 dst.bind_to_storage_buffer(1)
-                dispatch_1d(ctx, prog, spec.n_words, _LOCAL)
+                dispatch_1d(ctx, prog, pspec.n_words, _LOCAL)
                 barrier(ctx)
                 src, dst = dst, src
-    # six passes: the closing ends in the buffer it started in
-    assert src is surface
+        surface.bind_to_storage_buffer(0)
+        src.bind_to_storage_buffer(1)
+        dispatch_1d(ctx, pad[1], spec.n_words, _LOCAL)
+        barrier(ctx)
 
 
 def flood_on_gpu(ctx, spec, timer, blocker, ext, flags) -> int:
@@ -141,10 +167,10 @@ class CarveSolid(Method):
         surface, _ = surface_on_gpu(ctx, mesh, spec, timer, pool)
         ext = pool.get("exterior", spec.n_words * 4, what=f"the {spec.dims} exterior grid")
         if close:
-            close_on_gpu(ctx, spec, timer, surface, pool.get("scratch", spec.n_words * 4, clear=False), close)
+            close_on_gpu(ctx, spec, timer, pool, surface, close)
         flags = pool.get("flags", 4)
         rounds = flood_on_gpu(ctx, spec, timer, surface, ext, flags)
-        k0, nk = surface_slices(spec, mesh_buffers(ctx, mesh), max(close_window(close)))
+        k0, nk = surface_slices(spec, mesh_buffers(ctx, mesh))
         per_slice = spec.dims[1] * spec.words_per_row
         count = pool.get("count", 4)
         finish = compute_program(ctx, "carve/finish.comp")

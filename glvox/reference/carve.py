@@ -58,11 +58,12 @@ def close(surface: np.ndarray, k: int) -> np.ndarray:
     """Morphological closing of ``surface`` by a box of side ``k + 1`` (separable, axis by axis).
 
     Dilation: ``D[p] = OR of S[p + d]`` over d in ``[-lo, hi]^3``
-    (:func:`close_window`), nothing beyond the grid; erosion: ``C[p] = AND of
-    D[p + d]`` over d in ``[-hi, lo]^3`` (the reflected window), everything
-    beyond the grid counted as set, so ``C`` contains ``S`` and the grid's
-    border does not eat into it.  Seals every gap of at most ``k`` empty
-    voxels between surface voxels (and concave notches as narrow).
+    (:func:`close_window`); erosion: ``C[p] = AND of D[p + d]`` over d in
+    ``[-hi, lo]^3`` (the reflected window), so ``C`` contains ``S``.  Both as
+    if the grid went on for ever, empty beyond its border (geometry beyond it
+    is clipped): the border neither seals a gap nor opens one.  Seals every
+    gap of at most ``k`` empty voxels between surface voxels (and concave
+    notches as narrow).
 
     Parameters
     ----------
@@ -76,10 +77,12 @@ def close(surface: np.ndarray, k: int) -> np.ndarray:
     """
     if not 0 <= k <= MAX_CLOSE:
         raise ValueError(f"close must be in [0, {MAX_CLOSE}] voxels, got {k!r}")
-    out = np.array(surface, dtype=bool)
     if k == 0:
-        return out
+        return np.array(surface, dtype=bool)
     lo, hi = close_window(k)
+    # D reaches lo beyond the upper border and hi below the lower one, where the
+    # erosion of a voxel in the grid reads it: a margin of hi (>= lo) holds all of it
+    out = np.pad(np.asarray(surface, dtype=bool), hi)
     for axis in range(3):
         grown = np.zeros_like(out)
         for d in range(-lo, hi + 1):
@@ -90,7 +93,7 @@ def close(surface: np.ndarray, k: int) -> np.ndarray:
         for d in range(-hi, lo + 1):
             kept &= _shifted(out, axis, d, True)
         out = kept
-    return out
+    return out[hi:-hi, hi:-hi, hi:-hi]
 
 
 def exterior(blocker: np.ndarray) -> np.ndarray:
