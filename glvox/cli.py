@@ -1,4 +1,4 @@
-"""Command line: ``glvox info | methods | voxelize | batch | ldi | volume | compare | bench``.
+"""Command line: ``glvox info | methods | voxelize | batch | ldi | volume | compare | bench | inspect``.
 
 Errors glvox raises on purpose print one line ``glvox: error: ...`` and exit
 with status 1 (2 for wrong usage, as argparse does); never a traceback.
@@ -23,6 +23,7 @@ from ._version import __version__
 from .errors import GlvoxError
 from .gl.context import get_context
 from .grid import grid_for
+from .inspect import inspect_mesh
 from .mesh import load_mesh
 from .methods import DEFAULT_METHOD, get_method, method_infos, run_method
 from .methods.leung_wang import overlap_bounds, overlap_grid, run_intersection
@@ -255,6 +256,15 @@ def cmd_volume(args) -> int:
     return 0
 
 
+def cmd_inspect(args) -> int:
+    """``glvox inspect``: the defects of a mesh (glvox.inspect.MeshReport)."""
+    if args.resolution is not None and args.resolution < 1:
+        raise GlvoxError(f"-r/--resolution must be a positive number of voxels, got {args.resolution}")
+    report = inspect_mesh(args.mesh, args.resolution, backend=args.backend)
+    print(json.dumps(report.to_dict(), indent=2) if args.json else report.format())
+    return 0
+
+
 def cmd_compare(args) -> int:
     # imported here for start-up time: the study's runner, tables and plots are
     # needed by this command alone (its options come from the light study.options)
@@ -387,6 +397,20 @@ def build_parser() -> argparse.ArgumentParser:
     pvol.add_argument("--allow-open", action="store_true", help="meshes that are not watertight (parity)")
     _add_output_arguments(pvol, "print the volume, counts and timings as JSON")
     pvol.set_defaults(func=cmd_volume)
+
+    pin = sub.add_parser(
+        "inspect", help="report a mesh's defects: components, holes, non-manifold edges, orientation, ...",
+        description="Triangles, connected components, boundary and non-manifold edges, duplicate and "
+                    "degenerate faces, winding consistency, orientation (signed volume) and an estimate of "
+                    "self-intersections of MESH; with -r N also the share of the solid whose generalized "
+                    "winding number lies within 0.1 of the threshold on the N^3 grid (how ambiguous a "
+                    "solid of it is).")
+    pin.add_argument("mesh")
+    pin.add_argument("-r", "--resolution", type=int, default=None,
+                     help="also measure the uncertain share on the N^3 grid (GPU winding numbers)")
+    pin.add_argument("--backend", choices=["egl", "osmesa", "auto"], default=None)
+    pin.add_argument("--json", action="store_true", help="print the report as JSON")
+    pin.set_defaults(func=cmd_inspect)
 
     pc = sub.add_parser(
         "compare", help="run methods x meshes x grid sizes: tables, plots and pictures",
