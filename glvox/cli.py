@@ -150,7 +150,7 @@ def cmd_batch(args) -> int:
         method=args.method, resolution=args.resolution,
         dims=tuple(args.dims) if args.dims is not None else None, voxel_size=args.voxel_size,
         padding=args.padding, tight=args.tight, options=tuple(sorted(options.items())),
-        allow_open=args.allow_open, backend=args.backend, fmt=args.format)
+        allow_open=args.allow_open, backend=args.backend, fmt=args.format, inspect=args.inspect)
 
     def on_term(signum, frame):  # batch schedulers stop jobs with SIGTERM: keep the manifest
         raise KeyboardInterrupt
@@ -354,6 +354,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="run on an existing Dask cluster (e.g. tcp://host:8786) instead of a local one")
     pb.add_argument("--overwrite", action="store_true", help="redo meshes whose output exists")
     pb.add_argument("--manifest", help="manifest CSV path (default OUTPUT/manifest.csv)")
+    pb.add_argument("--inspect", action="store_true",
+                    help="also report each mesh's defects (glvox inspect) in the manifest's extra columns")
     pb.add_argument("--suffix", action="append", metavar="SUFFIX",
                     help="mesh suffix to search for (repeatable; default: every format trimesh loads)")
     _add_output_arguments(pb, "print the summary as JSON", "no progress bar, messages or summary")

@@ -18,16 +18,17 @@ from typing import Any, Callable
 
 from ..errors import GlvoxError
 from ..grid import grid_for
+from ..inspect import inspect_mesh
 from ..mesh import load_mesh
 from ..methods import run_method
 from .atomic import atomic_save
 from .jobs import BatchSettings, Job
-from .manifest import base_row, now
+from .manifest import INSPECT_COLUMNS, base_row, now
 
 #: What handles one mesh: ``task(job, settings)`` returns its manifest row.
 Task = Callable[[Job, BatchSettings], dict[str, Any]]
 
-_DOING = {"load": "loading", "voxelize": "voxelizing", "save": "saving"}
+_DOING = {"load": "loading", "voxelize": "voxelizing", "save": "saving", "inspect": "inspecting"}
 
 
 def voxelize_one(job: Job, settings: BatchSettings) -> dict[str, Any]:
@@ -69,6 +70,10 @@ def voxelize_one(job: Job, settings: BatchSettings) -> dict[str, Any]:
         row["gpu_s"] = gpu if gpu is not None else ""
         row["cold"] = run.timings.cold
         marks["voxelize"] = time.perf_counter()
+        if settings.inspect:  # before the save: a mesh that fails here leaves no output
+            stage = "inspect"
+            row.update(inspect_row(mesh, spec, result, settings))
+            marks["inspect"] = time.perf_counter()
         stage = "save"
         atomic_save(result, job.output)
         marks["save"] = time.perf_counter()
@@ -79,13 +84,20 @@ def voxelize_one(job: Job, settings: BatchSettings) -> dict[str, Any]:
         row.update(status="failed", reason=type(exc).__name__,
                    error=f"unexpected {type(exc).__name__} while {_DOING[stage]} {job.rel}: {exc}")
     prev = t0
-    for name in ("load", "voxelize", "save"):
+    for name in ("load", "voxelize", "inspect", "save"):
         if name in marks:
             row[f"{name}_s"] = marks[name] - prev
             prev = marks[name]
     row["total_s"] = time.perf_counter() - t0
     row["finished"] = now()
     return row
+
+
+def inspect_row(mesh, spec, result, settings: BatchSettings) -> dict[str, Any]:
+    """The manifest's ``--inspect`` columns for ``mesh`` (voxelized into ``result`` on ``spec``)."""
+    report = inspect_mesh(mesh)
+    fields = report.to_dict()
+    return {c: fields[c] for c in INSPECT_COLUMNS if fields.get(c) is not None}
 
 
 _gl_lock = threading.Lock()
