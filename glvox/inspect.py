@@ -19,9 +19,6 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
-
 from .mesh import Mesh, load_mesh
 
 #: ``uncertain_share`` counts voxels whose winding number lies within this of
@@ -180,6 +177,10 @@ def count_components(face_edge: np.ndarray, uses: np.ndarray) -> int:
     """Parts of the mesh connected through manifold edges (edges of exactly two faces),
     as trimesh splits a mesh: bodies that only touch along a non-manifold edge, and
     copies of a face, are parts of their own."""
+    # lazy: scipy.sparse takes a few tenths of a second to import, which `import glvox` should not pay
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
     n_faces, n_edges = len(face_edge), len(uses)
     # a bipartite graph faces <-> manifold edges: two faces are joined iff they share one
     manifold = uses[face_edge.ravel()] == 2

@@ -48,27 +48,42 @@ PICTURE_MAX = 128
 
 
 def compare_plan(methods: Sequence[str], meshes: Sequence[str], sizes: Sequence[int], repeat: int = 5,
-                 check_max: int | None = CHECK_MAX, cpu_max: int | None = None) -> Plan:
+                 check_max: int | None = CHECK_MAX, cpu_max: int | None = None, *,
+                 reference: str | None = None, open_solids: bool = False) -> Plan:
     """The plan of ``glvox compare``: ``methods`` (registered names) on resolved ``meshes``.
 
     Every timed run counts (no time budget); solid, sparse and LDI methods
-    are skipped on open meshes, where inside is undefined.
+    are skipped on open meshes, where inside is undefined, unless
+    ``open_solids`` (they then run with ``allow_open``) or they are defined
+    for any mesh.  ``reference``: every method is checked against it (the
+    open-mesh study) instead of its own.
     """
     return Plan(meshes=list(meshes), sizes=sorted(set(sizes)), contenders=[Contender.of_method(m) for m in methods],
-                repeat=repeat, check_max=check_max, cpu_max=cpu_max, open_solids=False)
+                repeat=repeat, check_max=check_max, cpu_max=cpu_max, open_solids=open_solids, reference=reference)
+
+
+def preset_methods(preset: dict[str, Any]) -> list[str]:
+    """A preset's methods: its list, else every registered method of its kinds (but its
+    reference), else every registered method."""
+    if preset.get("methods"):
+        return list(preset["methods"])
+    if preset.get("kinds"):
+        return [m for k in preset["kinds"] for m in method_names(kind=k) if m != preset.get("reference")]
+    return method_names()
 
 
 def plan_from(args) -> Plan:
     preset = dict(COMPARE_PRESETS.get(args.preset or "", {}))
-    methods = args.methods or preset.get("methods") or method_names()
+    methods = args.methods or preset_methods(preset)
     meshes = args.meshes or preset.get("meshes")
     sizes = args.sizes or preset.get("sizes")
     if not meshes or not sizes:
-        raise GlvoxError("give --preset quick|paper, or --meshes and -r/--sizes")
+        raise GlvoxError(f"give --preset {'|'.join(sorted(COMPARE_PRESETS))}, or --meshes and -r/--sizes")
     return compare_plan(methods, [resolve_mesh(m) for m in meshes], sizes,
                         repeat=args.repeat or preset.get("repeat", 5),
                         check_max=args.check_max or preset.get("check_max", CHECK_MAX),
-                        cpu_max=preset.get("cpu_max"))
+                        cpu_max=preset.get("cpu_max"), reference=preset.get("reference"),
+                        open_solids=preset.get("open_solids", False))
 
 
 def separability(row: dict[str, Any], grid: VoxelGrid | None, refs: harness.References) -> None:
@@ -205,17 +220,19 @@ def _renders(ctx, plan: Plan, mesh, spec, n: int, stem: str, pic: Path) -> list[
 
 
 def _slices(plan: Plan, mesh, spec, n: int, label: str, stem: str, pic: Path, log) -> list[Path]:
-    """A slice where each approximate method disagrees with its reference."""
+    """A slice where each approximate method disagrees with its reference; with the plan's
+    own reference (the open-mesh study), where any method disagrees with it."""
     paths = []
     for c in plan.contenders:
         info = get_method(c.method).info
-        if info.exact or not info.reference or info.kind not in ("surface", "solid"):
+        reference = plan.reference or info.reference
+        if (info.exact and not plan.reference) or not reference or info.kind not in ("surface", "solid"):
             continue
-        if info.kind == "solid" and not mesh.watertight:
+        if info.kind == "solid" and not mesh.watertight and not (plan.open_solids or info.any_mesh):
             continue
         try:
-            g = run_method(c.method, mesh, spec)
-            ref = run_method(info.reference, mesh, spec, allow_open=True)
+            g = run_method(c.method, mesh, spec, allow_open=plan.open_solids, **dict(c.options))
+            ref = run_method(reference, mesh, spec, allow_open=True)
         except GlvoxError as exc:
             log(f"no slice for {c.method} on {stem}: {exc}")
             continue
@@ -223,10 +240,10 @@ def _slices(plan: Plan, mesh, spec, n: int, label: str, stem: str, pic: Path, lo
             continue  # nothing to show: the method agrees with its reference here
         img, k = disagreement_slice(g, ref)
         cmp = g.compare(ref)
-        title = (f"{label} at {n}^3, slice z = {k}\n{c.method} against {info.reference}: "
+        title = (f"{label} at {n}^3, slice z = {k}\n{c.method} against {reference}: "
                  f"{cmp.n_missing} missing, {cmp.n_extra} extra in the whole grid")
-        paths.append(save_slice_png(img, pic / f"{stem}_slice_{c.method}_vs_{info.reference}_{n}_z{k}.png",
-                                    c.method, info.reference, title))
+        paths.append(save_slice_png(img, pic / f"{stem}_slice_{c.method}_vs_{reference}_{n}_z{k}.png",
+                                    c.method, reference, title))
     return paths
 
 

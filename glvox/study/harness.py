@@ -358,11 +358,12 @@ def _finish_row(plan: Plan, row: dict[str, Any], r: _Contestant, refs: Reference
         return
     words = grid.words()
     row["voxels"] = popcount(words)
-    ref, ref_opts = reference_of(r.c, r.mesh)
+    ref, ref_opts = (plan.reference, ()) if plan.reference else reference_of(r.c, r.mesh)
     if ref is not None and plan.checks(row["n"]):
         progress(f"{row['mesh']} {row['n']}^3: checking {r.c.key} against {ref}")
         row["reference"] = ref + (f"[{','.join(f'{k}={v}' for k, v in ref_opts)}]" if ref_opts else "")
-        row.update(agreement(words, refs.words(ref, ref_opts), refs.ties(ref, ref_opts)))
+        ties = refs.ties(ref, ref_opts) if get_method(ref).has_ties else None
+        row.update(agreement(words, refs.words(ref, ref_opts), ties))
     for analyse in analyses:
         analyse(row, grid, refs)
 
