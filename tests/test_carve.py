@@ -93,7 +93,7 @@ def test_flood_follows_a_corridor_with_many_turns(gl_context):
     assert rounds >= 6, f"12 alternating legs need several rounds, got {rounds}"
 
 
-@pytest.mark.parametrize("dims", [(37, 21, 9), (64, 33, 40), (5, 70, 3)])
+@pytest.mark.parametrize("dims", [(37, 21, 9), (100, 33, 20), (5, 70, 3), (128, 9, 24)])
 def test_flood_and_closing_on_random_blockers(gl_context, dims):
     rng = np.random.default_rng(sum(dims))
     for density in (0.25, 0.45):

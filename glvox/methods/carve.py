@@ -123,12 +123,13 @@ def flood_on_gpu(ctx, spec, timer, blocker, ext, flags) -> int:
     """Stage ``flood``: ``ext`` (cleared) := the voxels joined to the grid's boundary
     by 6-connected paths outside ``blocker``.  Returns the rounds of sweeps run."""
     uniforms = grid_uniforms(spec, np.zeros(3))
-    progs = [compute_program(ctx, "carve/sweep.comp", {"AXIS": a, "SEGMENT": SEGMENT}) for a in range(3)]
-    for p in progs:
-        set_uniforms(p, uniforms)
     nx, ny, nz = spec.dims
     wpr = spec.words_per_row
-    work = [ny * nz, wpr * nz * -(-ny // SEGMENT), wpr * ny * -(-nz // SEGMENT)]
+    vec = 4 if wpr % 4 == 0 else 2 if wpr % 2 == 0 else 1
+    progs = [compute_program(ctx, "carve/sweep.comp", {"AXIS": a, "SEGMENT": SEGMENT, "VEC": vec}) for a in range(3)]
+    for p in progs:
+        set_uniforms(p, uniforms)
+    work = [ny * nz, wpr // vec * nz * -(-ny // SEGMENT), wpr // vec * ny * -(-nz // SEGMENT)]
     zero = np.zeros(1, dtype="<u4").tobytes()
     rounds = 0
     with timer.stage("flood"):

@@ -10,11 +10,11 @@
 //
 // AXIS 0: one invocation per row; within a word the run is filled by a
 // 5-step occluded fill (Kogge-Stone, shifts 1, 2, 4, 8, 16), across words by
-// a carry.  u_seed: the first sweep also makes exterior every free voxel on
-// the grid's boundary.  AXIS 1, 2: one invocation per word column and
-// segment of at most SEGMENT cells (bounding the loop: llvmpipe ends an
-// invocation's loops after 65535 iterations), the 32 voxels of a word
-// moving together; a segment starts from its neighbours' boundary cells as
+// a carry that fills the next word's run from its end bit.  u_seed: the
+// first sweep also makes exterior every free voxel on the grid's boundary.
+// AXIS 1, 2: one invocation per column of VEC words and segment of at most
+// SEGMENT cells (bounding the loop: llvmpipe ends an invocation's loops
+// after 65535 iterations), the voxels of the words moving together; a segment starts from its neighbours' boundary cells as
 // they are (they only grow, so a stale value is just less progress, and the
 // next round sees the rest).  An invocation that adds a voxel sets `changed`.
 #include "common/bits.glsl"
@@ -22,87 +22,131 @@
 #include "carve/grid_words.glsl"
 layout(local_size_x = 64) in;
 #include "common/dispatch.glsl"
-layout(std430, binding = 0) readonly buffer Blocker { uint blocker[]; };
-layout(std430, binding = 1) coherent buffer Exterior { uint ext[]; };
 layout(std430, binding = 2) buffer Flags { uint changed; };
 uniform bool u_seed;
 
-uint free_bits(uint idx, uint w) { return ~blocker[idx] & valid_bits(w); }
+// VEC consecutive words (1, 2 or 4, dividing words_per_row) move together:
+// llvmpipe accesses a buffer lane by lane, so wider accesses mean fewer of them
+#if VEC == 4
+#define WORDS uvec4
+#elif VEC == 2
+#define WORDS uvec2
+#else
+#define WORDS uint
+#endif
+layout(std430, binding = 0) readonly buffer BlockerV { WORDS blocker_v[]; };
+layout(std430, binding = 1) coherent buffer ExteriorV { WORDS ext_v[]; };
+
+// The in-grid bits of the VEC words from word v * VEC on.
+WORDS valid_words(uint v) {
+    WORDS m;
+#if VEC == 1
+    m = valid_bits(v);
+#else
+    for (int c = 0; c < VEC; ++c) m[c] = valid_bits(v * uint(VEC) + uint(c));
+#endif
+    return m;
+}
 
 #if AXIS == 0
+// Component c of a WORDS value (VEC 1: the value).
+#if VEC == 1
+#define AT(x, c) (x)
+#else
+#define AT(x, c) (x)[c]
+#endif
+
 void main() {
-    uint wpr = words_per_row();
+    uint nv = words_per_row() / uint(VEC);
     uint rows = uint(u_dims.y) * uint(u_dims.z);
     uint row = global_index_1d();
     if (row >= rows) return;
     uint j = row % uint(u_dims.y), k = row / uint(u_dims.y);
     bool face = j == 0u || k == 0u || j + 1u == uint(u_dims.y) || k + 1u == uint(u_dims.z);
-    uint base = row * wpr;
+    uint last = words_per_row() - 1u;
+    uint base = row * nv;
     bool grew = false;
+    // forward: each word filled upwards from its seeds (occluded fill, shifts 1 .. 16),
+    // then the runs from bit 0 of the words the run before reached, word by word
     uint carry = 0u;
-    for (uint w = 0u; w < wpr; ++w) {
-        uint f = free_bits(base + w, w);
-        uint e0 = ext[base + w];
-        uint g = e0 | (carry & f & 1u);
+    for (uint v = 0u; v < nv; ++v) {
+        WORDS f = ~blocker_v[base + v] & valid_words(v);
+        WORDS e0 = ext_v[base + v];
+        WORDS g = e0;
         if (u_seed) {
-            uint edge = (w == 0u ? 1u : 0u) | (w + 1u == wpr ? bit_of(uint(u_dims.x - 1)) : 0u);
-            g |= f & (face ? 0xFFFFFFFFu : edge);
+            if (face) g |= f;
+            else {
+                if (v == 0u) AT(g, 0) |= AT(f, 0) & 1u;
+                if (v + 1u == nv) AT(g, VEC - 1) |= AT(f, VEC - 1) & bit_of(uint(u_dims.x - 1));
+            }
         }
-        uint p = f;
+        WORDS p = f;
         g |= p & (g << 1u); p &= p << 1u;
         g |= p & (g << 2u); p &= p << 2u;
         g |= p & (g << 4u); p &= p << 4u;
         g |= p & (g << 8u); p &= p << 8u;
         g |= p & (g << 16u);
-        carry = g >> 31u;
-        if (g != e0) { ext[base + w] = g; grew = true; }
+        for (int c = 0; c < VEC; ++c) {
+            uint fc = AT(f, c);
+            // the free run from bit 0: (lowest blocked bit) - 1, all ones when none is
+            if (carry != 0u) AT(g, c) |= (~fc & (fc + 1u)) - 1u;
+            carry = AT(g, c) >> 31u;
+        }
+        if (g != e0) { ext_v[base + v] = g; grew = true; }
     }
+    // backward: the same downwards, the runs from bit 31 joined word by word
     carry = 0u;
-    for (uint w = wpr; w-- > 0u;) {
-        uint f = free_bits(base + w, w);
-        uint e0 = ext[base + w];
-        uint g = e0 | ((carry << 31u) & f);
-        uint p = f;
+    for (uint v = nv; v-- > 0u;) {
+        WORDS f = ~blocker_v[base + v] & valid_words(v);
+        WORDS e0 = ext_v[base + v];
+        WORDS g = e0;
+        WORDS p = f;
         g |= p & (g >> 1u); p &= p >> 1u;
         g |= p & (g >> 2u); p &= p >> 2u;
         g |= p & (g >> 4u); p &= p >> 4u;
         g |= p & (g >> 8u); p &= p >> 8u;
         g |= p & (g >> 16u);
-        carry = g & 1u;
-        if (g != e0) { ext[base + w] = g; grew = true; }
+        for (int c = VEC - 1; c >= 0; --c) {
+            uint fc = AT(f, c);
+            // the free run down from bit 31: above the highest blocked bit
+            if (carry != 0u) AT(g, c) |= ~fc == 0u ? 0xFFFFFFFFu : mask_from(uint(findMSB(~fc)) + 1u);
+            carry = AT(g, c) & 1u;
+        }
+        if (g != e0) { ext_v[base + v] = g; grew = true; }
     }
     if (grew) changed = 1u;
 }
 #else
 void main() {
     uint wpr = words_per_row();
+    uint nv = wpr / uint(VEC);
     int n = u_dims[AXIS];
     uint segs = (uint(n) + uint(SEGMENT) - 1u) / uint(SEGMENT);
-    // word columns: (w, k) along y, (w, j) along z
-    uint lines = wpr * uint(AXIS == 1 ? u_dims.z : u_dims.y);
+    // columns of VEC words: (v, k) along y, (v, j) along z
+    uint lines = nv * uint(AXIS == 1 ? u_dims.z : u_dims.y);
     uint id = global_index_1d();
     if (id >= lines * segs) return;
     uint line = id % lines, seg = id / lines;
-    uint w = line % wpr, other = line / wpr;
-    uint stride = axis_stride(AXIS);
-    uint first = AXIS == 1 ? (other * uint(u_dims.y)) * wpr + w : other * wpr + w;
+    uint v = line % nv, other = line / nv;
+    uint stride = axis_stride(AXIS) / uint(VEC);
+    uint first = AXIS == 1 ? (other * uint(u_dims.y)) * nv + v : other * nv + v;
     int c0 = int(seg) * SEGMENT, c1 = min(n, c0 + SEGMENT);
-    uint valid = valid_bits(w);
+    WORDS valid = valid_words(v);
     bool grew = false;
-    uint prev = c0 > 0 ? ext[first + uint(c0 - 1) * stride] : 0u;
+    WORDS prev = c0 > 0 ? ext_v[first + uint(c0 - 1) * stride] : WORDS(0u);
     for (int c = c0; c < c1; ++c) {
         uint idx = first + uint(c) * stride;
-        uint e0 = ext[idx];
-        uint g = e0 | (prev & ~blocker[idx] & valid);
-        if (g != e0) { ext[idx] = g; grew = true; }
+        WORDS e0 = ext_v[idx];
+        WORDS g = e0 | (prev & ~blocker_v[idx] & valid);
+        if (g != e0) { ext_v[idx] = g; grew = true; }
         prev = g;
     }
-    prev = c1 < n ? ext[first + uint(c1) * stride] : 0u;
+    prev = c1 < n ? ext_v[first + uint(c1) * stride] : WORDS(0u);
     for (int c = c1 - 1; c >= c0; --c) {
         uint idx = first + uint(c) * stride;
-        uint e0 = ext[idx];
-        uint g = e0 | (prev & ~blocker[idx] & valid);
-        if (g != e0) { ext[idx] = g; grew = true; }
+        WORDS e0 = ext_v[idx];
+        WORDS g = e0 | (prev & ~blocker_v[idx] & valid);
+        if (g != e0) { ext_v[idx] = g; grew = true; }
         prev = g;
     }
     if (grew) changed = 1u;
