@@ -267,3 +267,24 @@ def test_stats_stages_and_options(gl_context):
     assert "close" not in [s.name for s in run_method("carve-solid", mesh, spec).run.timings.stages]
     with pytest.raises(glvox.MethodError, match=r"option close must be one of \[0, 1, .*32\], got 33"):
         run_method("carve-solid", mesh, spec, close=33)
+
+
+@pytest.mark.parametrize("k", [0, 2])
+def test_carve_ties_cover_every_surface_the_ties_allow(k):
+    """The tie set is proven by monotonicity: every surface between S - T and S | T (T the
+    surface ties) carves to the reference except on carve_ties.  A box with its faces on
+    voxel planes and a hole whose edges are too: many ties, some changing the carve."""
+    from glvox.reference.carve import carve as carve_surface, carve_ties
+    from glvox.reference import conservative_surface, surface_ties
+
+    mesh, spec = holed_box(4)
+    tris = mesh.triangles_voxel(spec) - 0.5  # faces and hole edges onto voxel planes
+    s = conservative_surface(tris, spec.dims)
+    t = surface_ties(tris, spec.dims)
+    ties = carve_ties(tris, spec.dims, k)
+    assert t.any() and ties.any()
+    base = carve_surface(s, k)
+    rng = np.random.default_rng(k)
+    for density in (0.0, 0.1, 0.5, 0.9, 1.0):
+        between = (s & ~t) | (t & (rng.random(t.shape) < density))
+        assert not ((carve_surface(between, k) ^ base) & ~ties).any(), density

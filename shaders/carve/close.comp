@@ -1,14 +1,16 @@
 #version 450
 // carve-solid, option close=K: one axis of the separable morphological closing
-// of the surface by a box of side K + 1 (glvox.reference.carve.close).
+// of the surface by a box of side K + 1 (glvox.reference.carve.close), on the
+// padded grid of carve/pad.comp (u_dims: its dims, nx a multiple of 32).
 //
 // ERODE 0 (dilation): out[p] = OR of src[p + d] for d in [-u_lo, u_hi] along
-// AXIS, nothing beyond the grid.  ERODE 1 (erosion, after the three
-// dilations): out[p] = AND of src[p + d] for d in [-u_hi, u_lo], everything
-// beyond the grid set, so the closing contains the surface.  One invocation
-// per word; along x the window stays within the word and its two neighbours
-// (|d| <= 16, glvox.reference.carve.MAX_CLOSE), along y and z it reads
-// K + 1 words: at most 33 loop iterations.
+// AXIS; ERODE 1 (erosion, after the three dilations): out[p] = AND of
+// src[p + d] for d in [-u_hi, u_lo].  Reads beyond the padded grid count as
+// empty: the padding is wider than the window, so they only reach voxels
+// outside the real grid, which carve/pad.comp drops.  One invocation per
+// word; along x the window stays within the word and its two neighbours
+// (|d| <= 16, glvox.reference.carve.MAX_CLOSE), along y and z it reads K + 1
+// words: at most 33 loop iterations.
 #include "common/bits.glsl"
 #include "common/voxel_space.glsl"
 #include "carve/grid_words.glsl"
@@ -20,11 +22,9 @@ uniform int u_lo;
 uniform int u_hi;
 
 #if ERODE
-#define BEYOND 0xFFFFFFFFu
 #define COMBINE(a, b) ((a) & (b))
 #define START 0xFFFFFFFFu
 #else
-#define BEYOND 0u
 #define COMBINE(a, b) ((a) | (b))
 #define START 0u
 #endif
@@ -44,14 +44,9 @@ void main() {
 #endif
     uint acc = START;
 #if AXIS == 0
-    // bits past nx count as beyond the grid
     uint cur = src[idx];
-    uint prev = w > 0u ? src[idx - 1u] : BEYOND;
-    uint next = w + 1u < wpr ? src[idx + 1u] : BEYOND;
-#if ERODE
-    cur |= ~valid_bits(w);
-    if (w + 2u == wpr) next |= ~valid_bits(w + 1u);
-#endif
+    uint prev = w > 0u ? src[idx - 1u] : 0u;
+    uint next = w + 1u < wpr ? src[idx + 1u] : 0u;
     for (int d = -a; d <= b; ++d) {
         uint v;
         if (d > 0) v = (cur >> uint(d)) | (next << uint(32 - d));
@@ -65,9 +60,9 @@ void main() {
     uint stride = axis_stride(AXIS);
     for (int d = -a; d <= b; ++d) {
         int q = at + d;
-        uint v = (q < 0 || q >= n_axis) ? BEYOND : src[uint(int(idx) + d * int(stride))];
+        uint v = (q < 0 || q >= n_axis) ? 0u : src[uint(int(idx) + d * int(stride))];
         acc = COMBINE(acc, v);
     }
 #endif
-    dst[idx] = acc & valid_bits(w);
+    dst[idx] = acc;
 }
