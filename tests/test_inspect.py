@@ -73,6 +73,9 @@ def test_self_intersections_are_counted_by_edge():
     assert inspect_mesh((TETRA_V, TETRA_F)).self_intersections == 0
     fan = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [-1, 0, 0]], float)
     assert inspect_mesh((fan, np.array([[0, 1, 2], [0, 3, 4]]))).self_intersections == 0
+    # a vertex resting on another triangle's interior touches it, crosses nothing
+    tee = np.array([[-1, -1, 0], [2, -1, 0], [-1, 2, 0], [0.2, 0.2, 0], [0.5, 0.2, 1], [0.2, 0.5, 1]], float)
+    assert inspect_mesh((tee, np.array([[0, 1, 2], [3, 4, 5]]))).self_intersections == 0
 
 
 def many_pairs(n):
