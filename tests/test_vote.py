@@ -19,7 +19,7 @@ import glvox
 from glvox.errors import MethodError
 from glvox.grid import GridSpec
 from glvox.mesh import load_mesh
-from glvox.methods import get_method, run_method
+from glvox.methods import get_method, run_method, ss_solid
 from glvox.methods.vote import vote_reference
 from glvox.metrics import check_against_reference, tie_set
 from glvox.results.voxels import VoxelGrid
@@ -42,12 +42,19 @@ def check_vote(mesh, spec):
     return g
 
 
-@pytest.mark.parametrize("dims", [(45, 70, 33), (100, 37, 64), (32, 32, 96), (7, 9, 130)])
-def test_partial_transpose_blocks(gl_context, dims):
-    """Dims that are and are not multiples of 32: the 32 x 32 transposes of the y and z
-    parities cover partial blocks at every border."""
+@pytest.mark.parametrize("dims", [(45, 70, 33), (100, 37, 64), (32, 32, 96), (7, 9, 130), (64, 20, 9)])
+def test_every_word_width_and_partial_words(gl_context, dims):
+    """Rows of 1, 2 and 4 words (the fills and the vote move 1, 2 or 4 words per load),
+    full and partial last words, y and z crossings packed into x words."""
     mesh = load_mesh("gen:bunny-like")
     check_vote(mesh, glvox.grid_for(mesh, dims=dims))
+
+
+def test_long_columns_take_several_segments(gl_context, monkeypatch):
+    """The running XOR along y and z continues across segments (a dispatch each)."""
+    monkeypatch.setattr(ss_solid, "AXIS_SEGMENT", 5)
+    mesh = load_mesh("gen:torus")
+    check_vote(mesh, glvox.grid_for(mesh, dims=(33, 41, 23)))
 
 
 @pytest.mark.parametrize("name", ["stanford_bunny_bun_zipper.ply", "messy_teapot_newell.obj",

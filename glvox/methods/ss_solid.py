@@ -241,8 +241,8 @@ def _compact_tiles(ctx, pool, keys, n_pairs):
 
 @dataclass
 class Parity:
-    """:func:`parity_on_gpu`'s buffers: the solid in ``grid`` (packed, in the frame
-    of :func:`rotation`), its voxel count in ``count``, the rows it filled."""
+    """:func:`parity_on_gpu`'s buffers: the solid in ``grid`` (packed, the grid's own
+    layout), along x also its voxel count in ``count`` and the rows it filled."""
 
     grid: Any
     count: Any
@@ -258,20 +258,28 @@ class Parity:
         return int(np.frombuffer(self.count.read(size=4), dtype="<u4")[0])
 
 
+#: Cells of a y or z column one invocation of ``ss/solid_fill_axis.comp``
+#: walks (one load and XOR each); longer columns take a dispatch per segment.
+AXIS_SEGMENT = 16384
+assert AXIS_SEGMENT < LOOP_BUDGET
+
+
 def parity_on_gpu(ctx, mesh, spec, timer, pool, *, axis: int = 0, tag: str = "") -> Parity:
     """ss-solid's parity of crossings along grid axis ``axis`` in GPU buffers, nothing
     read back: stages ``transform``, ``voxelize``, ``fill`` (each name + ``tag``).
 
     The building block of ``ss-solid`` (axis 0) and ``vote-solid`` (every
-    axis): along y or z the vertices are rotated by the transform
-    (:func:`rotation`), so the passes, written for x columns, run unchanged.
+    axis).  Along y or z the transform rotates the vertices (:func:`rotation`),
+    so the voxelize passes, written for x columns, run unchanged and decide
+    every crossing exactly as ``reference-solid(axis=axis)`` does; they put
+    the crossing bits into the grid's own layout (``FLIP_AXIS``), and
+    ``ss/solid_fill_axis.comp`` runs the XOR down the columns along that axis.
 
     Parameters
     ----------
     ctx : GLContext
     mesh : Mesh
     spec : GridSpec
-        The grid, in its own frame.
     timer : StageTimer
     pool : BufferPool
         The caller's pool; buffers ``grid``, ``vox_vertices``, ``big``,
@@ -284,31 +292,26 @@ def parity_on_gpu(ctx, mesh, spec, timer, pool, *, axis: int = 0, tag: str = "")
     Returns
     -------
     Parity
-        ``grid`` holds uint32 words of :func:`rotated_spec` (``spec`` itself for axis 0).
+        ``grid`` holds the uint32 (nz, ny, words_per_row) words of ``spec``;
+        ``count`` and ``rows`` are set along x only.
     """
     n = mesh.n_triangles
     max_groups = _check_triangles(ctx, n, "ss-solid")
     rspec = rotated_spec(spec, axis)
     # one buffer: the voxelize pass flips crossing bits into the cleared
     # grid, the fill pass turns them into voxels in place
-    grid = pool.get("grid" + tag, rspec.n_words * 4, what=f"the {spec.dims} bit grid")
+    grid = pool.get("grid" + tag, spec.n_words * 4, what=f"the {spec.dims} bit grid")
     bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool, axes=rotation(axis), name="vox_vertices" + tag,
                                    stage="transform" + tag)
     big = pool.get("big" + tag, (n + 2) * 4, what="the triangles with several column chunks", clear=False)
     big.clear(size=8)
     uniforms = grid_uniforms(rspec, bufs.anchor[list(rotation(axis))])
-    first, rest = (compute_program(ctx, "ss/solid.comp", {"SOLID_CHUNK": COLUMN_CHUNK, "FIRST": f})
-                   for f in (1, 0))
+    first, rest = (compute_program(ctx, "ss/solid.comp", {"SOLID_CHUNK": COLUMN_CHUNK, "FIRST": f,
+                                                          "FLIP_AXIS": axis}) for f in (1, 0))
     for prog in (first, rest):
         set_uniforms(prog, {**uniforms, "u_triangles": n})
     big_args = compute_program(ctx, "ss/solid_big_args.comp")
     set_uniforms(big_args, {"u_local_size": _LOCAL, "u_max_groups": max_groups})
-    wpr = rspec.words_per_row
-    fill = compute_program(ctx, "ss/solid_fill.comp", {"VEC": 4 if wpr % 4 == 0 else 2 if wpr % 2 == 0 else 1,
-                                                        "ROWS": FILL_ROWS})
-    rows = mesh_rows(spec, bufs, axis)
-    nj, nk = rows[2], rows[3]
-    set_uniforms(fill, {**uniforms, "u_rows": rows})
     count = pool.get("count" + tag, 4)
     args = pool.get("args" + tag, 3 * 4, clear=False)
     with timer.stage("voxelize" + tag):
@@ -323,11 +326,26 @@ def parity_on_gpu(ctx, mesh, spec, timer, pool, *, axis: int = 0, tag: str = "")
         barrier(ctx)
         rest.run_indirect(args)
         barrier(ctx)
+    wpr = spec.words_per_row
+    vec = 4 if wpr % 4 == 0 else 2 if wpr % 2 == 0 else 1
+    rows = mesh_rows(spec, bufs, 0)
     with timer.stage("fill" + tag):
         grid.bind_to_storage_buffer(3)
-        count.bind_to_storage_buffer(5)
-        dispatch_1d(ctx, fill, -(-nj * nk // FILL_ROWS), _LOCAL)
-        barrier(ctx)
+        if axis == 0:
+            fill = compute_program(ctx, "ss/solid_fill.comp", {"VEC": vec, "ROWS": FILL_ROWS})
+            set_uniforms(fill, {**uniforms, "u_rows": rows})
+            count.bind_to_storage_buffer(5)
+            dispatch_1d(ctx, fill, -(-rows[2] * rows[3] // FILL_ROWS), _LOCAL)
+            barrier(ctx)
+        else:
+            fill = compute_program(ctx, "ss/solid_fill_axis.comp", {"AXIS": axis, "VEC": vec,
+                                                                    "SEGMENT": AXIS_SEGMENT})
+            set_uniforms(fill, grid_uniforms(spec, bufs.anchor))
+            lines = wpr // vec * spec.dims[3 - axis]  # columns along y: (words, z); along z: (words, y)
+            for seg in range(-(-spec.dims[axis] // AXIS_SEGMENT)):
+                set_uniforms(fill, {"u_segment": seg})
+                dispatch_1d(ctx, fill, lines, _LOCAL)
+                barrier(ctx)
     return Parity(grid, count, big, rows)
 
 

@@ -12,10 +12,11 @@ on any mesh it equals the vote of ``reference-solid`` along the three axes
 
 Pipeline, on the GPU until the readback: the mesh is uploaded once and
 ``ss-solid``'s passes (:func:`glvox.methods.ss_solid.parity_on_gpu`) run
-three times, the transform rotating the vertices so that the x-column passes
-run along y (stages ``*_y``) and z (``*_z``); ``vote`` transposes 32 x 32 bit
-blocks of the y and z grids into x words (``vote/vote.comp``) and keeps the
-majority, counted; ``readback`` reads the z slices of the mesh's rows.
+three times, the transform rotating the vertices so that the x-column
+passes run along y (stages ``*_y``) and z (``*_z``) and put their crossing
+bits straight into glvox's x-packed layout, where a running XOR down the
+columns fills them; ``vote`` keeps the majority of the three grids word by
+word, counted; ``readback`` reads the z slices of the mesh's rows.
 """
 
 from __future__ import annotations
@@ -70,24 +71,22 @@ class VoteSolid(Method):
         pool = buffer_pool(ctx, self.info.name)
         x, y, z = (parity_on_gpu(ctx, mesh, spec, timer, pool, axis=a, tag=t)
                    for a, t in ((0, ""), (1, "_y"), (2, "_z")))
-        either = pool.get("either", spec.n_words * 4, what=f"the {spec.dims} bit grid", clear=False)
         count = pool.get("vote_count", 4)
-        uniforms = grid_uniforms(spec, np.zeros(3))
-        nx, ny, nz = spec.dims
         wpr = spec.words_per_row
+        vec = 4 if wpr % 4 == 0 else 2 if wpr % 2 == 0 else 1
+        # every parity is empty outside the mesh's rows, hence the vote: only
+        # the z slices of those rows are voted, counted and read back
+        k0, nk = x.rows[1], x.rows[3]
+        per_slice = spec.dims[1] * wpr // vec
+        prog = compute_program(ctx, "vote/vote.comp", {"VEC": vec})
+        set_uniforms(prog, {**grid_uniforms(spec, np.zeros(3)), "u_first": k0 * per_slice,
+                            "u_count": nk * per_slice})
         with timer.stage("vote"):
-            for p, other, work in ((1, y.grid, wpr * -(-ny // 32) * nz), (2, z.grid, wpr * -(-nz // 32) * ny)):
-                prog = compute_program(ctx, "vote/vote.comp", {"PASS": p})
-                set_uniforms(prog, uniforms)
-                x.grid.bind_to_storage_buffer(0)
-                either.bind_to_storage_buffer(1)
-                other.bind_to_storage_buffer(2)
-                count.bind_to_storage_buffer(3)
-                dispatch_1d(ctx, prog, work, _LOCAL)
-                barrier(ctx)
+            for b, buf in enumerate((x.grid, y.grid, z.grid, count)):
+                buf.bind_to_storage_buffer(b)
+            dispatch_1d(ctx, prog, nk * per_slice, _LOCAL)
+            barrier(ctx)
         with timer.stage("readback", gpu=False):
-            # every parity is empty outside the mesh's rows, hence the vote too
-            words = read_grid_words(x.grid, spec, (x.rows[1], x.rows[3]))
+            words = read_grid_words(x.grid, spec, (k0, nk))
             voxels = int(np.frombuffer(count.read(size=4), dtype="<u4")[0])
-        timer.stats["fill_rows_xyz"] = [p.rows[2] * p.rows[3] for p in (x, y, z)]
         return VoxelGrid(words=words, spec=spec, count=voxels)

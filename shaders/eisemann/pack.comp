@@ -16,7 +16,6 @@ layout(local_size_x = 64) in;
 #include "common/dispatch.glsl"
 #include "common/bits.glsl"
 #include "common/voxel_space.glsl"
-#include "common/transpose.glsl"
 
 layout(rgba32ui, binding = 0) readonly uniform uimage2D u_target0;
 #if EIS_TARGETS > 1
@@ -119,9 +118,16 @@ void main() {
         a[b] = x < x_n ? slice_words(ivec2(other, x), t) : uvec4(0u);
 #endif
     }
-    // afterwards bit b of a[c] is the former bit c of a[b], so a[c] holds
-    // slice c of the 32 columns
-    transpose32(a);
+    // 32 x 32 bit transpose by recursive block swaps: afterwards bit b of a[c]
+    // is the former bit c of a[b], so a[c] holds slice c of the 32 columns.
+    uint m = 0x0000FFFFu;
+    for (int j = 16; j != 0; j >>= 1, m ^= (m << j)) {
+        for (int k = 0; k < 32; k = ((k | j) + 1) & ~j) {
+            uvec4 d = ((a[k] >> j) ^ a[k | j]) & m;
+            a[k | j] ^= d;
+            a[k] ^= d << j;
+        }
+    }
 #if EIS_AXIS == 2
     int x_word = (u_tile_lo.x >> 5) + xw;
     int j = u_tile_lo.y + other;
