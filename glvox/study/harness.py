@@ -175,13 +175,14 @@ class References:
             self.seconds += time.perf_counter() - t0
         return self._refs[key]
 
-    def ties(self, name: str) -> np.ndarray:
-        """The tie set of the reference ``name``, packed like :meth:`words`."""
-        if name not in self._ties:
+    def ties(self, name: str, options: tuple = ()) -> np.ndarray:
+        """The tie set of the reference ``name`` (run with ``options``), packed like :meth:`words`."""
+        key = (name, options)
+        if key not in self._ties:
             t0 = time.perf_counter()
-            self._ties[name] = pack_bits(tie_set(name, self.mesh, self.spec))
+            self._ties[key] = pack_bits(tie_set(name, self.mesh, self.spec, **dict(options)))
             self.seconds += time.perf_counter() - t0
-        return self._ties[name]
+        return self._ties[key]
 
 
 def reference_of(c: Contender, mesh) -> tuple[str | None, tuple]:
@@ -197,6 +198,13 @@ def reference_of(c: Contender, mesh) -> tuple[str | None, tuple]:
     if info.reference == "reference-solid" and not mesh.watertight and "axis" in info.options:
         axis = dict(c.options).get("axis", info.options["axis"].default)
         return info.reference, (("axis", int(axis)),)
+    if info.reference == "reference-gwn":
+        # the reference's own options (threshold, shell) as the contender sets them
+        ref = get_method(info.reference).info.options
+        opts = {k: v.default for k, v in ref.items()}
+        opts.update({k: v for k, v in dict(c.options).items() if k in ref})
+        if opts != {k: v.default for k, v in ref.items()}:
+            return info.reference, tuple(sorted(opts.items()))
     return info.reference, ()
 
 
@@ -308,7 +316,7 @@ def _not_run(plan: Plan, c: Contender, mesh, n: int) -> str | None:
             return (f"N = {n} over this peer's limit {limit} (--peer-max {c.peer}=N runs it; see "
                     "glvox/study/peers.py for why)")
     elif c.method is not None and not plan.open_solids and not mesh.watertight \
-            and get_method(c.method).info.kind in INSIDE_KINDS:
+            and get_method(c.method).info.kind in INSIDE_KINDS and not get_method(c.method).info.any_mesh:
         return "mesh not watertight: inside is undefined for a solid method"
     return None
 
@@ -357,7 +365,7 @@ def _finish_row(plan: Plan, row: dict[str, Any], r: _Contestant, refs: Reference
     if ref is not None and plan.checks(row["n"]):
         progress(f"{row['mesh']} {row['n']}^3: checking {r.c.key} against {ref}")
         row["reference"] = ref + (f"[{','.join(f'{k}={v}' for k, v in ref_opts)}]" if ref_opts else "")
-        row.update(agreement(words, refs.words(ref, ref_opts), refs.ties(ref)))
+        row.update(agreement(words, refs.words(ref, ref_opts), refs.ties(ref, ref_opts)))
     for analyse in analyses:
         analyse(row, grid, refs)
 
