@@ -16,7 +16,7 @@ import numpy as np
 from scipy import ndimage
 
 from .grid import pack_bits, unpack_bits
-from .methods import get_method, method_infos, run_method, validate_options
+from .methods import get_method, method_infos, run_method
 from .reference import TIE_EPS
 from .results.voxels import Comparison, VoxelGrid
 
@@ -51,15 +51,12 @@ class ReferenceCheck:
 
 
 def tie_set(reference: str, mesh, spec, eps: float = TIE_EPS, **options) -> np.ndarray:
-    """Dense (nx, ny, nz) bool tie set of ``reference`` for ``mesh`` on ``spec``
-    (``options``: the reference's own, for a reference run with them)."""
+    """Dense (nx, ny, nz) bool tie set of ``reference`` (run with ``options``) for ``mesh`` on ``spec``."""
     method = get_method(reference)
     if not method.has_ties:
         known = sorted(i.name for i in method_infos() if get_method(i.name).has_ties)
         raise ValueError(f"no tie set is defined for {reference!r}; known: {known}")
-    if options:
-        return method.tie_set(mesh, spec, eps, **validate_options(method.info, options))
-    return method.tie_set(mesh, spec, eps)
+    return method.tie_set(mesh, spec, eps, **options)
 
 
 def check_against_reference(result: VoxelGrid, mesh, reference: str | None = None,

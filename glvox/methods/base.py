@@ -99,10 +99,9 @@ class MethodInfo:
     requires : Requirements
     options : mapping of str to Option
     any_mesh : bool
-        True for solid methods whose inside is defined for any mesh (open,
-        multi-part, self-intersecting): the run envelope lets them run on
-        meshes that are not watertight without ``allow_open`` and without a
-        warning.
+        True for a solid method whose inside is defined for any mesh (open,
+        non-manifold, self-intersecting; e.g. generalized winding numbers):
+        the run envelope does not refuse open meshes for it.
     """
 
     name: str
@@ -182,10 +181,10 @@ class Method:
     def tie_set(self, mesh, spec, eps: float, **options) -> np.ndarray:
         """Dense (nx, ny, nz) bool: the voxels whose verdict under this method's
         definition is a proven tie (DESIGN.md, "Ties") for ``mesh`` on ``spec``,
-        with tolerance ``eps`` voxel and the method's ``options`` (validated, for
-        references whose definition has options, e.g. ``reference-carve``'s
-        ``close``).  Defined by the exact references (:attr:`has_ties`), which
-        results are checked against."""
+        with tolerance ``eps`` voxel; ``options``: the reference's options that
+        move the definition (reference-gwn's threshold, reference-carve's close).
+        Defined by the exact references (:attr:`has_ties`), which results are
+        checked against."""
         raise ValueError(f"no tie set is defined for {self.info.name!r}")
 
     def release(self, ctx) -> None:

@@ -12,6 +12,11 @@ Surfaces (:mod:`.surface`)
     :func:`six_separating_surface` (S&S Sec. 3.4).
 Solids (:mod:`.solid`)
     :func:`solid` (parity of crossings along an axis, top-left fill rule).
+Winding numbers (:mod:`.winding`)
+    :func:`winding` (generalized winding number at every center, exact by a
+    decomposition into signed crossings and boundary strips),
+    :func:`winding_direct` (the direct sum, its independent check),
+    :func:`winding_ties`.
 Ties (:mod:`.ties`)
     :func:`surface_ties`, :func:`solid_ties`, :func:`mismatch_is_tie`,
     :func:`orientation_ambiguous` and the tolerance :data:`TIE_EPS`.
@@ -21,9 +26,11 @@ from .solid import solid
 from .surface import conservative_surface, conservative_surface_sat, six_separating_surface
 from .ties import (TIE_EPS, float32_motion, mismatch_is_tie, orientation_ambiguous, point_triangle_distance,
                    short_edges, solid_ties, surface_ties)
+from .winding import boundary_edges, winding, winding_direct, winding_ties
 
 __all__ = [
     "TIE_EPS",
+    "boundary_edges",
     "conservative_surface",
     "conservative_surface_sat",
     "float32_motion",
@@ -35,4 +42,7 @@ __all__ = [
     "solid",
     "solid_ties",
     "surface_ties",
+    "winding",
+    "winding_direct",
+    "winding_ties",
 ]

@@ -177,12 +177,10 @@ class References:
 
     def ties(self, name: str, options: tuple = ()) -> np.ndarray:
         """The tie set of the reference ``name`` (run with ``options``), packed like :meth:`words`."""
-        # a ray axis does not change a solid's tie set (the voxels near the surface)
-        own = tuple((k, v) for k, v in options if k != "axis")
-        key = (name, own)
+        key = (name, options)
         if key not in self._ties:
             t0 = time.perf_counter()
-            self._ties[key] = pack_bits(tie_set(name, self.mesh, self.spec, **dict(own)))
+            self._ties[key] = pack_bits(tie_set(name, self.mesh, self.spec, **dict(options)))
             self.seconds += time.perf_counter() - t0
         return self._ties[key]
 
@@ -200,6 +198,14 @@ def reference_of(c: Contender, mesh) -> tuple[str | None, tuple]:
     if info.reference == "reference-solid" and not mesh.watertight and "axis" in info.options:
         axis = dict(c.options).get("axis", info.options["axis"].default)
         return info.reference, (("axis", int(axis)),)
+    if info.reference == "reference-gwn":
+        # the reference's own options (threshold, shell) as the contender sets them
+        ref = get_method(info.reference).info.options
+        opts = {k: v.default for k, v in ref.items()}
+        opts.update({k: v for k, v in dict(c.options).items() if k in ref})
+        if opts != {k: v.default for k, v in ref.items()}:
+            return info.reference, tuple(sorted(opts.items()))
+        return info.reference, ()
     # other options the reference shares define the same thing there (carve's close)
     ref_options = get_method(info.reference).info.options
     return info.reference, tuple((k, v) for k, v in c.options if k in ref_options and k != "axis")
