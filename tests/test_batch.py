@@ -503,11 +503,14 @@ def test_cli_summary_and_quiet(dataset, tmp_path):
     assert q.returncode == 3 and q.stdout == "" and q.stderr == ""
 
 
-def test_inspect_columns_and_robust_solids_on_open_meshes(dataset, tmp_path):
+def test_inspect_columns_and_robust_solids_on_open_meshes(dataset, tmp_path, gl_context):
     """--inspect fills the report's columns (the same numbers as glvox inspect); a robust
     solid (carve-solid) voxelizes open meshes without --allow-open."""
     from glvox.batch.manifest import INSPECT_COLUMNS
-    from glvox.inspect import inspect_mesh
+    from glvox.grid import grid_for
+    from glvox.inspect import inspect_mesh, uncertain_share
+    from glvox.mesh import load_mesh
+    from glvox.methods import run_method
 
     root, files = dataset
     rels = [next(r for r, i in files.items() if i["kind"] == k) for k in ("box", "open_box")]
@@ -520,6 +523,10 @@ def test_inspect_columns_and_robust_solids_on_open_meshes(dataset, tmp_path):
     for rel in rels:
         row = rows[Path(rel).name]
         report = inspect_mesh(root / rel).to_dict()
+        # the uncertain share on the batch's grid, as the exact winding numbers give it
+        mesh = load_mesh(root / rel)
+        exact = run_method("reference-gwn", mesh, grid_for(mesh, R)).fields["winding"]
+        report["uncertain_share"] = uncertain_share(exact)[1]
         for c in INSPECT_COLUMNS:
             if report[c] is None:
                 assert row[c] == ""
@@ -528,9 +535,10 @@ def test_inspect_columns_and_robust_solids_on_open_meshes(dataset, tmp_path):
             elif isinstance(report[c], str):
                 assert row[c] == report[c], c
             else:
-                assert float(row[c]) == pytest.approx(report[c], rel=1e-5), c
+                assert float(row[c]) == pytest.approx(report[c], rel=1e-5, abs=1e-9), c
         assert float(row["inspect_s"]) > 0 and row["method"] == "carve-solid" and not row["warnings"]
     assert int(rows[Path(rels[1]).name]["boundary_edges"]) > 0 == int(rows[Path(rels[0]).name]["boundary_edges"])
+    assert float(rows[Path(rels[1]).name]["uncertain_share"]) > 0 == float(rows[Path(rels[0]).name]["uncertain_share"])
     # without --inspect the columns stay empty
     s = run_batch(lst, tmp_path / "plain", BatchSettings("carve-solid", resolution=R), workers=0, quiet=True)
     assert all(r["components"] == r["inspect_s"] == "" for r in manifest_rows(tmp_path / "plain/manifest.csv").values())

@@ -126,3 +126,28 @@ def test_cli(capsys, tmp_path):
     assert capsys.readouterr().err.strip() == f"glvox: error: mesh file not found: {tmp_path / 'missing.obj'}"
     assert main(["inspect", str(path), "-r", "0"]) == 1
     assert "-r/--resolution must be a positive" in capsys.readouterr().err
+
+
+def test_uncertain_share_definition():
+    w = np.zeros((4, 4, 4), np.float32)
+    w[0] = 1.0          # 16 sure inside
+    w[1, :2] = 0.45     # 8 uncertain, below the threshold
+    w[2, 0] = 0.59      # 4 uncertain, inside
+    w[3, 0] = 0.39      # 4 outside the band and the region
+    assert gi.uncertain_share(w) == (12, 12 / 28)
+    assert gi.uncertain_share(w, threshold=0.95) == (16, 16 / 16)
+    assert gi.uncertain_share(np.zeros((2, 2, 2))) == (0, 0.0)
+
+
+def test_uncertain_share_on_a_grid(gl_context, shared_mesh):
+    """Closed meshes are sure (w is 0 or 1 off the surface); an open teapot is not, and
+    the share from gwn-solid's field matches the one from reference-gwn's exact field."""
+    assert inspect_mesh("gen:torus", 32).uncertain_share == 0.0
+    teapot = glvox.load_mesh(shared_mesh("messy_teapot_newell.obj"))
+    bunny = glvox.load_mesh(shared_mesh("stanford_bunny_bun_zipper.ply"))
+    for mesh in (teapot, bunny):
+        r = inspect_mesh(mesh, 48)
+        exact = glvox.voxelize(mesh, 48, method="reference-gwn").fields["winding"]
+        n, share = gi.uncertain_share(exact)
+        assert r.resolution == 48 and abs(r.uncertain_voxels - n) <= 2 and r.uncertain_share > 0
+        assert r.uncertain_share == pytest.approx(share, abs=2 / 1000)

@@ -18,7 +18,7 @@ from typing import Any, Callable
 
 from ..errors import GlvoxError
 from ..grid import grid_for
-from ..inspect import inspect_mesh
+from ..inspect import inspect_mesh, uncertain_share
 from ..mesh import load_mesh
 from ..methods import run_method
 from .atomic import atomic_save
@@ -94,10 +94,17 @@ def voxelize_one(job: Job, settings: BatchSettings) -> dict[str, Any]:
 
 
 def inspect_row(mesh, spec, result, settings: BatchSettings) -> dict[str, Any]:
-    """The manifest's ``--inspect`` columns for ``mesh`` (voxelized into ``result`` on ``spec``)."""
-    report = inspect_mesh(mesh)
-    fields = report.to_dict()
-    return {c: fields[c] for c in INSPECT_COLUMNS if fields.get(c) is not None}
+    """The manifest's ``--inspect`` columns for ``mesh`` (voxelized into ``result`` on
+    ``spec``): the report, and the uncertain share on the batch's grid, from the
+    result's winding field when the method returned one, else from ``gwn-solid``'s."""
+    fields = inspect_mesh(mesh).to_dict()
+    row = {c: fields[c] for c in INSPECT_COLUMNS if fields.get(c) is not None}
+    w = getattr(result, "fields", {}).get("winding")
+    threshold = result.run.options.get("threshold", 0.5) if w is not None else 0.5
+    if w is None:
+        w = run_method("gwn-solid", mesh, spec, backend=settings.backend, winding=True).fields["winding"]
+    row["uncertain_share"] = uncertain_share(w, threshold)[1]
+    return row
 
 
 _gl_lock = threading.Lock()
