@@ -1,4 +1,4 @@
-"""vote-solid (majority of the x, y and z parities) and the ``solid`` alias.
+"""vote-solid: the majority of the x, y and z parities.
 
 vote-solid's three parities use ss-solid's arithmetic along each axis, so on
 any mesh it must equal the vote of reference-solid along x, y and z
@@ -16,10 +16,9 @@ import trimesh
 from conftest import SHARED_MESHES
 
 import glvox
-from glvox.errors import MethodError
 from glvox.grid import GridSpec
 from glvox.mesh import load_mesh
-from glvox.methods import get_method, run_method, ss_solid
+from glvox.methods import run_method, ss_solid
 from glvox.methods.vote import vote_reference
 from glvox.metrics import check_against_reference, tie_set
 from glvox.results.voxels import VoxelGrid
@@ -110,23 +109,3 @@ def test_a_hole_seen_along_one_axis_is_outvoted(gl_context):
         parity = run_method("ss-solid", mesh, spec, allow_open=True).dense()
     streak = parity & ~full
     assert streak[17:, 9:12, 9:12].all() and streak.sum() == 7 * 9, "x parity streaks through the hole"
-
-
-# -- the solid alias --------------------------------------------------------------------
-
-
-def test_solid_alias_runs_ss_solid_on_watertight_meshes(gl_context):
-    mesh = load_mesh("gen:torus")
-    spec = glvox.grid_for(mesh, 40)
-    g = glvox.voxelize(mesh, grid=spec, method="solid")
-    assert g.run.method == "ss-solid" and g.run.stats["requested"] == "solid"
-    assert g.equal(run_method("ss-solid", mesh, spec))
-    assert "solid" in [i.name for i in glvox.list_methods(kind="solid")]
-    assert get_method("solid").resolve(mesh) == "ss-solid"
-    with pytest.raises(MethodError, match="method 'solid' has no option threshold; its options: none"):
-        run_method("solid", mesh, spec, threshold=0.5)
-
-
-def test_solid_alias_picks_the_robust_method_on_open_meshes(shared_mesh):
-    bunny = load_mesh(shared_mesh("stanford_bunny_bun_zipper.ply"))
-    assert get_method("solid").resolve(bunny) == "gwn-solid"

@@ -112,6 +112,8 @@ def run_method(name: str, mesh: Mesh, spec: GridSpec, *, ctx=None, backend: str 
     requested = get_method(name)
     opts = validate_options(requested.info, options)
     method = get_method(requested.resolve(mesh))
+    if method is not requested:  # the alias's options, then the defaults of the method it runs
+        opts = validate_options(method.info, opts)
 
     def work(ctx, timer):
         return method.run(mesh, spec, ctx=ctx, timer=timer, **opts)
