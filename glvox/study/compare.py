@@ -26,10 +26,13 @@ import warnings
 from pathlib import Path
 from typing import Any, Iterable, Sequence
 
+import numpy as np
+
 import glvox
 from glvox.errors import GlvoxError, NotWatertightWarning
 from glvox.gl.context import get_context
 from glvox.grid import unpack_bits
+from glvox.inspect import UNCERTAIN_BAND, uncertain_share
 from glvox.methods import get_method, method_names, run_method
 from glvox.metrics import separation_leaks
 from glvox.results.voxels import VoxelGrid
@@ -95,6 +98,20 @@ def separability(row: dict[str, Any], grid: VoxelGrid | None, refs: harness.Refe
     inside = unpack_bits(refs.words("reference-solid"), refs.spec.dims) & ~surface
     row["leaks_26"] = int(len(separation_leaks(surface, inside, 26)))
     row["leaks_6"] = int(len(separation_leaks(surface, inside, 6)))
+
+
+def uncertainty(row: dict[str, Any], grid: VoxelGrid | None, refs: harness.References) -> None:
+    """The open-mesh study (a plan checked against reference-gwn): ``uncertain_share``,
+    the share of the solid whose exact winding number lies within 0.1 of 1/2 on this
+    mesh and grid (:func:`glvox.inspect.uncertain_share`), and ``mismatch_uncertain``,
+    the share of this row's mismatches with reference-gwn that lie in that band."""
+    if grid is None or not str(row.get("reference", "")).startswith("reference-gwn"):
+        return
+    w = refs.field("reference-gwn", "winding")
+    row["uncertain_share"] = uncertain_share(w)[1]
+    diff = unpack_bits(grid.words() ^ refs.words("reference-gwn"), refs.spec.dims)
+    n = int(diff.sum())
+    row["mismatch_uncertain"] = float((diff & (np.abs(w - 0.5) < UNCERTAIN_BAND)).sum() / n) if n else None
 
 
 # ---------------------------------------------------------------------------
@@ -194,7 +211,8 @@ def run(plan: Plan, out: str | os.PathLike, *, force: bool = False, quiet: bool 
             f.flush()
             progress.step(len(new))
 
-        harness.run_plan(plan, done=rows, on_rows=write, progress=progress.show, analyses=[separability])
+        harness.run_plan(plan, done=rows, on_rows=write, progress=progress.show,
+                         analyses=[separability, uncertainty])
     progress.close()
     return [rows[c.key] for c in cells if c.key in rows]
 

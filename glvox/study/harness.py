@@ -160,6 +160,7 @@ class References:
     def __init__(self, mesh, spec: GridSpec):
         self.mesh, self.spec = mesh, spec
         self._refs: dict[tuple, np.ndarray] = {}
+        self._fields: dict[tuple, dict[str, np.ndarray]] = {}
         self._ties: dict[str, np.ndarray] = {}
         self.seconds = 0.0
 
@@ -170,10 +171,17 @@ class References:
             t0 = time.perf_counter()
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", NotWatertightWarning)
-                self._refs[key] = run_method(name, self.mesh, self.spec, allow_open=True,
-                                             **dict(options)).words()
+                result = run_method(name, self.mesh, self.spec, allow_open=True, **dict(options))
+            self._refs[key] = result.words()
+            self._fields[key] = getattr(result, "fields", {})
             self.seconds += time.perf_counter() - t0
         return self._refs[key]
+
+    def field(self, name: str, field: str, options: tuple = ()) -> np.ndarray:
+        """A float field the reference ``name`` returns (reference-gwn's ``'winding'``),
+        (nx, ny, nz) float32."""
+        self.words(name, options)
+        return self._fields[(name, options)][field]
 
     def ties(self, name: str, options: tuple = ()) -> np.ndarray:
         """The tie set of the reference ``name`` (run with ``options``), packed like :meth:`words`."""
