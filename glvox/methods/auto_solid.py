@@ -32,6 +32,11 @@ class AutoSolid(Method):
     def resolve(self, mesh) -> str:
         return CLOSED_METHOD if mesh.watertight else OPEN_METHOD
 
+    def release(self, ctx) -> None:
+        # the buffers are the resolved methods': they release their own
+        for name in (CLOSED_METHOD, OPEN_METHOD):
+            _REGISTRY[name].release(ctx)
+
     def run(self, mesh, spec, *, ctx, timer):
         # run_method runs the resolved method itself (with its own checks and run
         # info); this serves callers of Method.run, once every module has registered
