@@ -326,27 +326,32 @@ def parity_on_gpu(ctx, mesh, spec, timer, pool, *, axis: int = 0, tag: str = "")
         barrier(ctx)
         rest.run_indirect(args)
         barrier(ctx)
-    wpr = spec.words_per_row
-    vec = 4 if wpr % 4 == 0 else 2 if wpr % 2 == 0 else 1
     rows = mesh_rows(spec, bufs, 0)
     with timer.stage("fill" + tag):
-        grid.bind_to_storage_buffer(3)
-        if axis == 0:
-            fill = compute_program(ctx, "ss/solid_fill.comp", {"VEC": vec, "ROWS": FILL_ROWS})
-            set_uniforms(fill, {**uniforms, "u_rows": rows})
-            count.bind_to_storage_buffer(5)
-            dispatch_1d(ctx, fill, -(-rows[2] * rows[3] // FILL_ROWS), _LOCAL)
-            barrier(ctx)
-        else:
-            fill = compute_program(ctx, "ss/solid_fill_axis.comp", {"AXIS": axis, "VEC": vec,
-                                                                    "SEGMENT": AXIS_SEGMENT})
-            set_uniforms(fill, grid_uniforms(spec, bufs.anchor))
-            lines = wpr // vec * spec.dims[3 - axis]  # columns along y: (words, z); along z: (words, y)
-            for seg in range(-(-spec.dims[axis] // AXIS_SEGMENT)):
-                set_uniforms(fill, {"u_segment": seg})
-                dispatch_1d(ctx, fill, lines, _LOCAL)
-                barrier(ctx)
+        _fill(ctx, spec, grid, count, rows, axis)
     return Parity(grid, count, big, rows)
+
+
+def _fill(ctx, spec, grid, count, rows, axis: int) -> None:
+    """The crossing bits of ``grid`` into voxels along ``axis``: the prefix XOR of the
+    rows of ``rows`` (x, counted into ``count``), or of every y or z column."""
+    wpr = spec.words_per_row
+    vec = 4 if wpr % 4 == 0 else 2 if wpr % 2 == 0 else 1
+    grid.bind_to_storage_buffer(3)
+    if axis == 0:
+        fill = compute_program(ctx, "ss/solid_fill.comp", {"VEC": vec, "ROWS": FILL_ROWS})
+        set_uniforms(fill, {**grid_uniforms(spec, np.zeros(3)), "u_rows": rows})
+        count.bind_to_storage_buffer(5)
+        dispatch_1d(ctx, fill, -(-rows[2] * rows[3] // FILL_ROWS), _LOCAL)
+        barrier(ctx)
+        return
+    fill = compute_program(ctx, "ss/solid_fill_axis.comp", {"AXIS": axis, "VEC": vec, "SEGMENT": AXIS_SEGMENT})
+    set_uniforms(fill, grid_uniforms(spec, np.zeros(3)))
+    lines = wpr // vec * spec.dims[3 - axis]  # columns along y: (words, z); along z: (words, y)
+    for seg in range(-(-spec.dims[axis] // AXIS_SEGMENT)):
+        set_uniforms(fill, {"u_segment": seg})
+        dispatch_1d(ctx, fill, lines, _LOCAL)
+        barrier(ctx)
 
 
 @register
