@@ -288,3 +288,14 @@ def test_carve_ties_cover_every_surface_the_ties_allow(k):
     for density in (0.0, 0.1, 0.5, 0.9, 1.0):
         between = (s & ~t) | (t & (rng.random(t.shape) < density))
         assert not ((carve_surface(between, k) ^ base) & ~ties).any(), density
+
+
+@pytest.mark.parametrize("lo, hi", [(0.1, 0.7), (-3.3, 5.9), (1e5 + 0.1, 1e5 + 0.7)])
+def test_faces_on_the_grid_boundary_keep_the_inside(gl_context, lo, hi):
+    """The default fit puts a box's faces exactly on the grid's faces; the float32 copy
+    of the mesh may land one just outside, where the surface pass clips it.  carve-solid
+    snaps such vertices onto the grid (GRID_FACE_SNAP), so the box stays filled."""
+    box = load_mesh(trimesh.creation.box(bounds=[[lo] * 3, [hi] * 3]))
+    spec = glvox.grid_for(box, 16)
+    g, ref = check_carve(box, spec)
+    assert ref.count == 16 ** 3 and g.count == 16 ** 3

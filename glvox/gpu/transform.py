@@ -9,7 +9,7 @@ from .dispatch import barrier, dispatch_1d, set_uniforms
 
 
 def transform_vertices(ctx, mesh, spec, timer, pool, *, double: bool = False, scale=None, shift=(0.0, 0.0, 0.0),
-                       name: str | None = None, stage: str = "transform", axes=(0, 1, 2)):
+                       name: str | None = None, stage: str = "transform", axes=(0, 1, 2), snap: float = 0.0):
     """Stage ``transform`` (S&S Sec. 6): the mesh's vertices in voxel space,
     ``(v - origin) * scale - shift`` computed in double (``common/transform.comp``).
 
@@ -17,7 +17,9 @@ def transform_vertices(ctx, mesh, spec, timer, pool, *, double: bool = False, sc
     in double instead of rounding it to float32 once.  ``axes``: output
     coordinate c is voxel-space coordinate ``axes[c]``, so ``(1, 2, 0)`` gives
     the mesh in a frame whose x is the grid's y (``spec`` stays the
-    unpermuted grid; scale and shift apply before the permutation).  Returns ``(bufs, vox)``:
+    unpermuted grid; scale and shift apply before the permutation).  ``snap``
+    (voxels, > 0): coordinates that far or less outside the grid's box
+    ``[0, dims]`` move onto its faces (before the permutation).  Returns ``(bufs, vox)``:
     the mesh's :class:`MeshBuffers` and a pooled buffer (``name``) of x, y, z
     per vertex, ready for the next stage.
     """
@@ -30,7 +32,8 @@ def transform_vertices(ctx, mesh, spec, timer, pool, *, double: bool = False, sc
     prog = compute_program(ctx, "common/transform.comp", {"VOX_DOUBLE": int(double)})
     set_uniforms(prog, {"u_origin_d": tuple(float(x) for x in spec.origin - bufs.anchor),
                         "u_scale_d": tuple(float(x) for x in scale), "u_shift_d": tuple(float(x) for x in shift),
-                        "u_vertices": bufs.n_vertices, "u_axes": tuple(int(a) for a in axes)})
+                        "u_vertices": bufs.n_vertices, "u_axes": tuple(int(a) for a in axes),
+                        "u_snap": float(snap), "u_snap_dims": tuple(float(d) for d in spec.dims)})
     with timer.stage(stage):
         bufs.vertices.bind_to_storage_buffer(0)
         vox.bind_to_storage_buffer(1)

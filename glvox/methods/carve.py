@@ -11,7 +11,10 @@ ShapeNet-style solids were made).  ``reference-carve`` is the same on the CPU.
 Pipeline, all on the GPU until the final readback:
 
 * ``transform``, ``classify``, ``voxelize``: ss-conservative's surface
-  (:func:`glvox.methods.ss_surface.surface_on_gpu`, the same passes and buffers);
+  (:func:`glvox.methods.ss_surface.surface_on_gpu`, the same passes and
+  buffers), with vertices within :data:`~glvox.tolerances.GRID_FACE_SNAP` outside
+  the grid moved onto its faces, so that rounding cannot drop a face lying on
+  the grid's boundary and open the inside to the flood;
 * ``close`` (close > 0): three dilations and three erosions along x, y and z
   (``carve/close.comp``) on a copy of the grid padded with empty voxels
   (``carve/pad.comp``), so the grid's border neither seals nor opens a gap;
@@ -36,6 +39,7 @@ from ..gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set
 from ..grid import GridSpec
 from ..reference.carve import close_window
 from ..results.voxels import VoxelGrid
+from ..tolerances import GRID_FACE_SNAP
 from .base import Method, MethodInfo, Requirements, register
 from .reference import CLOSE_OPTION
 from .ss_surface import surface_on_gpu
@@ -165,7 +169,7 @@ class CarveSolid(Method):
 
     def run(self, mesh, spec, *, ctx, timer, close):
         pool = buffer_pool(ctx, self.info.name)
-        surface, _ = surface_on_gpu(ctx, mesh, spec, timer, pool)
+        surface, _ = surface_on_gpu(ctx, mesh, spec, timer, pool, snap=GRID_FACE_SNAP)
         ext = pool.get("exterior", spec.n_words * 4, what=f"the {spec.dims} exterior grid")
         if close:
             close_on_gpu(ctx, spec, timer, pool, surface, close)

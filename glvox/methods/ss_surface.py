@@ -57,7 +57,8 @@ _REQUIRES = Requirements(gl_version=430, limits={"GL_MAX_SHADER_STORAGE_BUFFER_B
 DEFAULT_VARIANT = "specialized"
 
 
-def surface_on_gpu(ctx, mesh, spec, timer, pool, *, criterion: int = 0, variant: str = DEFAULT_VARIANT):
+def surface_on_gpu(ctx, mesh, spec, timer, pool, *, criterion: int = 0, variant: str = DEFAULT_VARIANT,
+                   snap: float = 0.0):
     """The S&S surface of ``mesh`` on ``spec`` in a GPU buffer, nothing read back.
 
     The building block of ``ss-conservative`` and ``ss-6sep`` (stages
@@ -77,6 +78,9 @@ def surface_on_gpu(ctx, mesh, spec, timer, pool, *, criterion: int = 0, variant:
     criterion : {0, 1}
         0 conservative (26-separating), 1 6-separating.
     variant : {'simple', 'specialized', 'sorted'}
+    snap : float
+        Voxels: vertices that close outside the grid's box move onto its faces
+        (:func:`glvox.gpu.transform.transform_vertices`); 0 for none.
 
     Returns
     -------
@@ -96,7 +100,7 @@ def surface_on_gpu(ctx, mesh, spec, timer, pool, *, criterion: int = 0, variant:
         )
     # the grid first: a grid over the SSBO limit is refused before any other work
     grid = pool.get("grid", spec.n_words * 4, what=f"the {spec.dims} bit grid")
-    bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool)
+    bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool, snap=snap)
     stats = pool.get("stats", 8 * 4)
     per_tri = pool.get("per_triangle", n * 4, what="per-triangle work", clear=False)
     args = pool.get("args", 9 * 4, clear=False)

@@ -16,6 +16,11 @@ uniform dvec3 u_shift_d;
 // output coordinate c is coordinate u_axes[c] of p: (0, 1, 2) for the grid's own
 // frame; a rotation of the axes lets x-column passes run along y or z (vote-solid)
 uniform ivec3 u_axes;
+// u_snap > 0 (carve-solid): a coordinate within u_snap voxels outside [0, u_snap_dims]
+// moves onto that face of the grid, so that float32 rounding cannot push a face lying
+// on the grid's boundary out of it (glvox.tolerances.GRID_FACE_SNAP)
+uniform double u_snap;
+uniform dvec3 u_snap_dims;
 layout(local_size_x = 256) in;
 #include "common/dispatch.glsl"
 #if VOX_DOUBLE
@@ -31,6 +36,12 @@ void main() {
     if (i >= u_vertices) return;
     dvec3 p = (dvec3(verts[3u * i], verts[3u * i + 1u], verts[3u * i + 2u]) - u_origin_d) * u_scale_d
               - u_shift_d;
+    if (u_snap > 0.0) {
+        for (int c = 0; c < 3; ++c) {
+            if (p[c] < 0.0 && p[c] >= -u_snap) p[c] = 0.0;
+            if (p[c] > u_snap_dims[c] && p[c] <= u_snap_dims[c] + u_snap) p[c] = u_snap_dims[c];
+        }
+    }
     vox[3u * i] = VOX_T(p[u_axes.x]);
     vox[3u * i + 1u] = VOX_T(p[u_axes.y]);
     vox[3u * i + 2u] = VOX_T(p[u_axes.z]);
