@@ -265,8 +265,11 @@ def test_stats_stages_and_options(gl_context):
     assert stages[-4:] == ["close", "flood", "finish", "readback"] and "voxelize" in stages
     assert g.run.stats["close"] == 2 and g.run.stats["flood_rounds"] >= 1
     assert "close" not in [s.name for s in run_method("carve-solid", mesh, spec).run.timings.stages]
-    with pytest.raises(glvox.MethodError, match=r"option close must be one of \[0, 1, .*32\], got 33"):
-        run_method("carve-solid", mesh, spec, close=33)
+    for name in ("carve-solid", "reference-carve"):
+        for bad in (33, -1):
+            with pytest.raises(glvox.MethodError, match=f"option close must be a gap width from 0 to 32 voxels, "
+                                                        f"got {bad}"):
+                run_method(name, mesh, spec, close=bad)
 
 
 @pytest.mark.parametrize("k", [0, 2])

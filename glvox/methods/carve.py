@@ -41,7 +41,7 @@ from ..reference.carve import close_window
 from ..results.voxels import VoxelGrid
 from ..tolerances import GRID_FACE_SNAP
 from .base import Method, MethodInfo, Requirements, register
-from .reference import CLOSE_OPTION
+from .reference import CLOSE_OPTION, check_close
 from .ss_surface import surface_on_gpu
 
 _LOCAL = 64  # local_size_x of the carve shaders
@@ -168,6 +168,7 @@ class CarveSolid(Method):
     )
 
     def run(self, mesh, spec, *, ctx, timer, close):
+        check_close(close)
         pool = buffer_pool(ctx, self.info.name)
         surface, _ = surface_on_gpu(ctx, mesh, spec, timer, pool, snap=GRID_FACE_SNAP)
         ext = pool.get("exterior", spec.n_words * 4, what=f"the {spec.dims} exterior grid")

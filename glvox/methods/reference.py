@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import MethodError
 from ..reference import (conservative_surface, six_separating_surface, solid, solid_ties, surface_ties, winding,
                          winding_ties)
 from ..reference.carve import MAX_CLOSE, carve_ties, carved_solid
@@ -89,8 +90,14 @@ class ReferenceSolid(_CpuReference):
 #: carve-solid's and reference-carve's ``close`` option (one definition: the two
 #: are compared with the same value).
 CLOSE_OPTION = Option(0, "first seal gaps of up to this many empty voxels between surface voxels (a "
-                         f"morphological closing by a box of side close + 1; 0 to {MAX_CLOSE})",
-                      tuple(range(MAX_CLOSE + 1)))
+                         f"morphological closing by a box of side close + 1; 0 to {MAX_CLOSE})")
+
+
+def check_close(close: int) -> int:
+    """``close`` when it is a gap width carving supports, else a one-line MethodError."""
+    if not 0 <= close <= MAX_CLOSE:
+        raise MethodError(f"option close must be a gap width from 0 to {MAX_CLOSE} voxels, got {close}")
+    return close
 
 
 @register
@@ -104,7 +111,9 @@ class ReferenceCarve(_CpuReference):
         reference="reference-carve", any_mesh=True,
         options={"close": CLOSE_OPTION},
     )
-    compute = staticmethod(carved_solid)
+    @staticmethod
+    def compute(tris, dims, close):
+        return carved_solid(tris, dims, check_close(close))
 
     def tie_set(self, mesh, spec, eps, close=0):
         return carve_ties(mesh.triangles_voxel(spec), spec.dims, close, eps)
