@@ -9,8 +9,8 @@ share of the solid whose generalized winding number lies within
 
 Vertices are merged by position first, as trimesh's default processing
 does (which also decides :attr:`glvox.mesh.Mesh.watertight`), so a mesh
-stored as a soup of separate triangles still has its edges shared.  Edges are undirected pairs of merged vertices; a
-face's edges are its three sides.
+stored as a soup of separate triangles still has its edges shared.  Edges
+are undirected pairs of merged vertices; a face's edges are its three sides.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
+
 from .grid import grid_for
 from .mesh import Mesh, load_mesh
 from .methods import run_method
