@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import MethodError
-from ..reference import (conservative_surface, six_separating_surface, solid, solid_ties, surface_ties, winding,
-                         winding_ties)
+from ..reference import (conservative_surface, six_separating_surface, solid, solid_ties, solid_vote, surface_ties,
+                         winding, winding_ties)
 from ..reference.carve import MAX_CLOSE, carve_ties, carved_solid
 from ..reference.ldi import crossings
 from ..results.ldi import LDI, close_odd
@@ -84,6 +84,19 @@ class ReferenceSolid(_CpuReference):
         options={"axis": Option(0, "ray direction of the parity count (0=x, 1=y, 2=z)", (0, 1, 2))},
     )
     compute = staticmethod(solid)
+    ties = staticmethod(solid_ties)
+
+
+@register
+class ReferenceVote(_CpuReference):
+    info = MethodInfo(
+        name="reference-vote", kind="solid", family="cpu",
+        paper=f"majority of reference-solid along x, y and z ({_SS}, Sec. 4.1 parity; VoxSurf, Open3D)",
+        summary="exact three-axis vote: a voxel is set when two of its three parities of crossings say inside",
+        reference="reference-vote", any_mesh=True,
+    )
+    compute = staticmethod(solid_vote)
+    # a parity's verdict, hence the vote's, can flip only where the center is within eps of the surface
     ties = staticmethod(solid_ties)
 
 

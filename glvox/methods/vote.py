@@ -6,9 +6,9 @@ x, y and z, say inside: the cheap fix for small holes of VoxSurf and Open3D's
 only along the rays that pass through it, so a voxel is lost or streaked
 only where two of the three axes see holes.  On a closed mesh the three
 parities agree up to ties, so the vote equals ``reference-solid`` up to ties;
-on any mesh it equals the vote of ``reference-solid`` along the three axes
-(:func:`vote_reference`), exactly up to ties, since each parity is
-``ss-solid``'s arithmetic along that axis.
+on any mesh it equals ``reference-vote`` (the vote of ``reference-solid``
+along the three axes, :func:`glvox.reference.solid_vote`) up to ties, since
+each parity is ``ss-solid``'s arithmetic along that axis.
 
 Pipeline, on the GPU until the readback: the mesh is uploaded once and
 ``ss-solid``'s passes (:func:`glvox.methods.ss_solid.parity_on_gpu`) run
@@ -21,14 +21,11 @@ word, counted; ``readback`` reads the z slices of the mesh's rows.
 
 from __future__ import annotations
 
-from typing import Sequence
-
 import numpy as np
 
 from ..gl.shaders import compute_program
 from ..gpu.buffers import buffer_pool, read_grid_words
 from ..gpu.dispatch import barrier, dispatch_1d, grid_uniforms, set_uniforms
-from ..reference import solid
 from ..results.voxels import VoxelGrid
 from .base import Method, MethodInfo, Requirements, register
 from .ss_solid import parity_on_gpu
@@ -36,23 +33,6 @@ from .ss_solid import parity_on_gpu
 _LOCAL = 64  # local_size_x of vote/vote.comp
 _REQUIRES = Requirements(gl_version=430, extensions=("GL_ARB_gpu_shader_fp64",),
                          limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 9})
-
-
-def vote_reference(tris: np.ndarray, dims: Sequence[int]) -> np.ndarray:
-    """The exact vote: majority of ``reference-solid`` along x, y and z.
-
-    Parameters
-    ----------
-    tris : (T, 3, 3) float64
-        Voxel-space triangles (any mesh).
-    dims : (3,) int
-
-    Returns
-    -------
-    (nx, ny, nz) bool
-    """
-    x, y, z = (solid(tris, dims, axis) for axis in range(3))
-    return (x & y) | (z & (x | y))
 
 
 @register
@@ -63,7 +43,7 @@ class VoteSolid(Method):
               "Schwarz & Seidel 2010 Sec. 4.1's arithmetic (ss-solid in three rotated frames)",
         summary="robust solid for meshes with small holes: a voxel is inside when two of its three "
                 "axis-parallel parities say so",
-        reference="reference-solid", any_mesh=True,
+        reference="reference-vote", any_mesh=True,
         requires=_REQUIRES,
     )
 

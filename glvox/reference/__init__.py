@@ -11,7 +11,8 @@ Surfaces (:mod:`.surface`)
     :func:`conservative_surface_sat` (separating axes, independent check),
     :func:`six_separating_surface` (S&S Sec. 3.4).
 Solids (:mod:`.solid`)
-    :func:`solid` (parity of crossings along an axis, top-left fill rule).
+    :func:`solid` (parity of crossings along an axis, top-left fill rule),
+    :func:`solid_vote` (the majority of the three axes' parities).
 Winding numbers (:mod:`.winding`)
     :func:`winding` (generalized winding number at every center, exact by a
     decomposition into signed crossings and boundary strips),
@@ -22,7 +23,7 @@ Ties (:mod:`.ties`)
     :func:`orientation_ambiguous` and the tolerance :data:`TIE_EPS`.
 """
 
-from .solid import solid
+from .solid import solid, solid_vote
 from .surface import conservative_surface, conservative_surface_sat, six_separating_surface
 from .ties import (TIE_EPS, float32_motion, mismatch_is_tie, orientation_ambiguous, point_triangle_distance,
                    short_edges, solid_ties, surface_ties)
@@ -41,6 +42,7 @@ __all__ = [
     "six_separating_surface",
     "solid",
     "solid_ties",
+    "solid_vote",
     "surface_ties",
     "winding",
     "winding_direct",

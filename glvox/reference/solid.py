@@ -149,3 +149,22 @@ def first_flips(tris: np.ndarray, n: np.ndarray, dims: tuple[int, int, int],
     if not hits:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     return np.concatenate(hits), np.concatenate(owners)
+
+
+def solid_vote(tris: np.ndarray, dims: Sequence[int]) -> np.ndarray:
+    """The majority of :func:`solid` along x, y and z (``reference-vote``): a voxel is
+    set when at least two of its three parities of crossings say inside.
+
+    Parameters
+    ----------
+    tris : (T, 3, 3) float64
+        Voxel-space triangles (any mesh).
+    dims : (3,) int
+
+    Returns
+    -------
+    (nx, ny, nz) bool
+        On a closed mesh, :func:`solid` up to ties (every axis gives it).
+    """
+    x, y, z = (solid(tris, dims, axis) for axis in range(3))
+    return (x & y) | (z & (x | y))
