@@ -257,6 +257,17 @@ def test_anisotropic_and_clipped_grids(gl_context):
     assert g.count < run_method("reference-solid", mesh, cut).count + run_method("reference-conservative", mesh, cut).count
 
 
+def test_surface_variant_by_grid_size(gl_context, monkeypatch):
+    """Small grids take ss-conservative's simple variant, large ones its default: the
+    carve is the same (both variants equal reference-conservative up to ties)."""
+    mesh = load_mesh("gen:bunny-like")
+    spec = glvox.grid_for(mesh, dims=(40, 33, 37))
+    assert run_method("carve-solid", mesh, spec).run.stats["surface_variant"] == "simple"
+    monkeypatch.setattr(carve, "SIMPLE_MAX_DIM", 8)
+    g, _ = check_carve(mesh, spec, 2)
+    assert g.run.stats["surface_variant"] == "specialized"
+
+
 def test_stats_stages_and_options(gl_context):
     mesh = load_mesh("gen:torus")
     spec = glvox.grid_for(mesh, 32)

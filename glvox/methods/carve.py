@@ -42,7 +42,7 @@ from ..results.voxels import VoxelGrid
 from ..tolerances import GRID_FACE_SNAP
 from .base import Method, MethodInfo, Requirements, register
 from .reference import CLOSE_OPTION, check_close
-from .ss_surface import surface_on_gpu
+from .ss_surface import DEFAULT_VARIANT, surface_on_gpu
 
 _LOCAL = 64  # local_size_x of the carve shaders
 
@@ -51,6 +51,14 @@ _LOCAL = 64  # local_size_x of the carve shaders
 #: meet in later rounds.
 SEGMENT = 8192
 assert 2 * SEGMENT < LOOP_BUDGET
+
+#: carve-solid computes its surface with ss-conservative's ``simple`` variant on
+#: grids up to this many voxels along their longest axis, ``specialized`` (the
+#: default of ss-conservative, which wins at 1024^3) above: measured here on a
+#: quiet machine, simple took 0.65-0.75x specialized's time on the bunny, the
+#: armadillo and the dragon at 64^3-256^3, 0.6-1.0x at 512^3, 1.1-1.7x at
+#: 1024^3 (``python compare/table1_ss_surface.py``).
+SIMPLE_MAX_DIM = 512
 
 #: Rounds of sweeps after which the flood fill gives up with an error instead
 #: of looping on: every round but the last adds at least one voxel, and a
@@ -170,7 +178,8 @@ class CarveSolid(Method):
     def run(self, mesh, spec, *, ctx, timer, close):
         check_close(close)
         pool = buffer_pool(ctx, self.info.name)
-        surface, _ = surface_on_gpu(ctx, mesh, spec, timer, pool, snap=GRID_FACE_SNAP)
+        variant = "simple" if max(spec.dims) <= SIMPLE_MAX_DIM else DEFAULT_VARIANT
+        surface, _ = surface_on_gpu(ctx, mesh, spec, timer, pool, variant=variant, snap=GRID_FACE_SNAP)
         ext = pool.get("exterior", spec.n_words * 4, what=f"the {spec.dims} exterior grid")
         if close:
             close_on_gpu(ctx, spec, timer, pool, surface, close)
@@ -191,5 +200,5 @@ class CarveSolid(Method):
             # the solid lies in the surface's slices (the exterior holds the others)
             words = read_grid_words(ext, spec, (k0, nk))
             voxels = int(np.frombuffer(count.read(size=4), dtype="<u4")[0])
-        timer.stats.update({"flood_rounds": rounds, "close": close, "solid_slices": nk})
+        timer.stats.update({"flood_rounds": rounds, "close": close, "solid_slices": nk, "surface_variant": variant})
         return VoxelGrid(words=words, spec=spec, count=voxels)
