@@ -52,14 +52,13 @@ def gpu_flood(ctx, blocker: np.ndarray, k: int = 0):
     pool = buffer_pool(ctx, "test-carve")
     surface = ctx.mgl.buffer(pack_bits(blocker).tobytes())
     ext = pool.get("ext", spec.n_words * 4)
-    flags = pool.get("flags", 4)
     timer = StageTimer(ctx)
     if k:
         carve.close_on_gpu(ctx, spec, timer, pool, surface, k)
         closed = unpack_bits(np.frombuffer(surface.read(), dtype="<u4"), spec.dims)
         assert np.array_equal(closed, close(blocker, k)), f"closing k={k} differs on {blocker.shape}"
         blocker = closed
-    rounds = carve.flood_on_gpu(ctx, spec, timer, surface, ext, flags)
+    rounds = carve.flood_on_gpu(ctx, spec, timer, pool, surface, ext)
     words = np.frombuffer(ext.read(size=spec.n_words * 4), dtype="<u4")
     surface.release()
     pool.release()

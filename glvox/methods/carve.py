@@ -131,23 +131,29 @@ def close_on_gpu(ctx, spec, timer, pool, surface, k: int) -> None:
         barrier(ctx)
 
 
-def flood_on_gpu(ctx, spec, timer, blocker, ext, flags) -> int:
+def flood_on_gpu(ctx, spec, timer, pool, blocker, ext) -> int:
     """Stage ``flood``: ``ext`` (cleared) := the voxels joined to the grid's boundary
-    by 6-connected paths outside ``blocker``.  Returns the rounds of sweeps run."""
+    by 6-connected paths outside ``blocker``; ``pool`` holds the round's flag and each
+    line's clean flag.  Returns the rounds of sweeps run."""
     uniforms = grid_uniforms(spec, np.zeros(3))
     nx, ny, nz = spec.dims
     wpr = spec.words_per_row
     vec = 4 if wpr % 4 == 0 else 2 if wpr % 2 == 0 else 1
+    # every line starts dirty (0): carve/sweep.comp's clean flags
+    clean = [pool.get(f"clean_{a}", n * 4) for a, n in (("x", ny * nz), ("y", wpr // vec * nz), ("z", wpr // vec * ny))]
     progs = [compute_program(ctx, "carve/sweep.comp", {"AXIS": a, "SEGMENT": SEGMENT, "VEC": vec}) for a in range(3)]
     for p in progs:
         set_uniforms(p, uniforms)
     work = [ny * nz, wpr // vec * nz * -(-ny // SEGMENT), wpr // vec * ny * -(-nz // SEGMENT)]
     zero = np.zeros(1, dtype="<u4").tobytes()
+    flags = pool.get("flags", 4)
     rounds = 0
     with timer.stage("flood"):
         blocker.bind_to_storage_buffer(0)
         ext.bind_to_storage_buffer(1)
         flags.bind_to_storage_buffer(2)
+        for b, buf in enumerate(clean):
+            buf.bind_to_storage_buffer(3 + b)
         while True:
             rounds += 1
             if rounds > MAX_ROUNDS:
@@ -183,8 +189,7 @@ class CarveSolid(Method):
         ext = pool.get("exterior", spec.n_words * 4, what=f"the {spec.dims} exterior grid")
         if close:
             close_on_gpu(ctx, spec, timer, pool, surface, close)
-        flags = pool.get("flags", 4)
-        rounds = flood_on_gpu(ctx, spec, timer, surface, ext, flags)
+        rounds = flood_on_gpu(ctx, spec, timer, pool, surface, ext)
         k0, nk = surface_slices(spec, mesh_buffers(ctx, mesh))
         per_slice = spec.dims[1] * spec.words_per_row
         count = pool.get("count", 4)

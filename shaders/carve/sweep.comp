@@ -23,7 +23,29 @@
 layout(local_size_x = 64) in;
 #include "common/dispatch.glsl"
 layout(std430, binding = 2) buffer Flags { uint changed; };
+// Lines that need no sweep: 1 once a sweep has filled the line, 0 (dirty) again
+// when a sweep along another axis adds a voxel to it.  x: a row (j, k) at
+// k * ny + j; y: a column of VEC words (v, k) at k * nv + v; z: (v, j) at j * nv + v.
+// A sweep skips its clean lines (only sweeps along another axis can have
+// grown them), so later rounds only walk where the exterior still moves.
+layout(std430, binding = 3) buffer CleanX { uint clean_x[]; };
+layout(std430, binding = 4) buffer CleanY { uint clean_y[]; };
+layout(std430, binding = 5) buffer CleanZ { uint clean_z[]; };
 uniform bool u_seed;
+
+// A voxel was added to the VEC words v of row (j, k): the lines along the other
+// axes through them are dirty.
+void touched(uint v, uint j, uint k, uint nv) {
+#if AXIS != 0
+    clean_x[k * uint(u_dims.y) + j] = 0u;
+#endif
+#if AXIS != 1
+    clean_y[k * nv + v] = 0u;
+#endif
+#if AXIS != 2
+    clean_z[j * nv + v] = 0u;
+#endif
+}
 
 // VEC consecutive words (1, 2 or 4, dividing words_per_row) move together:
 // llvmpipe accesses a buffer lane by lane, so wider accesses mean fewer of them
@@ -61,6 +83,8 @@ void main() {
     uint rows = uint(u_dims.y) * uint(u_dims.z);
     uint row = global_index_1d();
     if (row >= rows) return;
+    if (clean_x[row] != 0u) return;
+    clean_x[row] = 1u;
     uint j = row % uint(u_dims.y), k = row / uint(u_dims.y);
     bool face = j == 0u || k == 0u || j + 1u == uint(u_dims.y) || k + 1u == uint(u_dims.z);
     uint last = words_per_row() - 1u;
@@ -92,7 +116,7 @@ void main() {
             if (carry != 0u) AT(g, c) |= (~fc & (fc + 1u)) - 1u;
             carry = AT(g, c) >> 31u;
         }
-        if (g != e0) { ext_v[base + v] = g; grew = true; }
+        if (g != e0) { ext_v[base + v] = g; grew = true; touched(v, j, k, nv); }
     }
     // backward: the same downwards, the runs from bit 31 joined word by word
     carry = 0u;
@@ -112,7 +136,7 @@ void main() {
             if (carry != 0u) AT(g, c) |= ~fc == 0u ? 0xFFFFFFFFu : mask_from(uint(findMSB(~fc)) + 1u);
             carry = AT(g, c) & 1u;
         }
-        if (g != e0) { ext_v[base + v] = g; grew = true; }
+        if (g != e0) { ext_v[base + v] = g; grew = true; touched(v, j, k, nv); }
     }
     if (grew) changed = 1u;
 }
@@ -131,6 +155,13 @@ void main() {
     uint stride = axis_stride(AXIS) / uint(VEC);
     uint first = AXIS == 1 ? (other * uint(u_dims.y)) * nv + v : other * nv + v;
     int c0 = int(seg) * SEGMENT, c1 = min(n, c0 + SEGMENT);
+    // columns of one segment keep their flag; longer ones are always swept (their
+    // segments meet in later rounds)
+#if AXIS == 1
+    if (segs == 1u) { if (clean_y[line] != 0u) return; clean_y[line] = 1u; }
+#else
+    if (segs == 1u) { if (clean_z[line] != 0u) return; clean_z[line] = 1u; }
+#endif
     WORDS valid = valid_words(v);
     bool grew = false;
     WORDS prev = c0 > 0 ? ext_v[first + uint(c0 - 1) * stride] : WORDS(0u);
@@ -138,7 +169,11 @@ void main() {
         uint idx = first + uint(c) * stride;
         WORDS e0 = ext_v[idx];
         WORDS g = e0 | (prev & ~blocker_v[idx] & valid);
-        if (g != e0) { ext_v[idx] = g; grew = true; }
+        if (g != e0) {
+            ext_v[idx] = g;
+            grew = true;
+            touched(v, AXIS == 1 ? uint(c) : other, AXIS == 1 ? other : uint(c), nv);
+        }
         prev = g;
     }
     prev = c1 < n ? ext_v[first + uint(c1) * stride] : WORDS(0u);
@@ -146,7 +181,11 @@ void main() {
         uint idx = first + uint(c) * stride;
         WORDS e0 = ext_v[idx];
         WORDS g = e0 | (prev & ~blocker_v[idx] & valid);
-        if (g != e0) { ext_v[idx] = g; grew = true; }
+        if (g != e0) {
+            ext_v[idx] = g;
+            grew = true;
+            touched(v, AXIS == 1 ? uint(c) : other, AXIS == 1 ? other : uint(c), nv);
+        }
         prev = g;
     }
     if (grew) changed = 1u;
