@@ -55,7 +55,8 @@ class BatchSettings:
     inspect : bool
         Also inspect every mesh (:func:`glvox.inspect.inspect_mesh`, with the
         uncertain share on the batch's grid) into the manifest's extra
-        columns; off by default: it costs about as much as loading the mesh.
+        columns; off by default: it takes longer than loading the mesh
+        (0.5-1.6 s for 17k-200k triangles here).
     """
 
     method: str
