@@ -24,7 +24,7 @@ VOXEL_KINDS = ("surface", "solid")
 
 def test_registry_holds_the_references():
     assert {"reference-conservative", "reference-6sep", "reference-solid"} <= set(method_names())
-    assert method_names(kind="solid", family="cpu") == ["reference-solid"]
+    assert method_names(kind="solid", family="cpu") == ["reference-gwn", "reference-solid"]
 
 
 @pytest.mark.parametrize("name", method_names())
