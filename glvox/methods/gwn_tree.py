@@ -232,17 +232,39 @@ def build_tree(loops: BoundaryLoops, vox: np.ndarray, leaf: int = LEAF_EDGES) ->
 
 
 def _node_records(polys, edges: np.ndarray, vox: np.ndarray) -> np.ndarray:
-    """Center, radius and fan moments of every node (:data:`NODE_VEC4` vec4 each)."""
+    """Center, radius and fan moments of every node (:data:`NODE_VEC4` vec4 each),
+    for all nodes at once: one row per (node, polygon edge), reduced per node."""
     out = np.zeros((len(polys), NODE_VEC4, 4), dtype=np.float32)
-    for k, (first, count, cu, cv) in enumerate(polys):
-        pe = edges[first:first + count]
-        if cu >= 0:
-            pe = np.concatenate([pe, [[cu, cv]]])
-        u, v = vox[pe[:, 0]], vox[pe[:, 1]]
-        pts = np.concatenate([u, v])
-        c = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
-        r = float(np.sqrt(((pts - c) ** 2).sum(axis=1).max())) * (1 + 1e-6) + RADIUS_MARGIN
-        out[k] = pack_moments(c, r, *fan_moments(u - c, v - c))
+    if not polys:
+        return out
+    p = np.asarray(polys, np.int64).reshape(-1, 4)
+    first, count, cu, cv = p.T
+    has = cu >= 0
+    sizes = count + has
+    owner = np.repeat(np.arange(len(p)), sizes)
+    start = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    local = np.arange(int(sizes.sum())) - start[owner]
+    chord = local == count[owner]  # the last row of a node with a chord
+    eidx = np.where(chord, 0, first[owner] + local)
+    src = np.where(chord, cu[owner], edges[eidx, 0] if len(edges) else 0)
+    dst = np.where(chord, cv[owner], edges[eidx, 1] if len(edges) else 0)
+    u, v = vox[src], vox[dst]
+    lo = np.minimum.reduceat(np.minimum(u, v), start)
+    hi = np.maximum.reduceat(np.maximum(u, v), start)
+    c = 0.5 * (lo + hi)
+    a, b = u - c[owner], v - c[owner]
+    r2 = np.maximum((a * a).sum(axis=1), (b * b).sum(axis=1))
+    r = np.sqrt(np.maximum.reduceat(r2, start)) * (1 + 1e-6) + RADIUS_MARGIN
+    n = 0.5 * np.cross(a, b)
+    ab = a + b
+    D = np.add.reduceat(n, start)
+    Q = np.add.reduceat(np.einsum("tj,ti->tji", ab / 3.0, n), start)
+    second = (np.einsum("tj,tk->tjk", a, a) + np.einsum("tj,tk->tjk", b, b)
+              + np.einsum("tj,tk->tjk", ab, ab)) / 12.0
+    T = np.add.reduceat(np.einsum("tjk,ti->tjki", second, n), start)
+    area = np.add.reduceat(np.linalg.norm(n, axis=1), start)
+    for k in range(len(p)):
+        out[k] = pack_moments(c[k], r[k], D[k], Q[k], T[k], area[k])
     return out
 
 
