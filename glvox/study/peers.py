@@ -439,7 +439,8 @@ class WarpWinding(Peer):
     ``wp.Mesh`` (BVH and winding-number data) is ``prepare``, as a Warp user
     keeps the mesh object; the kernel's first compilation is a cold start.
     Warp runs CPU kernels on one thread: ~17 s for the 2.1M centers of 128^3
-    on the bunny here, so the default ``max_n`` is 128.
+    on the bunny here (8x that at 256^3), so the default ``max_n`` is 64 and
+    ``--peer-max warp-winding=256`` asks for more.
     """
 
     name = "warp-winding"
@@ -448,7 +449,7 @@ class WarpWinding(Peer):
     package = "warp-lang"
     reference = "reference-gwn"
     call = "wp.mesh_query_point_sign_winding_number(mesh, center, max_dist) (device 'cpu')"
-    max_n = 128
+    max_n = 64
 
     def prepare(self, mesh, spec):
         wp, _ = _warp_kernel()
