@@ -57,9 +57,10 @@ SEGV = 8
 
 #: Loop iterations charged per tree node and per boundary edge in one field
 #: invocation, should the compiler keep every loop (a node: the walk, its
-#: record, expansion, bound and chord strip over the segment; an edge: its
-#: strip over the segment).  Chunks keep their sum under half of LOOP_BUDGET.
-NODE_COST = 8 + 3 * SEGV
+#: record, the far test, expansion and chord strip over the segment's blocks;
+#: an edge: its strip over them).  Chunks keep their sum under half of
+#: LOOP_BUDGET.
+NODE_COST = 8 + 4 * SEGV
 EDGE_COST = 1 + SEGV
 
 #: Boundary edges per refinement dispatch.
