@@ -342,7 +342,7 @@ def test_accuracy_only_moves_work_not_voxels(gl_context, shared_mesh, monkeypatc
     spec = glvox.grid_for(mesh, 48)
     base, ref, near = _check_gwn(mesh, spec)
     exact, _, _ = _check_gwn(mesh, spec, accuracy=1.0001)
-    assert exact.run.stats["refined_segments"] > 0.9 * exact.run.stats["field_segments"]
+    assert exact.run.stats["refined_segments"] > 0.75 * exact.run.stats["field_segments"]
     monkeypatch.setattr(gwn, "SLAB_CELLS", 48 * 64 * 5)
     monkeypatch.setattr(gwn, "REFINE_EDGES", 7)
     monkeypatch.setattr(gwn, "LOOP_BUDGET", 3000)
