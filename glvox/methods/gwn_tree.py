@@ -177,102 +177,143 @@ def build_tree(loops: BoundaryLoops, vox: np.ndarray, leaf: int = LEAF_EDGES) ->
     chords.  Nodes with at most ``leaf`` edges are leaves.
     """
     edges: list[tuple[int, int]] = []
+    edge_loop: list[int] = []
     links: list[list[int]] = []
-    polys: list[tuple[int, int, int, int]] = []  # per node: edge range + chord
+    polys: list[tuple[int, int, int, int, int]] = []  # per node: edge range, chord, whole loops?
+    sizes = np.array([len(lp) for lp in loops.loops], dtype=np.int64)
+    cent = (np.add.reduceat(vox[np.concatenate(loops.loops)], np.cumsum(sizes) - sizes) / sizes[:, None]
+            if loops.n_edges else np.zeros((0, 3)))
     depth = 0
 
-    def node(first: int, count: int, chord: tuple[int, int]) -> int:
+    def node(first: int, count: int, chord: tuple[int, int], whole: bool) -> int:
         links.append([first, count, -1, -1, chord[0], chord[1], 0, 0])
-        polys.append((first, count, chord[0], chord[1]))
+        polys.append((first, count, chord[0], chord[1], int(whole)))
         return len(links) - 1
 
-    def piece(loop: np.ndarray, a: int, b: int, level: int) -> int:
+    def emit(i: int, a: int, b: int) -> None:
+        loop = loops.loops[i]
+        edges.extend((int(loop[k]), int(loop[(k + 1) % len(loop)])) for k in range(a, b))
+        edge_loop.extend([i] * (b - a))
+
+    def piece(i: int, a: int, b: int, level: int) -> int:
         nonlocal depth
         depth = max(depth, level)
+        loop = loops.loops[i]
         wa, wb = int(loop[a]), int(loop[b % len(loop)])
         chord = (wb, wa) if b - a < len(loop) else (-1, -1)
         first = len(edges)
         if b - a <= leaf:
-            edges.extend((int(loop[i]), int(loop[(i + 1) % len(loop)])) for i in range(a, b))
-            return node(first, b - a, chord)
-        me = node(first, b - a, chord)
+            emit(i, a, b)
+            return node(first, b - a, chord, False)
+        me = node(first, b - a, chord, False)
         m = (a + b) // 2
-        links[me][2] = piece(loop, a, m, level + 1)
-        links[me][3] = piece(loop, m, b, level + 1)
+        links[me][2] = piece(i, a, m, level + 1)
+        links[me][3] = piece(i, m, b, level + 1)
         return me
 
-    def group(members: list[int], level: int) -> int:
+    def group(members: np.ndarray, level: int) -> int:
         nonlocal depth
         depth = max(depth, level)
-        sizes = [len(loops.loops[i]) for i in members]
-        total = sum(sizes)
+        total = int(sizes[members].sum())
         if len(members) == 1 and total > leaf:
-            return piece(loops.loops[members[0]], 0, total, level)
+            return piece(int(members[0]), 0, total, level)
         first = len(edges)
         if total <= leaf:
             for i in members:
-                loop = loops.loops[i]
-                edges.extend((int(loop[k]), int(loop[(k + 1) % len(loop)])) for k in range(len(loop)))
-            return node(first, total, (-1, -1))
-        me = node(first, total, (-1, -1))
-        cen = np.array([vox[loops.loops[i]].mean(axis=0) for i in members])
-        axis = int(np.argmax(np.ptp(cen, axis=0)))
-        order = [members[i] for i in np.argsort(cen[:, axis], kind="stable")]
-        csum = np.cumsum([len(loops.loops[i]) for i in order])
+                emit(int(i), 0, int(sizes[i]))
+            return node(first, total, (-1, -1), True)
+        me = node(first, total, (-1, -1), True)
+        cen = cent[members]
+        order = members[np.argsort(cen[:, int(np.argmax(np.ptp(cen, axis=0)))], kind="stable")]
+        csum = np.cumsum(sizes[order])
         cut = int(np.clip(np.searchsorted(csum, total / 2.0), 0, len(order) - 2)) + 1
         links[me][2] = group(order[:cut], level + 1)
         links[me][3] = group(order[cut:], level + 1)
         return me
 
     if loops.n_edges:
-        group(list(range(len(loops.loops))), 1)
+        group(np.arange(len(loops.loops)), 1)
     e = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
-    nodes = _node_records(polys, e, vox)
+    nodes = _node_records(polys, e, np.asarray(edge_loop, np.int64), cent, vox)
     return ClusterTree(e.astype(np.uint32), nodes, np.asarray(links, np.int32).reshape(-1, 2, 4), depth)
 
 
-def _node_records(polys, edges: np.ndarray, vox: np.ndarray) -> np.ndarray:
-    """Center, radius and fan moments of every node (:data:`NODE_VEC4` vec4 each)."""
+def _node_records(polys, edges: np.ndarray, edge_loop: np.ndarray, loop_cent: np.ndarray,
+                  vox: np.ndarray) -> np.ndarray:
+    """Center, radius and moments of every node (:data:`NODE_VEC4` vec4 each), for all
+    nodes at once: one row per (node, polygon edge), reduced per node.
+
+    The patch spanning a node's polygons is a fan around the node's center for
+    a piece of a loop (its path and chord), and around each loop's own
+    centroid for a node of whole loops: the expansion does not depend on the
+    patch (two patches differ by a closed surface, whose solid angle is 0
+    outside the ball), but the error bound grows with the patch's area, and
+    fans of far-apart loops around one center are long slivers.
+    """
     out = np.zeros((len(polys), NODE_VEC4, 4), dtype=np.float32)
-    for k, (first, count, cu, cv) in enumerate(polys):
-        pe = edges[first:first + count]
-        if cu >= 0:
-            pe = np.concatenate([pe, [[cu, cv]]])
-        u, v = vox[pe[:, 0]], vox[pe[:, 1]]
-        pts = np.concatenate([u, v])
-        c = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
-        r = float(np.sqrt(((pts - c) ** 2).sum(axis=1).max())) * (1 + 1e-6) + RADIUS_MARGIN
-        out[k] = pack_moments(c, r, *fan_moments(u - c, v - c))
+    if not polys:
+        return out
+    p = np.asarray(polys, np.int64).reshape(-1, 5)
+    first, count, cu, cv, whole = p.T
+    has = cu >= 0
+    sizes = count + has
+    owner = np.repeat(np.arange(len(p)), sizes)
+    start = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    local = np.arange(int(sizes.sum())) - start[owner]
+    chord = local == count[owner]  # the last row of a node with a chord
+    eidx = np.where(chord, 0, first[owner] + local)
+    src = np.where(chord, cu[owner], edges[eidx, 0] if len(edges) else 0)
+    dst = np.where(chord, cv[owner], edges[eidx, 1] if len(edges) else 0)
+    u, v = vox[src], vox[dst]
+    lo = np.minimum.reduceat(np.minimum(u, v), start)
+    hi = np.maximum.reduceat(np.maximum(u, v), start)
+    c = 0.5 * (lo + hi)
+    co = c[owner]
+    apex = np.where((whole[owner] == 1)[:, None], loop_cent[edge_loop[eidx]] if len(edges) else co, co) - co
+    a, b = u - co, v - co
+    r2 = np.maximum((a * a).sum(axis=1), (b * b).sum(axis=1))
+    r = np.sqrt(np.maximum.reduceat(r2, start)) * (1 + 1e-6) + RADIUS_MARGIN
+    D, Q, T, area = fan_moments(a, b, apex, start)
+    for k in range(len(p)):
+        out[k] = pack_moments(c[k], r[k], D[k], Q[k], T[k], area[k])
     return out
 
 
-def fan_moments(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """Exact moments of the triangles (0, a_i, b_i) (relative to the center).
+def fan_moments(a: np.ndarray, b: np.ndarray, apex: np.ndarray | None = None,
+                start: np.ndarray | None = None):
+    """Exact moments of the triangles (apex_i, a_i, b_i), relative to a center.
 
     Parameters
     ----------
     a, b : (K, 3) float64
         Polygon edges' start and end points minus the center.
+    apex : (K, 3) float64, optional
+        Each triangle's apex minus the center (default: the center, 0).
+    start : (M,) int, optional
+        Sum the rows in groups beginning at these indices (``np.add.reduceat``);
+        default one group.
 
     Returns
     -------
-    D : (3,)
+    D : (3,) or (M, 3)
         ``sum int n dA`` (vector area).
-    Q : (3, 3)
+    Q : (3, 3) or (M, 3, 3)
         ``Q[j, i] = sum int s_j n_i dA``.
-    T : (3, 3, 3)
+    T : (3, 3, 3) or (M, 3, 3, 3)
         ``T[j, k, i] = sum int s_j s_k n_i dA``.
-    area : float
-        ``sum int |n| dA``, the fan's unsigned area (for the error bound).
+    area : float or (M,)
+        ``sum int |n| dA``, the patch's unsigned area (for the error bound).
     """
-    n = 0.5 * np.cross(a, b)  # area vector of each triangle
-    D = n.sum(axis=0)
-    Q = np.einsum("tj,ti->ji", (a + b) / 3.0, n)
-    ab = a + b
-    second = (np.einsum("tj,tk->tjk", a, a) + np.einsum("tj,tk->tjk", b, b)
-              + np.einsum("tj,tk->tjk", ab, ab)) / 12.0  # int s s^T dA / area
-    T = np.einsum("tjk,ti->jki", second, n)
-    return D, Q, T, float(np.linalg.norm(n, axis=1).sum())
+    p0 = np.zeros_like(a) if apex is None else apex
+    n = 0.5 * np.cross(a - p0, b - p0)  # area vector of each triangle
+    tot = p0 + a + b
+    second = (np.einsum("tj,tk->tjk", p0, p0) + np.einsum("tj,tk->tjk", a, a) + np.einsum("tj,tk->tjk", b, b)
+              + np.einsum("tj,tk->tjk", tot, tot)) / 12.0  # int s s^T dA / area
+    parts = (n, np.einsum("tj,ti->tji", tot / 3.0, n), np.einsum("tjk,ti->tjki", second, n),
+             np.linalg.norm(n, axis=1))
+    if start is None:
+        return tuple(x.sum(axis=0) for x in parts)
+    return tuple(np.add.reduceat(x, start) for x in parts)
 
 
 def pack_moments(c, r, D, Q, T, area) -> np.ndarray:

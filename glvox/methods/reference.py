@@ -9,6 +9,9 @@ compared ray by ray).
 
 from __future__ import annotations
 
+import weakref
+from typing import Any
+
 import numpy as np
 
 from ..errors import MethodError
@@ -134,19 +137,21 @@ class ReferenceCarve(_CpuReference):
 
 class _WindingCache:
     """The last few exact winding fields, so that a reference run and its tie set
-    (or a test's several thresholds) share one evaluation: it is the costly part."""
+    (or a test's several thresholds) share one evaluation: it is the costly part.
+    Entries hold a weak reference to their mesh: a new mesh at a recycled id
+    never matches."""
 
     def __init__(self, size: int = 2):
         self.size = size
-        self._items: list[tuple[tuple, np.ndarray]] = []
+        self._items: list[tuple[Any, tuple, np.ndarray]] = []
 
     def get(self, mesh, spec) -> np.ndarray:
-        key = (id(mesh), mesh.n_triangles, spec.dims, tuple(spec.origin), spec.voxel_size)
-        for k, w in self._items:
-            if k == key:
+        key = (spec.dims, tuple(spec.origin), spec.voxel_size)
+        for ref, k, w in self._items:
+            if ref() is mesh and k == key:
                 return w
         w = winding(mesh.triangles_voxel(spec), spec.dims)
-        self._items = [(key, w)] + self._items[: self.size - 1]
+        self._items = [(weakref.ref(mesh), key, w)] + self._items[: self.size - 1]
         return w
 
 

@@ -86,7 +86,7 @@ AB_REPEAT = 10
 
 #: The peers' names, in table order (:data:`glvox.study.peers.PEERS` holds them;
 #: named here so that building the parser does not import the peers).
-PEER_NAMES = ("open3d", "trimesh-subdivide", "trimesh-fill", "pyvista", "igl-winding")
+PEER_NAMES = ("open3d", "trimesh-subdivide", "trimesh-fill", "pyvista", "igl-winding", "warp-winding")
 
 #: ``--check`` / ``--save-baseline`` given without a PATH: the checkout's
 #: ``compare/bench_baseline.json`` (:func:`glvox.study.regression.baseline_path`).

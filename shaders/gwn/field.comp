@@ -19,8 +19,9 @@
 // glvox.methods.gwn.plan_chunks).  With several chunks the sums so far live
 // in Acc (F, bound).  The last chunk decides: a voxel whose
 // |C + F - threshold| exceeds the bound plus u_margin is decided, its bit
-// set when w >= threshold; a segment with an undecided voxel is listed for
-// gwn/refine.comp, which redoes it exactly, and left alone here.
+// set when w >= threshold; a block of 4 voxels with an undecided one is
+// left to gwn/refine.comp, which redoes it exactly (the segment is listed
+// with the mask of such blocks).
 #include "common/voxel_space.glsl"
 #include "gwn/layout.glsl"
 #include "gwn/strip.glsl"
@@ -68,10 +69,11 @@ uint far_blocks(vec4 cr, vec2 c, float x0, uint blocks) {
 }
 
 void main() {
+    uint id = global_index_1d();
     Segment S;
-    if (!segment_of(global_index_1d(), S)) return;
+    if (!segment_of(id, S)) return;
     for (int i = 0; i < GWN_SEGV; ++i) { seg_f[i] = vec4(0.0); seg_bnd[i] = vec4(0.0); }
-    // blocks of the segment inside the grid
+    // the segment's blocks inside the grid
     uint all_blocks = (1u << uint(min(GWN_SEGV, (u_dims.x - S.seg * SEG + 3) / 4))) - 1u;
     ivec2 stack[GWN_STACK];
     for (int r = u_roots.x; r < u_roots.y; ++r) {
@@ -118,17 +120,18 @@ void main() {
         }
         return;
     }
-    bool undecided = false;
+    uint undecided = 0u;
     vec4 w[GWN_SEGV];
     for (int i = 0; i < GWN_SEGV; ++i) {
         w[i] = vec4(cells[base + uint(i)]) + seg_f[i] * (0.5 / GWN_PI);
-        bvec4 inside_grid = lessThan(vec4(S.x0 + 0.5 + float(4 * i)) + vec4(0.0, 1.0, 2.0, 3.0), vec4(u_dims.x));
         bvec4 near = lessThanEqual(abs(w[i] - u_threshold), seg_bnd[i] + u_margin);
-        undecided = undecided || any(bvec4(uvec4(near) * uvec4(inside_grid)));
+        if (any(near)) undecided |= 1u << i;
     }
-    if (undecided) {
-        refine_list[atomicAdd(refine_count, 1u)] = global_index_1d();
-        return;
+    undecided &= all_blocks;
+    if (undecided != 0u) {
+        uint slot = atomicAdd(refine_count, 1u);
+        refine_list[2u * slot] = id;
+        refine_list[2u * slot + 1u] = undecided;
     }
-    finish_segment(S, w);
+    finish_segment(S, w, all_blocks & ~undecided);
 }

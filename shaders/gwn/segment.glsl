@@ -30,10 +30,14 @@ bool segment_of(uint id, out Segment S) {
 
 vec3 vertex(uint i) { return vec3(vox[3u * i], vox[3u * i + 1u], vox[3u * i + 2u]); }
 
-// Bits (w >= u_threshold), their count and, with WINDING 1, w in the cells.
-void finish_segment(Segment S, vec4 w[GWN_SEGV]) {
+// Bits (w >= u_threshold), their count and, with WINDING 1, w in the cells,
+// for the blocks of 4 voxels in `blocks` (bit i: voxels 4 i .. 4 i + 3).
+// gwn/field.comp and gwn/refine.comp may each finish some blocks of one
+// word: the bits go in with atomicOr.
+void finish_segment(Segment S, vec4 w[GWN_SEGV], uint blocks) {
     uint word = 0u;
     for (int i = 0; i < GWN_SEGV; ++i) {
+        if ((blocks & (1u << i)) == 0u) continue;
         uint x = uint(S.seg * SEG + 4 * i);
         uvec4 in4 = uvec4(greaterThanEqual(w[i], vec4(u_threshold)))
                     * uvec4(lessThan(uvec4(x) + uvec4(0u, 1u, 2u, 3u), uvec4(u_dims.x)));
