@@ -21,6 +21,7 @@ from .errors import (BackendError, CapabilityError, DatasetError, EmptyMeshError
                      NonFiniteVertexError, NotWatertightError, ShaderError)
 from .gl.context import get_context
 from .grid import GridSpec, fit_grid, grid_for
+from .inspect import MeshReport, inspect_mesh
 from .io import load, save
 from .mesh import Mesh, load_mesh
 from .methods import DEFAULT_METHOD, get_method, method_infos, run_method
@@ -29,7 +30,7 @@ from .results import LDI, SparseOctree, VoxelGrid
 
 __all__ = [
     "voxelize", "grid_for", "load_mesh", "fit_grid", "save", "load", "list_methods", "info",
-    "ldi", "intersect_ldi", "intersecting_volume", "LDI", "datasets",
+    "ldi", "intersect_ldi", "intersecting_volume", "LDI", "datasets", "inspect_mesh", "MeshReport",
     "GridSpec", "VoxelGrid", "SparseOctree", "Mesh", "DEFAULT_METHOD", "__version__",
     "GlvoxError", "BackendError", "CapabilityError", "DatasetError", "EmptyMeshError", "FaceIndexError",
     "FormatError", "GLError", "GridError", "LimitError", "MeshError", "MeshLoadError",

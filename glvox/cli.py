@@ -1,4 +1,4 @@
-"""Command line: ``glvox info | methods | voxelize | convert | batch | ldi | volume | compare | bench | data``.
+"""Command line: ``glvox info | methods | voxelize | convert | batch | ldi | volume | compare | bench | data | inspect``.
 
 Errors glvox raises on purpose print one line ``glvox: error: ...`` and exit
 with status 1 (2 for wrong usage, as argparse does, in the same one-line
@@ -30,6 +30,7 @@ from .batch import BatchSettings, run_batch
 from .errors import GlvoxError
 from .gl.context import get_context
 from .grid import grid_for
+from .inspect import inspect_mesh
 from .mesh import load_mesh
 from .methods import DEFAULT_METHOD, get_method, method_infos, run_method
 from .methods.leung_wang import overlap_bounds, overlap_grid, run_intersection
@@ -158,7 +159,7 @@ def cmd_batch(args) -> int:
         method=args.method, resolution=args.resolution,
         dims=tuple(args.dims) if args.dims is not None else None, voxel_size=args.voxel_size,
         padding=args.padding, tight=args.tight, options=tuple(sorted(options.items())),
-        allow_open=args.allow_open, backend=args.backend, fmt=args.format)
+        allow_open=args.allow_open, backend=args.backend, fmt=args.format, inspect=args.inspect)
 
     def on_term(signum, frame):  # batch schedulers stop jobs with SIGTERM: keep the manifest
         raise KeyboardInterrupt
@@ -248,6 +249,13 @@ def cmd_volume(args) -> int:
         print(json.dumps(d, indent=2))
     else:
         print(f"{volume:.9g}")
+    return 0
+
+
+def cmd_inspect(args) -> int:
+    """``glvox inspect``: the defects of a mesh (glvox.inspect.MeshReport)."""
+    report = inspect_mesh(args.mesh, args.resolution, backend=args.backend)
+    print(json.dumps(report.to_dict(), indent=2) if args.json else report.format())
     return 0
 
 
@@ -385,6 +393,8 @@ def _add_batch_parser(sub) -> None:
                     help="run on an existing Dask cluster (e.g. tcp://host:8786) instead of a local one")
     pb.add_argument("--overwrite", action="store_true", help="redo meshes whose output exists")
     pb.add_argument("--manifest", help="manifest CSV path (default OUTPUT/manifest.csv)")
+    pb.add_argument("--inspect", action="store_true",
+                    help="also report each mesh's defects (glvox inspect) in the manifest's extra columns")
     pb.add_argument("--suffix", action="append", metavar="SUFFIX",
                     help="mesh suffix to search for (repeatable; default: every format trimesh loads)")
     _add_output_arguments(pb, "print the summary as JSON", "no progress bar, messages or summary")
@@ -434,6 +444,22 @@ def _add_volume_parser(sub) -> None:
     pvol.set_defaults(func=cmd_volume, validate=preflight.validate_volume)
 
 
+def _add_inspect_parser(sub) -> None:
+    pin = sub.add_parser(
+        "inspect", help="report a mesh's defects: components, holes, non-manifold edges, orientation, ...",
+        description="Triangles, connected components, boundary and non-manifold edges, duplicate and "
+                    "degenerate faces, winding consistency, orientation (signed volume) and an estimate of "
+                    "self-intersections of MESH; with -r N also the share of the solid whose generalized "
+                    "winding number lies within 0.1 of the threshold on the N^3 grid (how ambiguous a "
+                    "solid of it is).")
+    pin.add_argument("mesh")
+    pin.add_argument("-r", "--resolution", type=int, default=None,
+                     help="also measure the uncertain share on the N^3 grid (GPU winding numbers)")
+    pin.add_argument("--backend", choices=["egl", "osmesa", "auto"], default=None)
+    pin.add_argument("--json", action="store_true", help="print the report as JSON")
+    pin.set_defaults(func=cmd_inspect, validate=preflight.validate_inspect)
+
+
 def _add_compare_parser(sub) -> None:
     pc = sub.add_parser(
         "compare", help="run methods x meshes x grid sizes: tables, plots and pictures",
@@ -472,7 +498,8 @@ def _add_data_parser(sub) -> None:
 
 #: One function per command, each adding its subparser.
 _COMMANDS = (_add_info_parser, _add_methods_parser, _add_voxelize_parser, _add_convert_parser, _add_batch_parser,
-             _add_ldi_parser, _add_volume_parser, _add_compare_parser, _add_bench_parser, _add_data_parser)
+             _add_ldi_parser, _add_volume_parser, _add_compare_parser, _add_bench_parser, _add_data_parser,
+             _add_inspect_parser)
 
 
 def build_parser() -> argparse.ArgumentParser:

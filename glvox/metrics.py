@@ -50,13 +50,13 @@ class ReferenceCheck:
                 + (f" (first: {self.unexplained[:5].tolist()})" if len(self.unexplained) else ""))
 
 
-def tie_set(reference: str, mesh, spec, eps: float = TIE_EPS) -> np.ndarray:
-    """Dense (nx, ny, nz) bool tie set of ``reference`` for ``mesh`` on ``spec``."""
+def tie_set(reference: str, mesh, spec, eps: float = TIE_EPS, **options) -> np.ndarray:
+    """Dense (nx, ny, nz) bool tie set of ``reference`` (run with ``options``) for ``mesh`` on ``spec``."""
     method = get_method(reference)
     if not method.has_ties:
         known = sorted(i.name for i in method_infos() if get_method(i.name).has_ties)
         raise ValueError(f"no tie set is defined for {reference!r}; known: {known}")
-    return method.tie_set(mesh, spec, eps)
+    return method.tie_set(mesh, spec, eps, **options)
 
 
 def check_against_reference(result: VoxelGrid, mesh, reference: str | None = None,

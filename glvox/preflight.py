@@ -270,6 +270,11 @@ def validate_volume(args) -> None:
     grid_args(args.resolution, args.dims, args.voxel_size)
 
 
+def validate_inspect(args) -> None:
+    mesh_arg(args.mesh)
+    positive("-r/--resolution", args.resolution)
+
+
 def validate_convert(args) -> None:
     """``glvox convert IN OUT``: both suffixes known, each format's library importable, the
     input a file, the output writable and not the input."""

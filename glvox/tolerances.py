@@ -50,6 +50,17 @@ SNAP_EPS = 2.0 ** -11
 #: turned by 10 degrees).
 SHORT_EDGE_MOTIONS = 100.0
 
+#: (turns: winding number units) A voxel of a winding-number solid is a tie
+#: when the exact w at its center lies within this of the threshold (beside
+#: the centers within TIE_EPS of the surface, where w jumps by 1).  The GPU
+#: sums the strips of the boundary edges in float32, each atan2 within a few
+#: 1e-7 rad, and holds the mesh in float32 (a TIE_EPS-sized motion moves w by
+#: ~1e-5 at a voxel from a boundary edge): measured below 1e-5 on the shared
+#: meshes (up to 1,280 boundary edges), so 1e-4 leaves a margin for chains
+#: ten times longer.  gwn-solid refines every voxel whose expansion could be
+#: off by its error bound plus this margin, so only these ties can differ.
+WINDING_TIE = 1e-4
+
 # -- input ----------------------------------------------------------------------
 
 #: (relative to the squared longest bounding-box extent) A triangle is

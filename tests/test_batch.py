@@ -565,3 +565,44 @@ def test_workers_divide_llvmpipe_threads_and_take_egl_devices_in_turn(dataset, t
     # several GPUs: one device per worker, in turn
     envs = worker_envs(3, egl_devices=[0, 1])
     assert [e["GLVOX_EGL_DEVICE"] for e in envs] == ["0", "1", "0"] and "GLVOX_EGL_DEVICE" not in worker_envs(2)[0]
+
+
+def test_inspect_columns_and_robust_solids_on_open_meshes(dataset, tmp_path, gl_context):
+    """--inspect fills the report's columns (the same numbers as glvox inspect); a robust
+    solid (carve-solid) voxelizes open meshes without --allow-open."""
+    from glvox.batch.manifest import INSPECT_COLUMNS
+    from glvox.grid import grid_for
+    from glvox.inspect import inspect_mesh, uncertain_share
+    from glvox.mesh import load_mesh
+    from glvox.methods import run_method
+
+    root, files = dataset
+    rels = [next(r for r, i in files.items() if i["kind"] == k) for k in ("box", "open_box")]
+    lst = tmp_path / "list.txt"
+    lst.write_text("\n".join(str(root / r) for r in rels) + "\n")
+    out = tmp_path / "out"
+    s = run_batch(lst, out, BatchSettings("carve-solid", resolution=R, inspect=True), workers=0, quiet=True)
+    assert (s.done, s.failed) == (2, 0)
+    rows = {Path(r["input"]).name: r for r in manifest_rows(out / "manifest.csv").values()}
+    for rel in rels:
+        row = rows[Path(rel).name]
+        report = inspect_mesh(root / rel).to_dict()
+        # the uncertain share on the batch's grid, as the exact winding numbers give it
+        mesh = load_mesh(root / rel)
+        exact = run_method("reference-gwn", mesh, grid_for(mesh, R)).fields["winding"]
+        report["uncertain_share"] = uncertain_share(exact)[1]
+        for c in INSPECT_COLUMNS:
+            if report[c] is None:
+                assert row[c] == ""
+            elif isinstance(report[c], bool):
+                assert row[c] == ("true" if report[c] else "false"), c
+            elif isinstance(report[c], str):
+                assert row[c] == report[c], c
+            else:
+                assert float(row[c]) == pytest.approx(report[c], rel=1e-5, abs=1e-9), c
+        assert float(row["inspect_s"]) > 0 and row["method"] == "carve-solid" and not row["warnings"]
+    assert int(rows[Path(rels[1]).name]["boundary_edges"]) > 0 == int(rows[Path(rels[0]).name]["boundary_edges"])
+    assert float(rows[Path(rels[1]).name]["uncertain_share"]) > 0 == float(rows[Path(rels[0]).name]["uncertain_share"])
+    # without --inspect the columns stay empty
+    s = run_batch(lst, tmp_path / "plain", BatchSettings("carve-solid", resolution=R), workers=0, quiet=True)
+    assert all(r["components"] == r["inspect_s"] == "" for r in manifest_rows(tmp_path / "plain/manifest.csv").values())

@@ -1,8 +1,9 @@
 """glvox bench: peers aligned to glvox's grid, agreement counts, ratios, the regression check, the CLI.
 
 The peers' alignment is checked against glvox's exact CPU references: a peer
-that computes the same criterion (Open3D: conservative surface; PyVista and
-libigl: inside at voxel centers) must match its reference up to proven ties,
+that computes the same criterion (Open3D: conservative surface; PyVista:
+inside at voxel centers; libigl and Warp: winding number >= 1/2 at voxel
+centers) must match its reference up to proven ties,
 on a non-cubic grid with padding, so an index or half-voxel offset anywhere
 would show.  trimesh is a core dependency, so its peers are checked on every
 run; the optional peers skip with the package to install when absent.
@@ -114,14 +115,36 @@ def test_open3d_is_the_conservative_surface(case):
 
 
 @pytest.mark.parametrize("peer,module,package", [("pyvista", "pyvista", "pyvista"),
-                                                 ("igl-winding", "igl", "libigl")])
+                                                 ("igl-winding", "igl", "libigl"),
+                                                 ("warp-winding", "warp", "warp-lang")])
 def test_inside_at_centers_peers_are_the_solid(case, peer, module, package):
     _optional(module, package)
     mesh, spec = case
     pg = _peer_on(peer, mesh, spec)
-    a = _check(pg.grid, mesh, "reference-solid")
+    a = _check(pg.grid, mesh, get_peer(peer).reference)
     assert pg.outside == 0
     assert a["not_ties"] == 0 and a["reference_voxels"] > 0, a
+    if peer != "pyvista":  # on a closed mesh the winding number's solid is the parity solid
+        assert _check(pg.grid, mesh, "reference-solid")["not_ties"] == 0
+
+
+#: Voxels where each winding-number peer differs from reference-gwn on the open
+#: bunny at 48^3 (not ties): their expansions (beta 2) err by ~1e-3 where w is
+#: near 1/2, which reference-gwn and gwn-solid decide exactly.  Measured: 0
+#: (libigl) and 1 (Warp, float32); libigl at 128^3: 4 of 419,474.
+WINDING_PEER_MISMATCHES = {"igl-winding": 1, "warp-winding": 2}
+
+
+@pytest.mark.parametrize("peer,module,package", [("igl-winding", "igl", "libigl"),
+                                                 ("warp-winding", "warp", "warp-lang")])
+def test_winding_peers_on_an_open_mesh(shared_mesh, peer, module, package):
+    _optional(module, package)
+    mesh = glvox.load_mesh(shared_mesh("stanford_bunny_bun_zipper.ply"))
+    spec = glvox.grid_for(mesh, 48)
+    pg = _peer_on(peer, mesh, spec)
+    a = _check(pg.grid, mesh, "reference-gwn")
+    assert a["reference_voxels"] > 20000
+    assert a["not_ties"] <= WINDING_PEER_MISMATCHES[peer], a
 
 
 def test_open3d_drops_voxels_past_the_grid():

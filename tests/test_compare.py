@@ -15,7 +15,8 @@ from glvox.cli import main as cli_main
 from glvox.grid import GridSpec
 from glvox.methods import method_names
 from glvox.results.voxels import VoxelGrid
-from glvox.study import compare, render
+from glvox.study import compare, render, report
+from glvox.datasets import SHARED_MESHES
 from glvox.study.options import COMPARE_PRESETS
 
 
@@ -170,3 +171,40 @@ def test_progress_names_contenders_as_people_read_them():
     assert variant.key == "ss-conservative[variant=simple]" and variant.label == "ss-conservative (variant simple)"
     assert Contender.of_peer("trimesh-subdivide").label == "peer trimesh-subdivide"
     assert CALIBRATION_CONTENDER.label == "the calibration workload"
+
+
+def test_open_mesh_study(tmp_path, gl_context, shared_mesh):
+    """Every solid method against reference-gwn on open meshes: rows with IoU, missing,
+    extra and the uncertain share; gwn-solid agrees up to ties, a parity method does not;
+    a slice picture for each method that differs; the study's table."""
+    from glvox.inspect import uncertain_share
+
+    meshes = [str(shared_mesh("messy_teapot_newell.obj")), str(shared_mesh("messy_soup_synthetic.stl"))]
+    plan = compare.compare_plan(["gwn-solid", "ss-solid", "carve-solid", "vote-solid", "solid"], meshes, [24],
+                                repeat=1, reference="reference-gwn", open_solids=True)
+    rows = compare.run(plan, tmp_path, quiet=True)
+    assert len(rows) == 10 and all(r["status"] == "ok" for r in rows), [r["error"] for r in rows]
+    assert all(r["reference"] == "reference-gwn" and r["iou"] is not None for r in rows)
+    by = {(r["method"], r["mesh"]): r for r in rows}
+    for mesh in ("messy_teapot_newell.obj", "messy_soup_synthetic.stl"):
+        assert by[("gwn-solid", mesh)]["not_ties"] == 0 and by[("solid", mesh)]["not_ties"] == 0
+        m = glvox.load_mesh(shared_mesh(mesh))
+        w = glvox.voxelize(m, 24, method="reference-gwn").fields["winding"]
+        assert by[("ss-solid", mesh)]["uncertain_share"] == uncertain_share(w)[1]
+    assert by[("ss-solid", "messy_soup_synthetic.stl")]["not_ties"] > 0  # parity of a soup is not w
+    md = report.markdown(rows, {"gl": {}})
+    assert "### Open meshes at 24^3 against `reference-gwn`" in md and "*uncertain share*" in md
+    pics = compare.pictures(plan, tmp_path, lambda s: None)
+    names = [p.name for p in pics]
+    assert any(n.startswith("messy_soup_synthetic_slice_ss-solid_vs_reference-gwn_24_z") for n in names)
+    assert not any("slice_gwn-solid" in n for n in names if n.startswith("messy_teapot"))
+
+
+def test_open_preset_plan(shared_mesh):
+    """--preset open: every solid method but the reference, on the shared meshes that are open."""
+    preset = COMPARE_PRESETS["open"]
+    methods = compare.preset_methods(preset)
+    assert "reference-gwn" not in methods and preset["reference"] == "reference-gwn" and preset["open_solids"]
+    assert set(methods) == set(method_names(kind="solid") + method_names(kind="sparse")) - {"reference-gwn"}
+    for name in SHARED_MESHES:
+        assert (name in preset["meshes"]) == (not glvox.load_mesh(shared_mesh(name)).watertight), name

@@ -9,6 +9,8 @@ import does not make an upward dependency acceptable.
 from __future__ import annotations
 
 import ast
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -17,7 +19,7 @@ ROOT = Path(__file__).resolve().parents[1] / "glvox"
 
 #: The README's Layout order, lowest first.
 LAYERS = ["_version", "errors", "tolerances", "progress", "grid", "meshfiles", "mesh", "datasets", "results",
-          "formats", "io", "gl", "gpu", "reference", "methods", "metrics", "batch", "study", "testing",
+          "formats", "io", "gl", "gpu", "reference", "methods", "inspect", "metrics", "batch", "study", "testing",
           "preflight", "cli", "__main__"]
 
 
@@ -79,3 +81,17 @@ def test_imports_point_down(path):
         if (target == "__init__" and not face_ok) or (target in LAYERS and LAYERS.index(target) > LAYERS.index(own)):
             bad.append(f"line {line}: {mod}")
     assert not bad, f"{path.name} ({own}) imports upward: {bad}"
+
+
+def test_compare_scripts_import():
+    """The by-hand scripts in compare/ are outside the package and no test runs them: their
+    imports are checked here (each script's top level, not its main), so a module that moves
+    in glvox/ cannot leave one broken."""
+    scripts = sorted((ROOT.parent / "compare").glob("*.py"))
+    assert scripts
+    code = ("import runpy, sys\n"
+            "for p in sys.argv[1:]:\n"
+            "    runpy.run_path(p, run_name='glvox_import_check')\n")
+    p = subprocess.run([sys.executable, "-c", code, *map(str, scripts)], capture_output=True, text=True,
+                       timeout=300, cwd=ROOT.parent)
+    assert p.returncode == 0, p.stderr[-2000:]

@@ -52,6 +52,11 @@ class BatchSettings:
         ``'egl'``, ``'osmesa'`` or ``'auto'``.
     fmt : {'npz', 'binvox'}
         Output format.
+    inspect : bool
+        Also inspect every mesh (:func:`glvox.inspect.inspect_mesh`, with the
+        uncertain share on the batch's grid) into the manifest's extra
+        columns; off by default: it takes longer than loading the mesh
+        (0.5-1.6 s for 17k-200k triangles here).
     """
 
     method: str
@@ -64,6 +69,7 @@ class BatchSettings:
     allow_open: bool = False
     backend: str | None = None
     fmt: str = "npz"
+    inspect: bool = False
 
     def validate(self) -> None:
         """Refuse unknown methods, options, formats and grid arguments before any work."""

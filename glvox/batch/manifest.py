@@ -40,7 +40,22 @@ MANIFEST_COLUMNS = (
     "glvox_version",
     "finished",            # UTC time the row was made, ISO 8601
     "warnings",            # warnings the method raised (e.g. NotWatertightWarning), '; '-joined
+    # --inspect: glvox.inspect.MeshReport's fields (empty without it)
+    "components",          # parts connected through manifold edges
+    "boundary_edges",      # edges of one triangle (holes)
+    "nonmanifold_edges",   # edges of three or more triangles
+    "duplicate_faces",     # triangles on the same three positions as an earlier one
+    "inconsistent_edges",  # edges of two triangles that run them the same way
+    "winding_consistent",  # true / false
+    "signed_volume",       # world units cubed; > 0 when the faces point outward
+    "orientation",         # outward | inward | flat
+    "self_intersections",  # edges crossing a triangle (an estimate on large meshes)
+    "uncertain_share",     # share of the solid whose winding number is within 0.1 of the threshold
+    "inspect_s",           # wall seconds of the inspection
 )
+
+#: The manifest columns that ``--inspect`` fills from :class:`glvox.inspect.MeshReport`.
+INSPECT_COLUMNS = MANIFEST_COLUMNS[MANIFEST_COLUMNS.index("components"):MANIFEST_COLUMNS.index("inspect_s")]
 
 
 def now() -> str:

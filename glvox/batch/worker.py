@@ -18,16 +18,17 @@ from typing import Any, Callable
 
 from ..errors import GlvoxError
 from ..grid import grid_for
+from ..inspect import inspect_mesh, uncertain_share
 from ..mesh import load_mesh
 from ..methods import run_method
 from .atomic import atomic_save
 from .jobs import BatchSettings, Job
-from .manifest import base_row, now
+from .manifest import INSPECT_COLUMNS, base_row, now
 
 #: What handles one mesh: ``task(job, settings)`` returns its manifest row.
 Task = Callable[[Job, BatchSettings], dict[str, Any]]
 
-_DOING = {"load": "loading", "voxelize": "voxelizing", "save": "saving"}
+_DOING = {"load": "loading", "voxelize": "voxelizing", "save": "saving", "inspect": "inspecting"}
 
 
 def voxelize_one(job: Job, settings: BatchSettings) -> dict[str, Any]:
@@ -62,12 +63,17 @@ def voxelize_one(job: Job, settings: BatchSettings) -> dict[str, Any]:
             result = run_method(settings.method, mesh, spec, backend=settings.backend,
                                 allow_open=settings.allow_open, **dict(settings.options))
         run = result.run
+        row["method"] = run.method  # an alias (-m solid) records the method it ran
         row["warnings"] = "; ".join(str(w.message) for w in caught)
         row["voxels"] = run.stats.get("voxels", "")
         gpu = run.timings.gpu_s
         row["gpu_s"] = gpu if gpu is not None else ""
         row["cold"] = run.timings.cold
         marks["voxelize"] = time.perf_counter()
+        if settings.inspect:  # before the save: a mesh that fails here leaves no output
+            stage = "inspect"
+            row.update(inspect_row(mesh, spec, result, settings))
+            marks["inspect"] = time.perf_counter()
         stage = "save"
         atomic_save(result, job.output)
         marks["save"] = time.perf_counter()
@@ -78,12 +84,26 @@ def voxelize_one(job: Job, settings: BatchSettings) -> dict[str, Any]:
         row.update(status="failed", reason=type(exc).__name__,
                    error=f"unexpected {type(exc).__name__} while {_DOING[stage]} {job.rel}: {exc}")
     prev = t0
-    for name in ("load", "voxelize", "save"):
+    for name in ("load", "voxelize", "inspect", "save"):
         if name in marks:
             row[f"{name}_s"] = marks[name] - prev
             prev = marks[name]
     row["total_s"] = time.perf_counter() - t0
     row["finished"] = now()
+    return row
+
+
+def inspect_row(mesh, spec, result, settings: BatchSettings) -> dict[str, Any]:
+    """The manifest's ``--inspect`` columns for ``mesh`` (voxelized into ``result`` on
+    ``spec``): the report, and the uncertain share on the batch's grid, from the
+    result's winding field when the method returned one, else from ``gwn-solid``'s."""
+    fields = inspect_mesh(mesh).to_dict()
+    row = {c: fields[c] for c in INSPECT_COLUMNS if fields.get(c) is not None}
+    w = getattr(result, "fields", {}).get("winding")
+    threshold = result.run.options.get("threshold", 0.5) if w is not None else 0.5
+    if w is None:
+        w = run_method("gwn-solid", mesh, spec, backend=settings.backend, winding=True).fields["winding"]
+    row["uncertain_share"] = uncertain_share(w, threshold)[1]
     return row
 
 

@@ -23,16 +23,19 @@ SNAP_DEFINES = {"SNAP_EPS": float(SNAP_EPS)}
 
 
 def transform_vertices(ctx, mesh, spec, timer, pool, *, double: bool = False, stretch=(1.0, 1.0, 1.0),
-                       shift=(0.0, 0.0, 0.0), name: str | None = None, stage: str = "transform"):
+                       shift=(0.0, 0.0, 0.0), name: str | None = None, stage: str = "transform", axes=(0, 1, 2)):
     """Stage ``transform`` (S&S Sec. 6): the mesh's vertices in voxel space,
     ``snap((v - origin) / h) * stretch - shift`` computed in double
     (``common/transform.comp``; ``snap`` is :func:`glvox.grid.snap_to_planes`).
 
     ``stretch`` rescales axes after the snap (the LDI's LOD-C cells along its
     rays); ``double`` keeps the result in double instead of rounding it to
-    float32 once.  Returns ``(bufs, vox)``: the mesh's :class:`MeshBuffers`
-    and a pooled buffer (``name``) of x, y, z per vertex, ready for the next
-    stage.
+    float32 once.  ``axes``: output coordinate c is voxel-space coordinate
+    ``axes[c]``, so ``(1, 2, 0)`` gives the mesh in a frame whose x is the
+    grid's y (``spec`` stays the unpermuted grid; snap, stretch and shift
+    apply before the permutation).  Returns ``(bufs, vox)``: the mesh's
+    :class:`MeshBuffers` and a pooled buffer (``name``) of x, y, z per
+    vertex, ready for the next stage.
     """
     bufs = mesh_buffers(ctx, mesh)
     size = 8 if double else 4
@@ -42,7 +45,7 @@ def transform_vertices(ctx, mesh, spec, timer, pool, *, double: bool = False, st
     set_uniforms(prog, {"u_origin_d": tuple(float(x) for x in spec.origin - bufs.anchor),
                         "u_inv_h_d": 1.0 / spec.voxel_size,
                         "u_stretch_d": tuple(float(x) for x in stretch), "u_shift_d": tuple(float(x) for x in shift),
-                        "u_vertices": bufs.n_vertices})
+                        "u_vertices": bufs.n_vertices, "u_axes": tuple(int(a) for a in axes)})
     with timer.stage(stage):
         bufs.vertices.bind_to_storage_buffer(0)
         vox.bind_to_storage_buffer(1)

@@ -105,12 +105,21 @@ def run_method(name: str, mesh: Mesh, spec: GridSpec, *, ctx=None, backend: str 
     -------
     The method's result (VoxelGrid for surface and solid methods), with
     ``result.run`` a :class:`~glvox.results.RunInfo` holding timings and stats.
+    An alias (``solid``) runs the method it picks for ``mesh``
+    (:meth:`Method.resolve`): ``result.run.method`` names that one, and
+    ``result.run.stats['requested']`` the alias.
     """
-    method = get_method(name)
-    opts = validate_options(method.info, options)
+    requested = get_method(name)
+    opts = validate_options(requested.info, options)
+    method = get_method(requested.resolve(mesh))
+    if method is not requested:  # the alias's options, then the defaults of the method it runs
+        opts = validate_options(method.info, opts)
 
     def work(ctx, timer):
         return method.run(mesh, spec, ctx=ctx, timer=timer, **opts)
 
-    return run_in_envelope(method.info, (mesh,), spec, work, options=opts, ctx=ctx, backend=backend,
-                           allow_open=allow_open, debug=debug)
+    result = run_in_envelope(method.info, (mesh,), spec, work, options=opts, ctx=ctx, backend=backend,
+                             allow_open=allow_open, debug=debug)
+    if method is not requested:
+        result.run.stats["requested"] = requested.info.name
+    return result

@@ -98,6 +98,10 @@ class MethodInfo:
         ties); False for approximate-by-design methods.
     requires : Requirements
     options : mapping of str to Option
+    any_mesh : bool
+        True for a solid method whose inside is defined for any mesh (open,
+        non-manifold, self-intersecting; e.g. generalized winding numbers):
+        the run envelope does not refuse open meshes for it.
     """
 
     name: str
@@ -109,6 +113,7 @@ class MethodInfo:
     exact: bool = True
     requires: Requirements = field(default_factory=Requirements)
     options: Mapping[str, Option] = field(default_factory=dict)
+    any_mesh: bool = False
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
@@ -124,6 +129,7 @@ class MethodInfo:
         return {
             "name": self.name, "kind": self.kind, "family": self.family, "paper": self.paper,
             "summary": self.summary, "reference": self.reference, "exact": self.exact,
+            "any_mesh": self.any_mesh,
             "requires": {"gl_version": self.requires.gl_version,
                          "extensions": list(self.requires.extensions),
                          "limits": dict(self.requires.limits)},
@@ -163,14 +169,22 @@ class Method:
         """
         raise NotImplementedError
 
+    def resolve(self, mesh) -> str:
+        """The registry name of the method that runs on ``mesh``: this one's, except
+        for aliases that pick a method by the mesh (``solid``); :func:`run_method`
+        runs that one and records it in the run info."""
+        return self.info.name
+
     #: True for references that define :meth:`tie_set`.
     has_ties: ClassVar[bool] = False
 
-    def tie_set(self, mesh, spec, eps: float) -> np.ndarray:
+    def tie_set(self, mesh, spec, eps: float, **options) -> np.ndarray:
         """Dense (nx, ny, nz) bool: the voxels whose verdict under this method's
         definition is a proven tie (DESIGN.md, "Ties") for ``mesh`` on ``spec``,
-        with tolerance ``eps`` voxel.  Defined by the exact references
-        (:attr:`has_ties`), which results are checked against."""
+        with tolerance ``eps`` voxel; ``options``: the reference's options that
+        move the definition (reference-gwn's threshold, reference-carve's close).
+        Defined by the exact references (:attr:`has_ties`), which results are
+        checked against."""
         raise ValueError(f"no tie set is defined for {self.info.name!r}")
 
     def release(self, ctx) -> None:

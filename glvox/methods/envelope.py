@@ -1,7 +1,8 @@
 """The one run envelope: what happens around every method's work.
 
 :func:`run_in_envelope` checks the grid size, the mesh (watertight where a
-solid is asked for), the GL context and its capabilities, runs the work with a
+solid is asked for, unless the method's ``any_mesh`` defines inside for any
+mesh), the GL context and its capabilities, runs the work with a
 :class:`~glvox.gl.timing.StageTimer`, and attaches a
 :class:`~glvox.results.RunInfo`.  :func:`glvox.methods.run_method` runs every
 registered method through it, and the Leung & Wang intersection application
@@ -31,13 +32,14 @@ def _what(info: MethodInfo) -> str:
 
 def check_inputs(info: MethodInfo, meshes: Sequence[Any], spec: GridSpec, allow_open: bool) -> None:
     """The checks done before any work: dense size, closed meshes for inside kinds
-    (a warning when ``allow_open`` lets an open one through)."""
+    (a warning when ``allow_open`` lets an open one through; none for a
+    method with ``any_mesh``)."""
     if info.kind != "sparse" and spec.n_voxels > MAX_VOXELS:
         raise LimitError(
             f"method {info.name!r} returns a dense grid, and {spec.dims} has {spec.n_voxels} voxels, more "
             f"than the {MAX_VOXELS} glvox keeps dense; use a smaller grid or the sparse ss-octree"
         )
-    if info.kind not in INSIDE_KINDS:
+    if info.kind not in INSIDE_KINDS or info.any_mesh:
         return
     for mesh in meshes:
         if mesh.watertight:

@@ -47,6 +47,9 @@ passes); scan, sort and compaction run on the GPU.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Any
+
 import numpy as np
 
 from ..errors import LimitError
@@ -55,6 +58,7 @@ from ..gpu.buffers import buffer_pool, read_grid_words
 from ..gpu.sort import exclusive_scan, sort_pairs
 from ..gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set_uniforms
 from ..gpu.transform import transform_vertices
+from ..grid import GridSpec
 from ..results.voxels import VoxelGrid
 from .base import Method, MethodInfo, Requirements, register
 
@@ -94,22 +98,37 @@ COLUMN_CHUNK = 1 << (((LOOP_BUDGET // 2) // 5).bit_length() - 1)
 FILL_ROWS = 4
 
 
-def mesh_rows(spec, bufs) -> tuple[int, int, int, int]:
+def rotation(axis: int) -> tuple[int, int, int]:
+    """The axes of the frame whose x runs along grid axis ``axis``: ``(a, a+1, a+2) % 3``
+    (a rotation, so ``reference-solid(axis=a)``'s (u, v) plane is that frame's (y, z))."""
+    return (axis, (axis + 1) % 3, (axis + 2) % 3)
+
+
+def rotated_spec(spec, axis: int):
+    """``spec`` seen in the frame of :func:`rotation`: dims and origin permuted."""
+    ax = list(rotation(axis))
+    return GridSpec(tuple(spec.dims[a] for a in ax), np.asarray(spec.origin)[ax], spec.voxel_size)
+
+
+def mesh_rows(spec, bufs, axis: int = 0) -> tuple[int, int, int, int]:
     """The rows (j, k) of ``spec`` that can hold a crossing of the mesh of
     ``bufs``: ``(j0, k0, nj, nk)``, the mesh's (y, z) bounding box widened by
     a row on each side, for the GPU's float32 rounding of the voxel-space
     vertices (the bounds here are float64; a bound that matters lies within
     the grid, at most 65536 voxels from its origin, where float32 is exact to
-    1/128 voxel); ``nj * nk`` may be 0.
+    1/128 voxel); ``nj * nk`` may be 0.  With ``axis`` the rows run along
+    that grid axis, and (j, k) are the coordinates of :func:`rotation`'s
+    frame (``spec`` is the grid's own).
 
     A row holds a crossing only when its center (j + 1/2, k + 1/2) lies in a
     triangle's projection, hence inside the mesh's projected bounding box.
     """
-    origin = np.asarray(spec.origin, np.float64) - bufs.anchor
-    lo = (bufs.bounds[0, 1:] - origin[1:]) / spec.voxel_size
-    hi = (bufs.bounds[1, 1:] - origin[1:]) / spec.voxel_size
+    ax = list(rotation(axis))
+    origin = (np.asarray(spec.origin, np.float64) - bufs.anchor)[ax]
+    lo = (bufs.bounds[0, ax[1:]] - origin[1:]) / spec.voxel_size
+    hi = (bufs.bounds[1, ax[1:]] - origin[1:]) / spec.voxel_size
     first = np.maximum(np.floor(lo - 0.5) - 1, 0)
-    last = np.minimum(np.ceil(hi - 0.5) + 1, np.asarray(spec.dims[1:]) - 1)
+    last = np.minimum(np.ceil(hi - 0.5) + 1, np.asarray([spec.dims[a] for a in ax[1:]]) - 1)
     if not (np.all(np.isfinite(first)) and np.all(np.isfinite(last))) or np.any(last < first):
         return 0, 0, 0, 0
     (j0, k0), (j1, k1) = first.astype(np.int64), last.astype(np.int64)
@@ -220,6 +239,121 @@ def _compact_tiles(ctx, pool, keys, n_pairs):
     return active, tstats
 
 
+@dataclass
+class Parity:
+    """:func:`parity_on_gpu`'s buffers: the solid in ``grid`` (packed, the grid's own
+    layout), along x also its voxel count in ``count`` and the rows it filled."""
+
+    grid: Any
+    count: Any
+    big: Any
+    rows: tuple[int, int, int, int]
+
+    def read_stats(self, stats: dict) -> int:
+        """Read the voxel count back and put the chunk and row statistics into ``stats``."""
+        s = np.frombuffer(self.big.read(size=8), dtype="<u4")
+        stats["triangles_with_several_chunks"] = int(s[0])
+        stats["max_chunks"] = int(s[1]) + 1 if s[0] else 1
+        stats["fill_rows"] = self.rows[2] * self.rows[3]
+        return int(np.frombuffer(self.count.read(size=4), dtype="<u4")[0])
+
+
+#: Cells of a y or z column one invocation of ``ss/solid_fill_axis.comp``
+#: walks (one load and XOR each); longer columns take a dispatch per segment.
+AXIS_SEGMENT = 16384
+assert AXIS_SEGMENT < LOOP_BUDGET
+
+
+def parity_on_gpu(ctx, mesh, spec, timer, pool, *, axis: int = 0, tag: str = "") -> Parity:
+    """ss-solid's parity of crossings along grid axis ``axis`` in GPU buffers, nothing
+    read back: stages ``transform``, ``voxelize``, ``fill`` (each name + ``tag``).
+
+    The building block of ``ss-solid`` (axis 0) and ``vote-solid`` (every
+    axis).  Along y or z the transform rotates the vertices (:func:`rotation`),
+    so the voxelize passes, written for x columns, run unchanged and decide
+    every crossing exactly as ``reference-solid(axis=axis)`` does; they put
+    the crossing bits into the grid's own layout (``FLIP_AXIS``), and
+    ``ss/solid_fill_axis.comp`` runs the XOR down the columns along that axis.
+
+    Parameters
+    ----------
+    ctx : GLContext
+    mesh : Mesh
+    spec : GridSpec
+    timer : StageTimer
+    pool : BufferPool
+        The caller's pool; buffers ``grid``, ``vox_vertices``, ``big``,
+        ``count`` and ``args`` (each name + ``tag``).
+    axis : {0, 1, 2}
+        Ray direction, as ``reference-solid``'s ``axis``.
+    tag : str
+        Suffix of the buffer and stage names, so several axes coexist.
+
+    Returns
+    -------
+    Parity
+        ``grid`` holds the uint32 (nz, ny, words_per_row) words of ``spec``;
+        ``count`` and ``rows`` are set along x only.
+    """
+    n = mesh.n_triangles
+    max_groups = _check_triangles(ctx, n, "ss-solid")
+    rspec = rotated_spec(spec, axis)
+    # one buffer: the voxelize pass flips crossing bits into the cleared
+    # grid, the fill pass turns them into voxels in place
+    grid = pool.get("grid" + tag, spec.n_words * 4, what=f"the {spec.dims} bit grid")
+    bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool, axes=rotation(axis), name="vox_vertices" + tag,
+                                   stage="transform" + tag)
+    big = pool.get("big" + tag, (n + 2) * 4, what="the triangles with several column chunks", clear=False)
+    big.clear(size=8)
+    uniforms = grid_uniforms(rspec, bufs.anchor[list(rotation(axis))])
+    first, rest = (compute_program(ctx, "ss/solid.comp", {"SOLID_CHUNK": COLUMN_CHUNK, "FIRST": f,
+                                                          "FLIP_AXIS": axis}) for f in (1, 0))
+    for prog in (first, rest):
+        set_uniforms(prog, {**uniforms, "u_triangles": n})
+    big_args = compute_program(ctx, "ss/solid_big_args.comp")
+    set_uniforms(big_args, {"u_local_size": _LOCAL, "u_max_groups": max_groups})
+    count = pool.get("count" + tag, 4)
+    args = pool.get("args" + tag, 3 * 4, clear=False)
+    with timer.stage("voxelize" + tag):
+        vox.bind_to_storage_buffer(1)
+        bufs.faces.bind_to_storage_buffer(2)
+        grid.bind_to_storage_buffer(3)
+        big.bind_to_storage_buffer(4)
+        dispatch_1d(ctx, first, n, _LOCAL)
+        barrier(ctx)
+        args.bind_to_storage_buffer(8)
+        big_args.run(1, 1, 1)
+        barrier(ctx)
+        rest.run_indirect(args)
+        barrier(ctx)
+    rows = mesh_rows(spec, bufs, 0)
+    with timer.stage("fill" + tag):
+        _fill(ctx, spec, grid, count, rows, axis)
+    return Parity(grid, count, big, rows)
+
+
+def _fill(ctx, spec, grid, count, rows, axis: int) -> None:
+    """The crossing bits of ``grid`` into voxels along ``axis``: the prefix XOR of the
+    rows of ``rows`` (x, counted into ``count``), or of every y or z column."""
+    wpr = spec.words_per_row
+    vec = 4 if wpr % 4 == 0 else 2 if wpr % 2 == 0 else 1
+    grid.bind_to_storage_buffer(3)
+    if axis == 0:
+        fill = compute_program(ctx, "ss/solid_fill.comp", {"VEC": vec, "ROWS": FILL_ROWS})
+        set_uniforms(fill, {**grid_uniforms(spec, np.zeros(3)), "u_rows": rows})
+        count.bind_to_storage_buffer(5)
+        dispatch_1d(ctx, fill, -(-rows[2] * rows[3] // FILL_ROWS), _LOCAL)
+        barrier(ctx)
+        return
+    fill = compute_program(ctx, "ss/solid_fill_axis.comp", {"AXIS": axis, "VEC": vec, "SEGMENT": AXIS_SEGMENT})
+    set_uniforms(fill, grid_uniforms(spec, np.zeros(3)))
+    lines = wpr // vec * spec.dims[3 - axis]  # columns along y: (words, z); along z: (words, y)
+    for seg in range(-(-spec.dims[axis] // AXIS_SEGMENT)):
+        set_uniforms(fill, {"u_segment": seg})
+        dispatch_1d(ctx, fill, lines, _LOCAL)
+        barrier(ctx)
+
+
 @register
 class SSSolid(Method):
     info = MethodInfo(
@@ -232,54 +366,11 @@ class SSSolid(Method):
     )
 
     def run(self, mesh, spec, *, ctx, timer):
-        n = mesh.n_triangles
-        max_groups = _check_triangles(ctx, n, "ss-solid")
-        pool = buffer_pool(ctx, self.info.name)
-        # one buffer: the voxelize pass flips crossing bits into the cleared
-        # grid, the fill pass turns them into voxels in place
-        grid = pool.get("grid", spec.n_words * 4, what=f"the {spec.dims} bit grid")
-        bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool)
-        big = pool.get("big", (n + 2) * 4, what="the triangles with several column chunks", clear=False)
-        big.clear(size=8)
-        uniforms = grid_uniforms(spec, bufs.anchor)
-        first, rest = (compute_program(ctx, "ss/solid.comp", {"SOLID_CHUNK": COLUMN_CHUNK, "FIRST": f})
-                       for f in (1, 0))
-        for prog in (first, rest):
-            set_uniforms(prog, {**uniforms, "u_triangles": n})
-        big_args = compute_program(ctx, "ss/solid_big_args.comp")
-        set_uniforms(big_args, {"u_local_size": _LOCAL, "u_max_groups": max_groups})
-        wpr = spec.words_per_row
-        fill = compute_program(ctx, "ss/solid_fill.comp", {"VEC": 4 if wpr % 4 == 0 else 2 if wpr % 2 == 0 else 1,
-                                                            "ROWS": FILL_ROWS})
-        j0, k0, nj, nk = mesh_rows(spec, bufs)
-        set_uniforms(fill, {**uniforms, "u_rows": (j0, k0, nj, nk)})
-        count = pool.get("count", 4)
-        args = pool.get("args", 3 * 4, clear=False)
-        with timer.stage("voxelize"):
-            vox.bind_to_storage_buffer(1)
-            bufs.faces.bind_to_storage_buffer(2)
-            grid.bind_to_storage_buffer(3)
-            big.bind_to_storage_buffer(4)
-            dispatch_1d(ctx, first, n, _LOCAL)
-            barrier(ctx)
-            args.bind_to_storage_buffer(8)
-            big_args.run(1, 1, 1)
-            barrier(ctx)
-            rest.run_indirect(args)
-            barrier(ctx)
-        with timer.stage("fill"):
-            grid.bind_to_storage_buffer(3)
-            count.bind_to_storage_buffer(5)
-            dispatch_1d(ctx, fill, -(-nj * nk // FILL_ROWS), _LOCAL)
-            barrier(ctx)
+        p = parity_on_gpu(ctx, mesh, spec, timer, buffer_pool(ctx, self.info.name))
         with timer.stage("readback", gpu=False):
             # slices outside the mesh's rows hold nothing: only the others are read
-            words = read_grid_words(grid, spec, (k0, nk))
-            s = np.frombuffer(big.read(size=8), dtype="<u4")
-            voxels = int(np.frombuffer(count.read(), dtype="<u4")[0])
-        timer.stats["triangles_with_several_chunks"] = int(s[0])
-        timer.stats["max_chunks"] = int(s[1]) + 1 if s[0] else 1
-        timer.stats["fill_rows"] = nj * nk
+            words = read_grid_words(p.grid, spec, (p.rows[1], p.rows[3]))
+            voxels = p.read_stats(timer.stats)
         return VoxelGrid(words=words, spec=spec, count=voxels)
 
 

@@ -79,87 +79,135 @@ def _auto(n_triangles: int, dims, max_groups: int) -> str:
     return AUTO_FALLBACK if variant == "sorted" and n_triangles > max_groups * _LOCAL else variant
 
 
+def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int = 0):
+    """The S&S surface of ``mesh`` on ``spec`` in a GPU buffer, nothing read back.
+
+    The building block of ``ss-conservative`` and ``ss-6sep`` (stages
+    ``transform``, ``classify``, [``sort``, ``ranges``], ``voxelize``), for
+    methods that go on working on the surface on the GPU (``carve-solid``).
+
+    Parameters
+    ----------
+    ctx : GLContext
+        Current context.
+    mesh : Mesh
+    spec : GridSpec
+    timer : StageTimer
+    pool : BufferPool
+        The caller's pool; the surface uses its buffers ``grid``, ``stats``,
+        ``per_triangle``, ``args`` (and ``keys``, ``ranges`` when sorted).
+    criterion : {0, 1}
+        0 conservative (26-separating), 1 6-separating.
+    variant : {'simple', 'specialized', 'sorted'}
+
+    Returns
+    -------
+    grid : moderngl.Buffer
+        The packed surface (``common/voxel_space.glsl``'s layout, uint32
+        (nz, ny, words_per_row) words), bits past nx zero.
+    stats : moderngl.Buffer
+        uint32[8]; the first three count the 1D/2D/3D cases (criterion 0).
+    """
+    n = mesh.n_triangles
+    max_groups = int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])
+    if variant == "sorted" and n > max_groups * _LOCAL:
+        raise LimitError(
+            f"the sorted variant dispatches each bounding-box type at once, at most "
+            f"{max_groups * _LOCAL} triangles (GL_MAX_COMPUTE_WORK_GROUP_COUNT {max_groups} x "
+            f"{_LOCAL}); this mesh has {n}: use variant 'specialized'"
+        )
+    # the grid first: a grid over the SSBO limit is refused before any other work
+    grid = pool.get("grid", spec.n_words * 4, what=f"the {spec.dims} bit grid")
+    bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool)
+    stats = pool.get("stats", 8 * 4)
+    per_tri = pool.get("per_triangle", n * 4, what="per-triangle work", clear=False)
+    args = pool.get("args", 9 * 4, clear=False)
+    defines = {"SS_CRITERION": criterion, "SS_VARIANT": _VARIANTS[variant], "SS_CHUNK": CHUNK}
+    common = {**grid_uniforms(spec, bufs.anchor), "u_triangles": n, "u_tri_offset": 0,
+              "u_local_size": _LOCAL, "u_max_groups": max_groups}
+    vox.bind_to_storage_buffer(1)
+    bufs.faces.bind_to_storage_buffer(2)
+    grid.bind_to_storage_buffer(3)
+    stats.bind_to_storage_buffer(4)
+    per_tri.bind_to_storage_buffer(5)
+    args.bind_to_storage_buffer(8)
+    keys = None
+    if variant == "sorted":
+        keys = pool.get("keys", n * 4, what="sort keys", clear=False)
+        keys.bind_to_storage_buffer(7)
+    classify = compute_program(ctx, "ss/classify.comp", defines)
+    set_uniforms(classify, common)
+    with timer.stage("classify"):
+        dispatch_1d(ctx, classify, n, _LOCAL)
+        barrier(ctx)
+    if variant != "sorted":
+        _voxelize_unsorted(ctx, timer, n, defines, common, args, max_groups)
+    else:
+        _voxelize_sorted(ctx, timer, pool, n, defines, common, (vox, bufs.faces, grid, stats, per_tri, keys, args),
+                         max_groups)
+    return grid, stats
+
+
+def _voxelize_unsorted(ctx, timer, n, defines, common, args, max_groups):
+    """Stage ``voxelize`` of the simple and specialized variants: indirect dispatches
+    over the triangles, at most GL_MAX_COMPUTE_WORK_GROUP_COUNT groups each."""
+    dargs = compute_program(ctx, "ss/dispatch_args.comp")
+    prog = compute_program(ctx, "ss/surface.comp", defines)
+    set_uniforms(prog, common)
+    batch = max_groups * _LOCAL  # triangles per dispatch along x
+    with timer.stage("voxelize"):
+        for offset in range(0, n, batch):
+            count = min(batch, n - offset)
+            set_uniforms(dargs, {"u_sorted": False, "u_groups_x": -(-count // _LOCAL),
+                                 "u_max_groups": max_groups, "u_local_size": _LOCAL})
+            dargs.run(1, 1, 1)
+            barrier(ctx)
+            set_uniforms(prog, {"u_tri_offset": offset})
+            prog.run_indirect(args)
+            barrier(ctx)
+
+
+def _voxelize_sorted(ctx, timer, pool, n, defines, common, buffers, max_groups):
+    """Stages ``sort``, ``ranges`` and ``voxelize`` of the sorted variant: triangles
+    sorted by case, one indirect dispatch per bounding-box type."""
+    vox, faces, grid, stats, per_tri, keys, args = buffers
+    dargs = compute_program(ctx, "ss/dispatch_args.comp")
+    ranges = pool.get("ranges", 8 * 4)
+    ranges.bind_to_storage_buffer(6)
+    with timer.stage("sort"):
+        sort_pairs(ctx, keys, per_tri, n, key_bits=30)
+        barrier(ctx)
+    rng = compute_program(ctx, "ss/ranges.comp")
+    set_uniforms(rng, {"u_count": n})
+    set_uniforms(dargs, {"u_sorted": True, "u_local_size": _LOCAL, "u_max_groups": max_groups})
+    with timer.stage("ranges"):
+        # the sort may have bound its own buffers: bind ours again
+        keys.bind_to_storage_buffer(7)
+        ranges.bind_to_storage_buffer(6)
+        stats.bind_to_storage_buffer(4)
+        args.bind_to_storage_buffer(8)
+        dispatch_1d(ctx, rng, n, 256)
+        barrier(ctx)
+        dargs.run(1, 1, 1)
+        barrier(ctx)
+    with timer.stage("voxelize"):
+        vox.bind_to_storage_buffer(1)
+        faces.bind_to_storage_buffer(2)
+        grid.bind_to_storage_buffer(3)
+        per_tri.bind_to_storage_buffer(5)
+        for bbox_type in range(3):
+            prog = compute_program(ctx, "ss/surface.comp", {**defines, "SS_BBOX_TYPE": bbox_type})
+            set_uniforms(prog, common)
+            prog.run_indirect(args, offset=12 * bbox_type)
+        barrier(ctx)
+
+
 class _SSSurface(Method):
     criterion = 0
 
     def _run(self, ctx, mesh, spec, timer, variant: str):
-        n = mesh.n_triangles
-        max_groups = int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])
-        if variant == "sorted" and n > max_groups * _LOCAL:
-            raise LimitError(
-                f"the sorted variant dispatches each bounding-box type at once, at most "
-                f"{max_groups * _LOCAL} triangles (GL_MAX_COMPUTE_WORK_GROUP_COUNT {max_groups} x "
-                f"{_LOCAL}); this mesh has {n}: use variant 'specialized'"
-            )
-        pool = buffer_pool(ctx, self.info.name)
-        # the grid first: a grid over the SSBO limit is refused before any other work
-        grid = pool.get("grid", spec.n_words * 4, what=f"the {spec.dims} bit grid")
-        bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool)
-        stats = pool.get("stats", 8 * 4)
-        per_tri = pool.get("per_triangle", n * 4, what="per-triangle work", clear=False)
-        args = pool.get("args", 9 * 4, clear=False)
-        defines = {"SS_CRITERION": self.criterion, "SS_VARIANT": _VARIANTS[variant], "SS_CHUNK": CHUNK}
-        common = {**grid_uniforms(spec, bufs.anchor), "u_triangles": n, "u_tri_offset": 0,
-                  "u_local_size": _LOCAL, "u_max_groups": max_groups}
-        vox.bind_to_storage_buffer(1)
-        bufs.faces.bind_to_storage_buffer(2)
-        grid.bind_to_storage_buffer(3)
-        stats.bind_to_storage_buffer(4)
-        per_tri.bind_to_storage_buffer(5)
-        args.bind_to_storage_buffer(8)
-        keys = None
-        if variant == "sorted":
-            keys = pool.get("keys", n * 4, what="sort keys", clear=False)
-            keys.bind_to_storage_buffer(7)
-        classify = compute_program(ctx, "ss/classify.comp", defines)
-        set_uniforms(classify, common)
-        with timer.stage("classify"):
-            dispatch_1d(ctx, classify, n, _LOCAL)
-            barrier(ctx)
-        dargs = compute_program(ctx, "ss/dispatch_args.comp")
-        if variant != "sorted":
-            prog = compute_program(ctx, "ss/surface.comp", defines)
-            set_uniforms(prog, common)
-            batch = max_groups * _LOCAL  # triangles per dispatch along x
-            with timer.stage("voxelize"):
-                for offset in range(0, n, batch):
-                    count = min(batch, n - offset)
-                    set_uniforms(dargs, {"u_sorted": False, "u_groups_x": -(-count // _LOCAL),
-                                         "u_max_groups": max_groups, "u_local_size": _LOCAL})
-                    dargs.run(1, 1, 1)
-                    barrier(ctx)
-                    set_uniforms(prog, {"u_tri_offset": offset})
-                    prog.run_indirect(args)
-                    barrier(ctx)
-            return self._finish(spec, timer, grid, stats)
-        ranges = pool.get("ranges", 8 * 4)
-        ranges.bind_to_storage_buffer(6)
-        with timer.stage("sort"):
-            sort_pairs(ctx, keys, per_tri, n, key_bits=30)
-            barrier(ctx)
-        rng = compute_program(ctx, "ss/ranges.comp")
-        set_uniforms(rng, {"u_count": n})
-        set_uniforms(dargs, {"u_sorted": True, "u_local_size": _LOCAL, "u_max_groups": max_groups})
-        with timer.stage("ranges"):
-            # the sort may have bound its own buffers: bind ours again
-            keys.bind_to_storage_buffer(7)
-            ranges.bind_to_storage_buffer(6)
-            stats.bind_to_storage_buffer(4)
-            args.bind_to_storage_buffer(8)
-            dispatch_1d(ctx, rng, n, 256)
-            barrier(ctx)
-            dargs.run(1, 1, 1)
-            barrier(ctx)
-        with timer.stage("voxelize"):
-            vox.bind_to_storage_buffer(1)
-            bufs.faces.bind_to_storage_buffer(2)
-            grid.bind_to_storage_buffer(3)
-            per_tri.bind_to_storage_buffer(5)
-            for bbox_type in range(3):
-                prog = compute_program(ctx, "ss/surface.comp", {**defines, "SS_BBOX_TYPE": bbox_type})
-                set_uniforms(prog, common)
-                prog.run_indirect(args, offset=12 * bbox_type)
-            barrier(ctx)
+        grid, stats = surface_on_gpu(ctx, mesh, spec, timer, buffer_pool(ctx, self.info.name),
+                                     criterion=self.criterion, variant=variant)
         return self._finish(spec, timer, grid, stats)
 
     def _finish(self, spec, timer, grid, stats):

@@ -79,7 +79,7 @@ def solid(tris: np.ndarray, dims: Sequence[int], axis: int = 0) -> np.ndarray:
     axis = check_axis(axis)
     n = normals(tris)
     keep = n[:, axis] != 0.0
-    hits = _first_flips(tris[keep], n[keep], dims, axis)
+    hits, _ = first_flips(tris[keep], n[keep], dims, axis)
     flips = np.zeros(int(np.prod(dims)), dtype=np.uint8)
     idx, counts = np.unique(hits, return_counts=True)
     # Two crossings starting at the same voxel cancel; sorting the hits keeps
@@ -89,8 +89,11 @@ def solid(tris: np.ndarray, dims: Sequence[int], axis: int = 0) -> np.ndarray:
     return parity.astype(bool)
 
 
-def _first_flips(tris: np.ndarray, n: np.ndarray, dims: tuple[int, int, int], axis: int) -> np.ndarray:
-    """The first flipped voxel of every crossing (:func:`solid`'s fill rule).
+def first_flips(tris: np.ndarray, n: np.ndarray, dims: tuple[int, int, int],
+                axis: int) -> tuple[np.ndarray, np.ndarray]:
+    """The first flipped voxel of every crossing (:func:`solid`'s fill rule),
+    and the triangle that crosses there (the winding number reference counts
+    crossings with their signs, :mod:`.winding`).
 
     Parameters
     ----------
@@ -101,9 +104,11 @@ def _first_flips(tris: np.ndarray, n: np.ndarray, dims: tuple[int, int, int], ax
 
     Returns
     -------
-    (H,) int64
+    hits : (H,) int64
         Flat indices into ``dims`` of voxel ``max(q_bar, 0)`` of each
         crossing with ``q_bar < n_axis``; one per crossing (repeats possible).
+    tri : (H,) int64
+        Index into ``tris`` of the triangle of each crossing.
     """
     u = (axis + 1) % 3
     v = (axis + 2) % 3
@@ -118,7 +123,7 @@ def _first_flips(tris: np.ndarray, n: np.ndarray, dims: tuple[int, int, int], ax
     top_left = (neu > 0.0) | ((neu == 0.0) & (nev < 0.0))
     uv = tris[:, :, [u, v]]
 
-    hits = []
+    hits, owners = [], []
     for tri, ju, jv in column_candidates(tris, dims, axis):
         pu = ju + 0.5
         pv = jv + 0.5
@@ -140,4 +145,26 @@ def _first_flips(tris: np.ndarray, n: np.ndarray, dims: tuple[int, int, int], ax
         idx[u] = ju[ok]
         idx[v] = jv[ok]
         hits.append(np.ravel_multi_index(tuple(idx), dims))
-    return np.concatenate(hits) if hits else np.zeros(0, np.int64)
+        owners.append(tri[ok])
+    if not hits:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    return np.concatenate(hits), np.concatenate(owners)
+
+
+def solid_vote(tris: np.ndarray, dims: Sequence[int]) -> np.ndarray:
+    """The majority of :func:`solid` along x, y and z (``reference-vote``): a voxel is
+    set when at least two of its three parities of crossings say inside.
+
+    Parameters
+    ----------
+    tris : (T, 3, 3) float64
+        Voxel-space triangles (any mesh).
+    dims : (3,) int
+
+    Returns
+    -------
+    (nx, ny, nz) bool
+        On a closed mesh, :func:`solid` up to ties (every axis gives it).
+    """
+    x, y, z = (solid(tris, dims, axis) for axis in range(3))
+    return (x & y) | (z & (x | y))

@@ -1,9 +1,10 @@
 """The binary voxel grid: the result of every surface and solid method.
 
 npz layout (beside the common keys of :mod:`glvox.results.base`):
-``occupancy`` (bool, (nx, ny, nz), indexed [i, j, k]) and one ``extra_<name>``
-(bool, (nx, ny, nz)) per mask in ``grid.extras``; ``kind`` is the run's kind
-(``'surface'`` or ``'solid'``).
+``occupancy`` (bool, (nx, ny, nz), indexed [i, j, k]), one ``extra_<name>``
+(bool, (nx, ny, nz)) per mask in ``grid.extras`` and one ``field_<name>``
+(float32, (nx, ny, nz)) per array in ``grid.fields``; ``kind`` is the run's
+kind (``'surface'`` or ``'solid'``).
 """
 
 from __future__ import annotations
@@ -84,11 +85,17 @@ class VoxelGrid(Result):
         Named masks a method returns beside its result on the same spec
         (e.g. ``'unclassifiable'`` of passalis-stencil); saved in npz as
         ``extra_<name>``.
+    fields : dict of str to ndarray
+        Named float32 arrays (nx, ny, nz), indexed [i, j, k] like
+        :meth:`dense`, that a method returns per voxel (e.g. ``'winding'``,
+        the generalized winding number at the centers, of reference-gwn and
+        gwn-solid); saved in npz as ``field_<name>``.
     """
 
     def __init__(self, occupancy: np.ndarray | None = None, spec: GridSpec | None = None, *,
                  words: np.ndarray | None = None, run: Any = None,
-                 extras: dict[str, "VoxelGrid"] | None = None, count: int | None = None):
+                 extras: dict[str, "VoxelGrid"] | None = None, count: int | None = None,
+                 fields: dict[str, np.ndarray] | None = None):
         if spec is None:
             raise GridError("a VoxelGrid needs its GridSpec")
         if (occupancy is None) == (words is None):
@@ -101,6 +108,15 @@ class VoxelGrid(Result):
             if not isinstance(g, VoxelGrid) or not g.spec.same_placement(spec):
                 raise GridError(f"extra mask {name!r} must be a VoxelGrid on {spec}")
             self.extras[name] = g
+        self.fields: dict[str, np.ndarray] = {}
+        for name, arr in (fields or {}).items():
+            a = np.asarray(arr)
+            if not name.isidentifier():
+                raise GridError(f"field names must be identifiers, got {name!r}")
+            if a.shape != spec.dims or a.dtype != np.float32:
+                raise GridError(f"field {name!r} must be float32 of shape {spec.dims} (nx, ny, nz), "
+                                f"got {a.dtype} {a.shape}")
+            self.fields[name] = a
         self._dense: np.ndarray | None = None
         self._words: np.ndarray | None = None
         self._count = None if count is None else int(count)
@@ -172,7 +188,8 @@ class VoxelGrid(Result):
     # -- npz ----------------------------------------------------------------
     def npz_arrays(self) -> dict[str, np.ndarray]:
         return {"occupancy": np.asarray(self.dense(), dtype=bool),
-                **{f"extra_{k}": np.asarray(g.dense(), dtype=bool) for k, g in self.extras.items()}}
+                **{f"extra_{k}": np.asarray(g.dense(), dtype=bool) for k, g in self.extras.items()},
+                **{f"field_{k}": np.ascontiguousarray(a) for k, a in self.fields.items()}}
 
     @classmethod
     def from_npz(cls, z, path: Path) -> "VoxelGrid":
@@ -181,15 +198,18 @@ class VoxelGrid(Result):
         if occ.ndim != 3:
             raise FormatError(f"{path}: occupancy must be 3D (nx, ny, nz), got shape {occ.shape}")
         spec = GridSpec(occ.shape, np.asarray(z["origin"], dtype=np.float64), float(z["voxel_size"]))
-        extras = {}
+        extras, fields = {}, {}
         for key in z.files:
-            if key.startswith("extra_"):
+            if key.startswith(("extra_", "field_")):
                 e = np.asarray(z[key])
                 if e.shape != occ.shape:
                     raise FormatError(f"{path}: {key} must have the occupancy's shape {occ.shape}, "
                                       f"got {e.shape}")
-                extras[key[len("extra_"):]] = cls(e.astype(bool), spec)
-        return cls(occ.astype(bool), spec, extras=extras)
+                if key.startswith("extra_"):
+                    extras[key[len("extra_"):]] = cls(e.astype(bool), spec)
+                else:
+                    fields[key[len("field_"):]] = e.astype(np.float32)
+        return cls(occ.astype(bool), spec, extras=extras, fields=fields)
 
     # -- comparison ---------------------------------------------------------
     def _check_same(self, other: "VoxelGrid") -> None:

@@ -26,9 +26,12 @@ import warnings
 from pathlib import Path
 from typing import Any, Iterable, Sequence
 
+import numpy as np
+
 from glvox.errors import GlvoxError, NotWatertightWarning
 from glvox.gl.context import get_context
 from glvox.grid import grid_for, unpack_bits
+from glvox.inspect import UNCERTAIN_BAND, uncertain_share
 from glvox.mesh import load_mesh
 from glvox.methods import get_method, method_names, run_method
 from glvox.metrics import separation_leaks
@@ -49,27 +52,42 @@ PICTURE_MAX = 128
 
 
 def compare_plan(methods: Sequence[str], meshes: Sequence[str], sizes: Sequence[int], repeat: int = 5,
-                 check_max: int | None = CHECK_MAX, cpu_max: int | None = None) -> Plan:
+                 check_max: int | None = CHECK_MAX, cpu_max: int | None = None, *,
+                 reference: str | None = None, open_solids: bool = False) -> Plan:
     """The plan of ``glvox compare``: ``methods`` (registered names) on resolved ``meshes``.
 
     Every timed run counts (no time budget); solid, sparse and LDI methods
-    are skipped on open meshes, where inside is undefined.
+    are skipped on open meshes, where inside is undefined, unless
+    ``open_solids`` (they then run with ``allow_open``) or they are defined
+    for any mesh.  ``reference``: every method is checked against it (the
+    open-mesh study) instead of its own.
     """
     return Plan(meshes=list(meshes), sizes=sorted(set(sizes)), contenders=[Contender.of_method(m) for m in methods],
-                repeat=repeat, check_max=check_max, cpu_max=cpu_max, open_solids=False)
+                repeat=repeat, check_max=check_max, cpu_max=cpu_max, open_solids=open_solids, reference=reference)
+
+
+def preset_methods(preset: dict[str, Any]) -> list[str]:
+    """A preset's methods: its list, else every registered method of its kinds (but its
+    reference), else every registered method."""
+    if preset.get("methods"):
+        return list(preset["methods"])
+    if preset.get("kinds"):
+        return [m for k in preset["kinds"] for m in method_names(kind=k) if m != preset.get("reference")]
+    return method_names()
 
 
 def plan_from(args) -> Plan:
     preset = dict(COMPARE_PRESETS.get(args.preset or "", {}))
-    methods = args.methods or preset.get("methods") or method_names()
+    methods = args.methods or preset_methods(preset)
     meshes = args.meshes or preset.get("meshes")
     sizes = args.sizes or preset.get("sizes")
     if not meshes or not sizes:
-        raise GlvoxError("give --preset quick|paper, or --meshes and -r/--sizes")
+        raise GlvoxError(f"give --preset {'|'.join(sorted(COMPARE_PRESETS))}, or --meshes and -r/--sizes")
     return compare_plan(methods, [resolve_mesh(m) for m in meshes], sizes,
                         repeat=args.repeat or preset.get("repeat", 5),
                         check_max=args.check_max or preset.get("check_max", CHECK_MAX),
-                        cpu_max=preset.get("cpu_max"))
+                        cpu_max=preset.get("cpu_max"), reference=preset.get("reference"),
+                        open_solids=preset.get("open_solids", False))
 
 
 def separability(row: dict[str, Any], grid: VoxelGrid | None, refs: harness.References) -> None:
@@ -81,6 +99,20 @@ def separability(row: dict[str, Any], grid: VoxelGrid | None, refs: harness.Refe
     inside = unpack_bits(refs.words("reference-solid"), refs.spec.dims) & ~surface
     row["leaks_26"] = int(len(separation_leaks(surface, inside, 26)))
     row["leaks_6"] = int(len(separation_leaks(surface, inside, 6)))
+
+
+def uncertainty(row: dict[str, Any], grid: VoxelGrid | None, refs: harness.References) -> None:
+    """The open-mesh study (a plan checked against reference-gwn): ``uncertain_share``,
+    the share of the solid whose exact winding number lies within 0.1 of 1/2 on this
+    mesh and grid (:func:`glvox.inspect.uncertain_share`), and ``mismatch_uncertain``,
+    the share of this row's mismatches with reference-gwn that lie in that band."""
+    if grid is None or not str(row.get("reference", "")).startswith("reference-gwn"):
+        return
+    w = refs.field("reference-gwn", "winding")
+    row["uncertain_share"] = uncertain_share(w)[1]
+    diff = unpack_bits(grid.words() ^ refs.words("reference-gwn"), refs.spec.dims)
+    n = int(diff.sum())
+    row["mismatch_uncertain"] = float((diff & (np.abs(w - 0.5) < UNCERTAIN_BAND)).sum() / n) if n else None
 
 
 # ---------------------------------------------------------------------------
@@ -156,7 +188,8 @@ def run(plan: Plan, out: str | os.PathLike, *, force: bool = False, quiet: bool 
             progress.update(len(new))
 
         with progress:
-            harness.run_plan(plan, done=rows, on_rows=write, progress=progress.status, analyses=[separability])
+            harness.run_plan(plan, done=rows, on_rows=write, progress=progress.status,
+                             analyses=[separability, uncertainty])
     return [rows[c.key] for c in cells if c.key in rows]
 
 
@@ -181,17 +214,19 @@ def _renders(ctx, plan: Plan, mesh, spec, n: int, stem: str, pic: Path) -> list[
 
 
 def _slices(plan: Plan, mesh, spec, n: int, label: str, stem: str, pic: Path, log) -> list[Path]:
-    """A slice where each approximate method disagrees with its reference."""
+    """A slice where each approximate method disagrees with its reference; with the plan's
+    own reference (the open-mesh study), where any method disagrees with it."""
     paths = []
     for c in plan.contenders:
         info = get_method(c.method).info
-        if info.exact or not info.reference or info.kind not in ("surface", "solid"):
+        reference = plan.reference or info.reference
+        if (info.exact and not plan.reference) or not reference or info.kind not in ("surface", "solid"):
             continue
-        if info.kind == "solid" and not mesh.watertight:
+        if info.kind == "solid" and not mesh.watertight and not (plan.open_solids or info.any_mesh):
             continue
         try:
-            g = run_method(c.method, mesh, spec)
-            ref = run_method(info.reference, mesh, spec, allow_open=True)
+            g = run_method(c.method, mesh, spec, allow_open=plan.open_solids, **dict(c.options))
+            ref = run_method(reference, mesh, spec, allow_open=True)
         except GlvoxError as exc:
             log(f"no slice for {c.method} on {stem}: {exc}")
             continue
@@ -199,10 +234,10 @@ def _slices(plan: Plan, mesh, spec, n: int, label: str, stem: str, pic: Path, lo
             continue  # nothing to show: the method agrees with its reference here
         img, k = disagreement_slice(g, ref)
         cmp = g.compare(ref)
-        title = (f"{label} at {n}^3, slice z = {k}\n{c.method} against {info.reference}: "
+        title = (f"{label} at {n}^3, slice z = {k}\n{c.method} against {reference}: "
                  f"{cmp.n_missing} missing, {cmp.n_extra} extra in the whole grid")
-        paths.append(save_slice_png(img, pic / f"{stem}_slice_{c.method}_vs_{info.reference}_{n}_z{k}.png",
-                                    c.method, info.reference, title))
+        paths.append(save_slice_png(img, pic / f"{stem}_slice_{c.method}_vs_{reference}_{n}_z{k}.png",
+                                    c.method, reference, title))
     return paths
 
 

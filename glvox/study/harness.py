@@ -172,6 +172,7 @@ class References:
     def __init__(self, mesh, spec: GridSpec):
         self.mesh, self.spec = mesh, spec
         self._refs: dict[tuple, np.ndarray] = {}
+        self._fields: dict[tuple, dict[str, np.ndarray]] = {}
         self._ties: dict[str, np.ndarray] = {}
         self.seconds = 0.0
 
@@ -182,18 +183,26 @@ class References:
             t0 = time.perf_counter()
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", NotWatertightWarning)
-                self._refs[key] = run_method(name, self.mesh, self.spec, allow_open=True,
-                                             **dict(options)).words()
+                result = run_method(name, self.mesh, self.spec, allow_open=True, **dict(options))
+            self._refs[key] = result.words()
+            self._fields[key] = getattr(result, "fields", {})
             self.seconds += time.perf_counter() - t0
         return self._refs[key]
 
-    def ties(self, name: str) -> np.ndarray:
-        """The tie set of the reference ``name``, packed like :meth:`words`."""
-        if name not in self._ties:
+    def field(self, name: str, field: str, options: tuple = ()) -> np.ndarray:
+        """A float field the reference ``name`` returns (reference-gwn's ``'winding'``),
+        (nx, ny, nz) float32."""
+        self.words(name, options)
+        return self._fields[(name, options)][field]
+
+    def ties(self, name: str, options: tuple = ()) -> np.ndarray:
+        """The tie set of the reference ``name`` (run with ``options``), packed like :meth:`words`."""
+        key = (name, options)
+        if key not in self._ties:
             t0 = time.perf_counter()
-            self._ties[name] = pack_bits(tie_set(name, self.mesh, self.spec))
+            self._ties[key] = pack_bits(tie_set(name, self.mesh, self.spec, **dict(options)))
             self.seconds += time.perf_counter() - t0
-        return self._ties[name]
+        return self._ties[key]
 
 
 def reference_of(c: Contender, mesh) -> tuple[str | None, tuple]:
@@ -205,11 +214,21 @@ def reference_of(c: Contender, mesh) -> tuple[str | None, tuple]:
     """
     if c.is_peer:
         return get_peer(c.peer).reference, ()
-    info = get_method(c.method).info
+    info = get_method(get_method(c.method).resolve(mesh)).info  # an alias: the method it runs
     if info.reference == "reference-solid" and not mesh.watertight and "axis" in info.options:
         axis = dict(c.options).get("axis", info.options["axis"].default)
         return info.reference, (("axis", int(axis)),)
-    return info.reference, ()
+    if info.reference == "reference-gwn":
+        # the reference's own options (threshold, shell) as the contender sets them
+        ref = get_method(info.reference).info.options
+        opts = {k: v.default for k, v in ref.items()}
+        opts.update({k: v for k, v in dict(c.options).items() if k in ref})
+        if opts != {k: v.default for k, v in ref.items()}:
+            return info.reference, tuple(sorted(opts.items()))
+        return info.reference, ()
+    # other options the reference shares define the same thing there (carve's close)
+    ref_options = get_method(info.reference).info.options
+    return info.reference, tuple((k, v) for k, v in c.options if k in ref_options and k != "axis")
 
 
 # ---------------------------------------------------------------------------
@@ -321,7 +340,7 @@ def _not_run(plan: Plan, c: Contender, mesh, n: int) -> str | None:
             return (f"N = {n} over this peer's limit {limit} (--peer-max {c.peer}=N runs it; see "
                     "glvox/study/peers.py for why)")
     elif c.method is not None and not plan.open_solids and not mesh.watertight \
-            and get_method(c.method).info.kind in INSIDE_KINDS:
+            and get_method(c.method).info.kind in INSIDE_KINDS and not get_method(c.method).info.any_mesh:
         return "mesh not watertight: inside is undefined for a solid method"
     return None
 
@@ -366,11 +385,12 @@ def _finish_row(plan: Plan, row: dict[str, Any], r: _Contestant, refs: Reference
         return
     words = grid.words()
     row["voxels"] = popcount(words)
-    ref, ref_opts = reference_of(r.c, r.mesh)
+    ref, ref_opts = (plan.reference, ()) if plan.reference else reference_of(r.c, r.mesh)
     if ref is not None and plan.checks(row["n"]):
         progress(f"{row['mesh']} {row['n']}^3: checking {r.c.label} against {ref}")
         row["reference"] = ref + (f"[{','.join(f'{k}={v}' for k, v in ref_opts)}]" if ref_opts else "")
-        row.update(agreement(words, refs.words(ref, ref_opts), refs.ties(ref)))
+        ties = refs.ties(ref, ref_opts) if get_method(ref).has_ties else None
+        row.update(agreement(words, refs.words(ref, ref_opts), ties))
     for analyse in analyses:
         analyse(row, grid, refs)
 

@@ -31,6 +31,15 @@ COMPARE_PRESETS: dict[str, dict[str, Any]] = {
                          "cad_rocker_arm.obj", "cad_fandisk.off", "depth_reduced_diamond_lattice.stl",
                          "depth_gyroid_tpms_sheet.stl"],
               "sizes": [128, 256, 512, 1024], "repeat": 3, "check_max": 256, "cpu_max": 256},
+    # the open-mesh study (issue 19): every solid method on the shared meshes that are not
+    # watertight, each checked against the winding-number solid, which any mesh has
+    "open": {"meshes": ["stanford_bunny_bun_zipper.ply", "stanford_dragon_vrip_res2.ply",
+                        "stanford_dragon_vrip_res3.ply", "stanford_happy_buddha_113k.obj",
+                        "depth_cycloidal_drive.ply", "depth_gyroid_tpms_sheet.stl", "messy_teapot_newell.obj",
+                        "messy_tower_holes.obj", "messy_soup_synthetic.stl", "messy_not_convex.obj",
+                        "messy_wallhole.obj"],
+             "kinds": ["solid", "sparse"], "reference": "reference-gwn", "open_solids": True,
+             "sizes": [64, 128], "repeat": 3, "check_max": 128},
 }
 
 
@@ -38,7 +47,8 @@ def add_compare_arguments(p: argparse.ArgumentParser) -> None:
     """The options of ``glvox compare``."""
     p.add_argument("--preset", choices=sorted(COMPARE_PRESETS), default=None,
                    help="quick: every method, two shared meshes, up to 128^3; paper: the papers' sizes "
-                        "up to 1024^3 on eight shared meshes")
+                        "up to 1024^3 on eight shared meshes; open: every solid method on the open shared "
+                        "meshes against reference-gwn at 64^3 and 128^3")
     p.add_argument("-m", "--methods", nargs="+", default=None, help="registered method names (default all)")
     p.add_argument("--meshes", nargs="+", default=None,
                    help="mesh files, names in GLVOX_MESHES, or gen:torus|sphere|box|bunny-like")
@@ -76,7 +86,7 @@ AB_REPEAT = 10
 
 #: The peers' names, in table order (:data:`glvox.study.peers.PEERS` holds them;
 #: named here so that building the parser does not import the peers).
-PEER_NAMES = ("open3d", "trimesh-subdivide", "trimesh-fill", "pyvista", "igl-winding")
+PEER_NAMES = ("open3d", "trimesh-subdivide", "trimesh-fill", "pyvista", "igl-winding", "warp-winding")
 
 #: ``--check`` given without a PATH: the checkout's ``compare/bench_baseline.json``
 #: (:func:`glvox.study.regression.baseline_path`).  ``--save-baseline`` always

@@ -138,6 +138,10 @@ class Plan:
     open_solids : bool
         Run solid, sparse and LDI methods on open meshes too (parity of
         crossings, ``allow_open``); False gives them a skipped row there.
+    reference : str or None
+        Check every contender against this reference instead of its own
+        (the open-mesh study: ``reference-gwn``, the one solid defined for
+        any mesh); None: each contender's registered reference.
     """
 
     meshes: Sequence[str]
@@ -149,6 +153,7 @@ class Plan:
     cpu_max: int | None = None
     peer_max: dict[str, int | None] = field(default_factory=dict)
     open_solids: bool = True
+    reference: str | None = None
 
     def peer_limit(self, name: str) -> int | None:
         return self.peer_max.get(name, get_peer(name).max_n)

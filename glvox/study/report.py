@@ -175,13 +175,44 @@ def octree_table(rows) -> str:
     return "\n".join(out) + "\n"
 
 
+def open_table(rows) -> str:
+    """The open-mesh study (``--preset open``): every solid method against the plan's
+    reference, per mesh at the largest size: IoU, missing / extra voxels, and the
+    share of those mismatches lying where the winding number is uncertain."""
+    study = [r for r in rows if r.get("uncertain_share") is not None and r.get("iou") is not None]
+    if not study:
+        return ""
+    n = max(r["n"] for r in study)
+    at = [r for r in study if r["n"] == n]
+    meshes = list(dict.fromkeys(r["mesh"] for r in at))
+    ref = at[0]["reference"]
+    share = {m: next(r["uncertain_share"] for r in at if r["mesh"] == m) for m in meshes}
+    out = [f"### Open meshes at {n}^3 against `{ref}`: IoU / missing / extra (share of the mismatches "
+           f"in the uncertain band) / ms", "",
+           "| method | " + " | ".join(meshes) + " |", "|---|" + "---|" * len(meshes),
+           "| *uncertain share* | " + " | ".join(f"{share[m]:.4f}" for m in meshes) + " |"]
+    for lb in dict.fromkeys(_label(r) for r in at):
+        cells = []
+        for m in meshes:
+            r = next((r for r in at if r["mesh"] == m and _label(r) == lb), None)
+            if r is None:
+                cells.append("")
+                continue
+            t = r.get("gpu_ms") if r.get("gpu_ms") is not None else r.get("wall_ms")
+            band = r.get("mismatch_uncertain")
+            cells.append(f"{r['iou']:.4f} / {r['missing']:,} / {r['extra']:,}"
+                         + (f" ({band:.2f})" if band is not None else "") + f" / {_ms(t)}")
+        out.append(f"| `{lb}` | " + " | ".join(cells) + " |")
+    return "\n".join(out) + "\n"
+
+
 def markdown(rows: Sequence[dict[str, Any]], machine: dict[str, Any]) -> str:
     gl = machine.get("gl", {})
     head = ["# glvox comparison", "",
             f"{gl.get('renderer', '?')}; OpenGL {gl.get('version', '?')}; glvox {machine.get('glvox')}, "
             f"moderngl {machine.get('moderngl')}, trimesh {machine.get('trimesh')}, "
             f"Python {machine.get('python')}, {machine.get('cpu_count')} CPUs.", ""]
-    parts = [summary_table(rows), time_table(rows), count_table(rows), error_table(rows), separability_table(rows),
+    parts = [open_table(rows), summary_table(rows), time_table(rows), count_table(rows), error_table(rows), separability_table(rows),
              tiled_table(rows), octree_table(rows), stage_table(rows)]
     failed = [r for r in rows if r["status"] not in ("ok",)]
     if failed:

@@ -16,6 +16,9 @@ uniform dvec3 u_origin_d;  // grid origin relative to the mesh anchor, world uni
 uniform double u_inv_h_d;
 uniform dvec3 u_stretch_d;
 uniform dvec3 u_shift_d;
+// output coordinate c is coordinate u_axes[c] of p: (0, 1, 2) for the grid's own
+// frame; a rotation of the axes lets x-column passes run along y or z (vote-solid)
+uniform ivec3 u_axes;
 layout(local_size_x = 256) in;
 #include "common/dispatch.glsl"
 #include "common/snap.glsl"
@@ -32,7 +35,7 @@ void main() {
     if (i >= u_vertices) return;
     vec3 w = vec3(verts[3u * i], verts[3u * i + 1u], verts[3u * i + 2u]);
     dvec3 p = vertex_to_voxel(w, u_origin_d, u_inv_h_d) * u_stretch_d - u_shift_d;
-    vox[3u * i] = VOX_T(p.x);
-    vox[3u * i + 1u] = VOX_T(p.y);
-    vox[3u * i + 2u] = VOX_T(p.z);
+    vox[3u * i] = VOX_T(p[u_axes.x]);
+    vox[3u * i + 1u] = VOX_T(p[u_axes.y]);
+    vox[3u * i + 2u] = VOX_T(p[u_axes.z]);
 }

@@ -24,10 +24,28 @@ layout(std430, binding = 3) buffer Crossings { uint crossings[]; };
 layout(std430, binding = 4) buffer Big { uint big_count; uint big_max_chunks; uint big_list[]; };
 uniform uint u_triangles;
 
+#ifndef FLIP_AXIS
+#define FLIP_AXIS 0
+#endif
+
 // Record a crossing that flips voxels first .. nx - 1 of row (j, k).
+// FLIP_AXIS 1, 2 (vote-solid): the vertices were rotated so that the rows run
+// along the grid's y (frame (x, y, z) = grid (y, z, x)) or z (= grid (z, x,
+// y)); the crossing bit goes to the grid's own x-packed layout, and
+// ss/solid_fill_axis.comp turns it into voxels along that axis.
 void flip_from(int first, int j, int k) {
     uint f = uint(max(first, 0));
+#if FLIP_AXIS == 1
+    // grid voxel (k, f, j); the grid's dims are (u_dims.z, u_dims.x, u_dims.y)
+    uint wpr = (uint(u_dims.z) + 31u) >> 5;
+    atomicXor(crossings[(uint(j) * uint(u_dims.x) + f) * wpr + (uint(k) >> 5)], bit_of(uint(k)));
+#elif FLIP_AXIS == 2
+    // grid voxel (j, k, f); the grid's dims are (u_dims.y, u_dims.z, u_dims.x)
+    uint wpr = (uint(u_dims.y) + 31u) >> 5;
+    atomicXor(crossings[(f * uint(u_dims.z) + uint(k)) * wpr + (uint(j) >> 5)], bit_of(uint(j)));
+#else
     atomicXor(crossings[(uint(k) * uint(u_dims.y) + uint(j)) * words_per_row() + (f >> 5)], bit_of(f));
+#endif
 }
 
 // Columns chunk * SOLID_CHUNK .. of the covered-center range c (n columns).

@@ -72,11 +72,17 @@ ivec4 solid_columns(SolidTri t, ivec3 dims) {
     return ivec4(c0, c1);
 }
 
-// Edge function i at c, oriented so that the inside is positive.
-double solid_edge(SolidTri t, int i, dvec2 c) {
-    dvec2 r = c - t.a[i];
-    return (t.d[i].x * r.y - t.d[i].y * r.x) * t.s[i];
+// The edge function of the edge from a (its lexicographically smaller end
+// point) along d, at c.  gwn-solid's strips (shaders/gwn/strip.glsl) call it
+// too, so that they change sign on exactly the rows where a triangle's
+// crossing starts or stops.
+double solid_edge_raw(dvec2 a, dvec2 d, dvec2 c) {
+    dvec2 r = c - a;
+    return d.x * r.y - d.y * r.x;
 }
+
+// Edge function i at c, oriented so that the inside is positive.
+double solid_edge(SolidTri t, int i, dvec2 c) { return solid_edge_raw(t.a[i], t.d[i], c) * t.s[i]; }
 
 // Does the column center c = (y, z) lie in t's projection (top-left rule)?
 bool solid_covers(SolidTri t, vec2 c) {

@@ -1,0 +1,71 @@
+#version 450
+// gwn-solid, pass 1: C, the signed crossings (glvox/reference/winding.py).
+// The crossings are ss-solid's (ss/solid.glsl: the same arithmetic and fill
+// rule, so a closed mesh gives ss-solid's grid), but counted rather than
+// XORed: a crossing of triangle t at the covered column (j, k) adds
+// -sign(n_x) to voxel floor(q + 1/2) of the slab's int grid, and
+// gwn/rows.comp turns each row into its prefix sums, C at every voxel (the
+// count along the ray from the center towards -x).
+//
+// Rows (j, k) of the slab u_slab = (k0, k1) only: columns outside are
+// clipped before they are counted, so each slab's chunks cover its own rows.
+// One invocation per triangle and chunk of GWN_CHUNK columns, as ss/solid.comp
+// (FIRST 1: the first chunk of every triangle, listing those with more;
+// FIRST 0: the listed triangles' other chunks, by an indirect dispatch).
+#include "common/voxel_space.glsl"
+#include "ss/solid.glsl"
+#define SOLID_UNIT 1
+#include "ss/solid_input.glsl"
+layout(local_size_x = 64) in;
+#include "common/dispatch.glsl"
+#include "gwn/layout.glsl"
+layout(std430, binding = 3) buffer Counts { int counts[]; };
+layout(std430, binding = 4) buffer Big { uint big_count; uint big_max_chunks; uint big_list[]; };
+uniform uint u_triangles;
+
+// The covered-center columns of T inside the grid and the slab, inclusive.
+ivec4 slab_columns(SolidTri T) {
+    ivec4 c = solid_columns(T, u_dims);
+    c.y = max(c.y, u_slab.x);
+    c.w = min(c.w, u_slab.y - 1);
+    return c;
+}
+
+void main() {
+#if FIRST
+    uint t = global_index_1d();
+    uint chunk = 0u;
+    if (t >= u_triangles) return;
+#else
+    uint i = gl_GlobalInvocationID.x;
+    uint chunk = 1u + gl_WorkGroupID.y + gl_WorkGroupID.z * gl_NumWorkGroups.y;
+    if (i >= big_count) return;
+    uint t = big_list[i];
+#endif
+    SolidTri T;
+    if (!load_solid_triangle(t, T)) return;
+    ivec4 c = slab_columns(T);
+    if (c.x > c.z || c.y > c.w) return;
+    uint nj = uint(c.z - c.x + 1);
+    uint n = nj * uint(c.w - c.y + 1);
+    uint chunks = (n + uint(GWN_CHUNK) - 1u) / uint(GWN_CHUNK);
+    if (chunk >= chunks) return;
+#if FIRST
+    if (chunks > 1u) {
+        big_list[atomicAdd(big_count, 1u)] = t;
+        atomicMax(big_max_chunks, chunks - 1u);
+    }
+#endif
+    // a crossing counts -1 through a face facing +x (n_x > 0), +1 otherwise
+    int step = T.n.x > 0.0lf ? -1 : 1;
+    uint q0 = chunk * uint(GWN_CHUNK), q1 = min(n, q0 + uint(GWN_CHUNK));
+    int j = c.x + int(q0 % nj), k = c.y + int(q0 / nj);
+    for (uint q = q0; q < q1; ++q) {
+        vec2 center = vec2(j, k) + 0.5;
+        if (solid_covers(T, center)) {
+            int first = solid_first_flip(T, center);
+            if (first < u_dims.x) atomicAdd(counts[cell_index(max(first, 0), j, k)], step);
+        }
+        if (++j > c.z) { j = c.x; ++k; }
+    }
+}

