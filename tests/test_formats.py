@@ -151,6 +151,43 @@ def test_round_trip_keeps_extra_masks(tmp_path, suffix):
         assert back.extras[k].equal(g.extras[k])
 
 
+def with_field(g: VoxelGrid, seed=1) -> VoxelGrid:
+    """``g`` with a float32 field ``winding`` of distinct values (as gwn-solid's winding=true)."""
+    w = np.random.default_rng(seed).normal(0.5, 0.7, g.dims).astype(np.float32)
+    return VoxelGrid(g.dense(), g.spec, extras=g.extras, fields={"winding": w})
+
+
+def test_vti_keeps_float_fields_where_vtk_reads_them(tmp_path):
+    """A float field (gwn-solid's winding numbers) is a Float32 cell array ``field_<name>``:
+    VTK's own reader finds each value at its voxel's cell (x fastest), glvox reads it back."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkIOXML import vtkXMLImageDataReader
+
+    spec = GridSpec((5, 4, 3), (1.5, -2.0, 0.25), 0.5)
+    g = with_field(random_grid(spec))
+    path = io.save(g, tmp_path / "w.vti")
+    reader = vtkXMLImageDataReader()
+    reader.SetFileName(str(path))
+    reader.Update()
+    arr = reader.GetOutput().GetCellData().GetArray("field_winding")
+    assert arr is not None and arr.GetDataType() == 10  # VTK_FLOAT
+    got = vtk_to_numpy(arr).reshape(spec.dims, order="F")
+    assert np.array_equal(got, g.fields["winding"])
+    back = io.load(path)
+    assert back.equal(g) and set(back.fields) == {"winding"} and back.fields["winding"].dtype == np.float32
+    assert np.array_equal(back.fields["winding"], g.fields["winding"])
+
+
+@pytest.mark.parametrize("suffix", [".nrrd", ".nii.gz", ".binvox", pytest.param(".vdb", marks=needs_vdb)])
+def test_formats_without_float_fields_name_them(tmp_path, suffix):
+    spec = GridSpec((6, 6, 6), (1.5, 2.5, -3.0), 0.5)
+    g = with_field(random_grid(spec))
+    with pytest.warns(FormatWarning, match=r"the float fields \['winding'\] are not written"):
+        path = io.save(g, tmp_path / f"f{suffix}")
+    back = io.load(path)
+    assert back.equal(g) and not back.fields
+
+
 @pytest.mark.parametrize("suffix", [".nrrd", ".nii", ".nii.gz", ".binvox"])
 def test_one_array_formats_warn_what_they_drop(tmp_path, suffix):
     spec = GridSpec((6, 6, 6), (1.5, 2.5, -3.0), 0.5)

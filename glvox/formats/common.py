@@ -94,15 +94,20 @@ def as_grid(result: Result, fmt: str) -> VoxelGrid:
     return result
 
 
-def warn_dropped(grid: VoxelGrid, fmt: str) -> None:
-    """A :class:`FormatWarning` naming the extra masks a one-array format does not keep."""
-    if grid.extras:
-        warnings.warn(FormatWarning(f"{fmt} keeps the occupancy only; the extra masks {sorted(grid.extras)} "
-                                    "are not written (.npz, .vti and .vdb keep them)"), stacklevel=3)
+def warn_dropped(grid: VoxelGrid, fmt: str, *, keeps_masks: bool = False) -> None:
+    """A :class:`FormatWarning` naming the extra masks and float fields (``gwn-solid``'s
+    winding numbers) a format does not keep; ``keeps_masks``: it keeps the masks."""
+    dropped = [] if keeps_masks else [f"the extra masks {sorted(grid.extras)}"] * bool(grid.extras)
+    dropped += [f"the float fields {sorted(grid.fields)}"] * bool(grid.fields)
+    if dropped:
+        warnings.warn(FormatWarning(f"{fmt} keeps {'the masks' if keeps_masks else 'the occupancy'} only; "
+                                    f"{' and '.join(dropped)} are not written (.npz and .vti keep both"
+                                    f"{'' if keeps_masks else ', .vdb the masks'})"), stacklevel=3)
 
 
 def grid_from_matrix(data: np.ndarray, steps: np.ndarray, first_center: np.ndarray, path: Path,
-                     extras: dict[str, np.ndarray] | None = None) -> VoxelGrid:
+                     extras: dict[str, np.ndarray] | None = None,
+                     fields: dict[str, np.ndarray] | None = None) -> VoxelGrid:
     """A VoxelGrid from an array and the index-to-world placement of a file.
 
     Parameters
@@ -117,6 +122,8 @@ def grid_from_matrix(data: np.ndarray, steps: np.ndarray, first_center: np.ndarr
         For messages.
     extras : dict of str to (n0, n1, n2) array, optional
         Masks on the same samples (reoriented the same way).
+    fields : dict of str to (n0, n1, n2) array, optional
+        Float fields on the same samples (reoriented the same way; float32).
 
     Returns
     -------
@@ -147,7 +154,7 @@ def grid_from_matrix(data: np.ndarray, steps: np.ndarray, first_center: np.ndarr
                           f"this file's voxel axes are {np.round(steps.T, 9).tolist()} (world units)")
     sign = np.sign(steps[world, np.arange(3)])
     order = np.argsort(world)                                # index axis along world axis w
-    arrays = {"": np.asarray(data), **(extras or {})}
+    arrays = {"": np.asarray(data), **(extras or {}), **{"field " + k: a for k, a in (fields or {}).items()}}
     for key, a in arrays.items():
         a = np.transpose(a, order)
         flips = tuple(w for w in range(3) if sign[order[w]] < 0)
@@ -157,8 +164,9 @@ def grid_from_matrix(data: np.ndarray, steps: np.ndarray, first_center: np.ndarr
     lowest = np.array([c0[w] if sign[order[w]] > 0 else c0[w] - h * (dims[w] - 1) for w in range(3)])
     spec = GridSpec(dims, lowest - 0.5 * h, h)
     # no C-contiguous copy: the files' x-fastest (Fortran) order is the one the bit packing reads
-    extra_grids = {k: VoxelGrid(a != 0, spec) for k, a in arrays.items() if k}
-    return VoxelGrid(arrays[""] != 0, spec, extras=extra_grids)
+    extra_grids = {k: VoxelGrid(a != 0, spec) for k, a in arrays.items() if k and not k.startswith("field ")}
+    float_fields = {k[len("field "):]: a for k, a in arrays.items() if k.startswith("field ")}
+    return VoxelGrid(arrays[""] != 0, spec, extras=extra_grids, fields=float_fields)
 
 
 def center_matrix(spec: GridSpec) -> np.ndarray:

@@ -44,7 +44,7 @@ import numpy as np
 from ..errors import FormatError
 from ..grid import MAX_VOXELS
 from ..results import Result, SparseOctree, VoxelGrid
-from .common import Format, grid_from_matrix
+from .common import Format, grid_from_matrix, warn_dropped
 
 INSTALL_HINT = ("OpenVDB's Python module is not on PyPI: on Debian/Ubuntu `apt-get install python3-openvdb` "
                 "and link pyopenvdb*.so into the environment (as .ci/setup does), or `conda install -c "
@@ -232,6 +232,9 @@ def write(result: Result, path: Path, *, coverage: bool = True) -> None:
         if coverage:
             grids.append(_coverage(vdb, result))
     elif isinstance(result, VoxelGrid):
+        # float fields would go cell by cell through the accessor (numpy 2 cannot reach
+        # Debian's copyFromArray): named in a warning instead
+        warn_dropped(result, "OpenVDB", keeps_masks=True)
         grids = [_bool_grid(vdb, "occupancy", dense_boxes(result.dense()), result)]
         grids += [_bool_grid(vdb, f"extra_{k}", dense_boxes(g.dense()), result) for k, g in result.extras.items()]
     else:

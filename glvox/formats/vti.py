@@ -9,7 +9,8 @@ the files VTK writes in each of its encodings.
 
 Written: ``WholeExtent 0 nx 0 ny 0 nz`` (points), ``Origin`` the grid's min
 corner, ``Spacing h h h``, ``Direction`` the identity, and one uint8 **cell**
-array ``occupancy`` (1 = occupied) plus one ``extra_<name>`` per extra mask,
+array ``occupancy`` (1 = occupied) plus one ``extra_<name>`` per extra mask
+and one Float32 ``field_<name>`` per float field (``gwn-solid``'s winding numbers),
 zlib-compressed in appended raw binary (UInt64 headers).  Cell data, not
 point data: the image's cells are glvox's voxels, so cell (i, j, k) is the
 box ``origin + [i, i+1] x [j, j+1] x [k, k+1] * h`` and its center
@@ -22,7 +23,7 @@ samples are the voxel centers); encodings ascii, binary (base64) and
 appended (raw or base64); no compression, zlib or LZMA; UInt32 or UInt64
 headers; either byte order.  The cell array ``occupancy`` is the occupancy
 (else the cell scalars, else the first cell array, else the point data's);
-cell arrays ``extra_<name>`` become extra masks.
+cell arrays ``extra_<name>`` become extra masks, ``field_<name>`` float fields.
 """
 
 from __future__ import annotations
@@ -65,13 +66,17 @@ def write(result: Result, path: Path) -> None:
     """Write ``result`` (a VoxelGrid, or an octree decoded) as VTK image data with uint8 cell arrays."""
     grid = as_grid(result, "VTK image data")
     nx, ny, nz = grid.dims
-    arrays = {"occupancy": grid.dense(), **{f"extra_{k}": g.dense() for k, g in grid.extras.items()}}
+    arrays = {"occupancy": grid.dense(), **{f"extra_{k}": g.dense() for k, g in grid.extras.items()},
+              **{f"field_{k}": a for k, a in grid.fields.items()}}
     payloads, entries, offset = [], [], 0
     for name, a in arrays.items():
         # cell (i, j, k) is value i + nx (j + ny k): x fastest, Fortran order of [i, j, k]
-        blob = _compress(np.asarray(a, dtype=np.uint8).tobytes(order="F"))
-        entries.append(f'        <DataArray type="UInt8" Name="{name}" format="appended" '
-                       f'RangeMin="0" RangeMax="1" offset="{offset}"/>')
+        floats = name.startswith("field_")
+        a = np.asarray(a, dtype="<f4" if floats else np.uint8)
+        blob = _compress(a.tobytes(order="F"))
+        lo, hi = (_f(a.min()), _f(a.max())) if floats and a.size else ("0", "1")
+        entries.append(f'        <DataArray type="{"Float32" if floats else "UInt8"}" Name="{name}" '
+                       f'format="appended" RangeMin="{lo}" RangeMax="{hi}" offset="{offset}"/>')
         payloads.append(blob)
         offset += len(blob)
     extent = f"0 {nx} 0 {ny} 0 {nz}"
@@ -237,7 +242,10 @@ def read(path: Path) -> VoxelGrid:
     n = dims[0] * dims[1] * dims[2]
     extras = {} if name is None else {k[len("extra_"):]: _fortran(dec.array(el, n), dims)
                                       for k, el in cells.items() if k.startswith("extra_") and k != name}
-    return grid_from_matrix(_fortran(dec.array(source, n), dims), steps, first, path, extras=extras)
+    fields = {} if name is None else {k[len("field_"):]: _fortran(dec.array(el, n), dims).astype(np.float32)
+                                      for k, el in cells.items() if k.startswith("field_") and k != name}
+    return grid_from_matrix(_fortran(dec.array(source, n), dims), steps, first, path, extras=extras,
+                            fields=fields)
 
 
 FORMAT = Format("VTK image data", (".vti",), write, read)
