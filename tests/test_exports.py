@@ -167,3 +167,94 @@ def test_vox_refusals(tmp_path):
         glvox.save(bad, tmp_path / "b.vox")
     with pytest.raises(FormatError, match="does not read it"):
         glvox.load(tmp_path / "b.vox")
+
+
+# -- coloured points and cubes ---------------------------------------------------------------------
+
+trimesh = pytest.importorskip("trimesh")
+
+EXPORT_SPEC = GridSpec((9, 7, 5), (12.3456, -7.891, 0.123), 0.0371)
+
+
+def read_geometry(path):
+    """The one geometry of a PLY or GLB file, as trimesh reads it without merging vertices."""
+    r = trimesh.load(str(path), process=False)
+    if isinstance(r, trimesh.Scene):
+        (r,) = r.geometry.values()
+    return r
+
+
+def f32(spec):
+    return 4 * float(np.finfo(np.float32).eps) * float(np.abs(spec.bounds).max())
+
+
+def hand_colored(spec=EXPORT_SPEC, seed=5):
+    rng = np.random.default_rng(seed)
+    occ = rng.random(spec.dims) < 0.45
+    colors = rng.integers(0, 256, (int(occ.sum()), 4), dtype=np.uint8)
+    colors[:, 3] = rng.integers(1, 256, len(colors))
+    colors[::7, 3] = 0                                     # some voxels without a colour
+    return colored(occ, spec, colors)
+
+
+@pytest.mark.parametrize("suffix", [".points.ply", ".points.glb"])
+def test_points_at_world_centers_in_their_colours(tmp_path, suffix):
+    g = hand_colored()
+    glvox.save(g, tmp_path / f"g{suffix}")
+    pc = read_geometry(tmp_path / f"g{suffix}")
+    ijk = np.argwhere(g.dense())
+    centers = EXPORT_SPEC.origin + (ijk + 0.5) * EXPORT_SPEC.voxel_size   # by hand, not spec.centers
+    np.testing.assert_allclose(pc.vertices, centers, rtol=0, atol=f32(EXPORT_SPEC))
+    want = g.attributes["color"].copy()
+    want[want[:, 3] == 0] = DEFAULT_COLOR
+    np.testing.assert_array_equal(pc.colors, want)
+
+
+def exposed_by_padding(occ):
+    """(axis, sign) -> (F, 3) voxels whose neighbour that way is empty or outside: dense, by padding."""
+    p = np.pad(occ, 1)
+    out = {}
+    for axis in range(3):
+        for sign in (-1, 1):
+            nb = np.roll(p, -sign, axis=axis)[1:-1, 1:-1, 1:-1]
+            out[axis, sign] = np.argwhere(occ & ~nb)
+    return out
+
+
+@pytest.mark.parametrize("suffix", [".cubes.ply", ".cubes.glb"])
+def test_cubes_are_the_exposed_faces_in_their_colours(tmp_path, suffix):
+    """Every exposed face once (counted by padding the dense grid), on its voxel's face plane, wound
+    outwards, all four vertices in the voxel's colour; the enclosed volume is the voxels' volume."""
+    g = hand_colored()
+    h, origin = EXPORT_SPEC.voxel_size, EXPORT_SPEC.origin
+    glvox.save(g, tmp_path / f"g{suffix}")
+    mesh = read_geometry(tmp_path / f"g{suffix}")
+    expect = exposed_by_padding(g.dense())
+    assert len(mesh.faces) == 2 * sum(len(v) for v in expect.values())
+    tri = mesh.vertices[mesh.faces]                                        # (2F, 3, 3)
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    axis = np.argmax(np.abs(normal), axis=1)
+    sign = np.sign(normal[np.arange(len(normal)), axis]).astype(int)
+    # the voxel behind each face: its centroid moved half a voxel against the normal
+    inner = tri.mean(axis=1) - 0.5 * h * np.eye(3)[axis] * sign[:, None]
+    voxel = np.floor((inner - origin) / h).astype(int)
+    rows = {tuple(v): r for r, v in enumerate(np.argwhere(g.dense()))}
+    want = g.attributes["color"].copy()
+    want[want[:, 3] == 0] = DEFAULT_COLOR
+    got_faces = {}
+    for f in range(len(mesh.faces)):
+        key = (int(axis[f]), int(sign[f]))
+        got_faces.setdefault(key, set()).add(tuple(voxel[f]))
+        np.testing.assert_array_equal(mesh.visual.vertex_colors[mesh.faces[f]],
+                                      np.repeat(want[rows[tuple(voxel[f])]][None], 3, axis=0))
+    for key, vox_ in expect.items():
+        assert got_faces[key] == {tuple(v) for v in vox_}
+    assert mesh.volume == pytest.approx(g.count * h ** 3, rel=1e-5)
+
+
+def test_points_and_cubes_refusals(tmp_path):
+    g = hand_colored()
+    with pytest.raises(FormatError, match=r"unknown voxel file suffix '\.ply'"):
+        glvox.save(g, tmp_path / "g.ply")                   # .ply alone stays a mesh suffix
+    with pytest.raises(FormatError, match="does not read it"):
+        glvox.load(tmp_path / "g.cubes.ply")

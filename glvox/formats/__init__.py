@@ -29,12 +29,12 @@ from typing import Sequence
 
 from ..errors import FormatError
 from ..grid import MAX_VOXELS
-from . import binvox, nifti, npz, nrrd, vdb, vox, vti
+from . import binvox, colored, nifti, npz, nrrd, vdb, vox, vti
 from .common import Format
 
 #: Every format, in the order error messages list them.
 FORMATS: tuple[Format, ...] = (npz.FORMAT, binvox.FORMAT, nrrd.FORMAT, nifti.FORMAT, vti.FORMAT, vdb.FORMAT,
-                              vox.FORMAT)
+                              vox.FORMAT, colored.POINTS, colored.CUBES)
 
 #: Result kinds :func:`check_writable` knows: a dense grid, a sparse octree, an LDI.
 KINDS = ("surface", "solid", "sparse", "ldi")
