@@ -22,6 +22,11 @@ from .common import as_grid, import_library
 DEFAULT_COLOR = (140, 173, 219, 255)
 
 
+def has_colors(result: Result) -> bool:
+    """Whether ``result`` carries a ``'color'`` attribute (without computing its voxels)."""
+    return (getattr(result, "attributes", None) or {}).get("color") is not None
+
+
 def voxel_colors(result: Result, fmt: str) -> tuple[np.ndarray, np.ndarray | None]:
     """The set voxels of ``result`` and their colours, if it has any.
 
