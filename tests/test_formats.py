@@ -389,8 +389,8 @@ def test_large_octree_becomes_a_vdb_without_a_dense_grid(tmp_path, monkeypatch, 
 # -- refusals before any work ---------------------------------------------------------------------------
 
 def test_check_writable_refuses_before_work(tmp_path):
-    with pytest.raises(FormatError, match=r"unknown voxel file suffix '.vox'.*use .npz, .binvox, .nrrd"):
-        check_writable(tmp_path / "x.vox")
+    with pytest.raises(FormatError, match=r"unknown voxel file suffix '.ply'.*use .npz, .binvox, .nrrd"):
+        check_writable(tmp_path / "x.ply")
     with pytest.raises(FormatError, match="an LDI is saved as .npz"):
         check_writable(tmp_path / "x.nrrd", kind="ldi")
     with pytest.raises(FormatError, match=r"binvox stores cubic grids only, got dims \(4, 5, 6\)"):
@@ -492,7 +492,7 @@ def test_convert_octree_npz_to_vdb_and_back_to_a_grid(tmp_path, capsys, monkeypa
 
 
 @pytest.mark.parametrize("args, message", [
-    (["in.npz", "out.vox"], "unknown voxel file suffix '.vox'"),
+    (["in.npz", "out.ply"], "unknown voxel file suffix '.ply'"),
     (["in.obj", "out.npz"], "unknown voxel file suffix '.obj'"),
     (["missing.npz", "out.vti"], "voxel file not found"),
     (["in.npz", "nofolder/out.vti"], "output folder nofolder does not exist"),
