@@ -10,6 +10,11 @@ NIfTI-1     ``.nii``, ``.nii.gz`` nibabel (``formats``)       occupancy, uint8, 
 VTK image   ``.vti``              none (glvox writes XML)     occupancy + extra masks, uint8 cell data
 OpenVDB     ``.vdb``              OpenVDB's Python module     BoolGrids (+ octree coverage FloatGrid),
                                                               sparse: octrees never become dense
+MagicaVoxel ``.vox``              Pillow (``formats``)        voxels in a <= 255-colour palette, models
+                                                              of <= 256 per axis (write only)
+points      ``.points.ply/.glb``  trimesh                     voxel centers in their colours (write only)
+cubes       ``.cubes.ply/.glb``   trimesh                     exposed cube faces in the voxels' colours
+                                                              (write only)
 ==========  ====================  ==========================  ========================================
 
 Placement is the same in every format: the world position of voxel
