@@ -165,7 +165,7 @@ def test_vox_refusals(tmp_path):
     bad.attributes = {"color": np.zeros((g.count, 3), np.uint8)}
     with pytest.raises(FormatError, match=r"'color' attribute must be uint8 \(M, 4\) RGBA"):
         glvox.save(bad, tmp_path / "b.vox")
-    with pytest.raises(FormatError, match="does not read it"):
+    with pytest.raises(FormatError, match="voxel file not found"):
         glvox.load(tmp_path / "b.vox")
 
 
@@ -258,3 +258,79 @@ def test_points_and_cubes_refusals(tmp_path):
         glvox.save(g, tmp_path / "g.ply")                   # .ply alone stays a mesh suffix
     with pytest.raises(FormatError, match="does not read it"):
         glvox.load(tmp_path / "g.cubes.ply")
+
+
+# -- reading .vox ----------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("dims, up", [((300, 9, 520), "z"), ((30, 40, 50), "y"), ((7, 300, 9), "y")])
+def test_vox_reads_back_onto_its_grid(tmp_path, dims, up):
+    g = random_colored(dims, p=0.02, n_colors=120, bare=0.05, seed=sum(dims))
+    glvox.save(g, tmp_path / "g.vox", up=up)
+    back = glvox.load(tmp_path / "g.vox")
+    assert back.dims == g.dims and back.spec.same_placement(g.spec) and back.equal(g)
+    want = g.attributes["color"].copy()
+    want[want[:, 3] == 0] = DEFAULT_COLOR
+    np.testing.assert_array_equal(back.attributes["color"], want)
+
+
+def test_vox_reads_a_file_midvoxio_wrote(tmp_path):
+    """midvoxio's ArrayWriter (an independent writer: one model, no scene graph, every cell listed with
+    index 0 for empty): the voxels in the scene's units, the grid their bounding box, their colours."""
+    from midvoxio.voxio import write_list_to_vox
+
+    rng = np.random.default_rng(4)
+    palette = rng.integers(0, 256, (256, 4)).astype(np.uint8)
+    palette[:, 3] = 255
+    palette = np.unique(palette, axis=0)[:200]
+    arr = np.zeros((6, 5, 4, 4))
+    cells = [(1, 1, 1), (4, 2, 3), (2, 4, 1), (3, 3, 2)]
+    for n, c in enumerate(cells):
+        arr[c] = (palette[10 * n] + 0.5) / 255.0          # midvoxio truncates value * 255 to uint8
+    # its writer maps a cell to the last entry equal to its colour: no all-zero entry (empty cells are zero)
+    filler = np.tile(np.array([[1, 2, 3, 255]], np.uint8), (256 - len(palette), 1))
+    write_list_to_vox(arr, str(tmp_path / "m.vox"), palette_arr=np.concatenate([palette, filler]))
+    back = glvox.load(tmp_path / "m.vox")
+    lo = np.array(cells).min(axis=0)
+    assert back.voxel_size == 1.0 and back.dims == tuple(np.array(cells).max(axis=0) - lo + 1)
+    np.testing.assert_array_equal(back.origin, lo - np.array(arr.shape[:3]) // 2)  # MagicaVoxel's pivot
+    np.testing.assert_array_equal(back.indices(), np.array(sorted(cells)) - lo)
+    by_cell = {c: palette[10 * n] for n, c in enumerate(cells)}
+    np.testing.assert_array_equal(back.attributes["color"], [by_cell[c] for c in sorted(cells)])
+
+
+def test_vox_read_refusals(tmp_path, monkeypatch):
+    g = random_colored((5, 6, 7), p=0.5)
+    data = vox.vox_bytes(g)
+    (tmp_path / "cut.vox").write_bytes(data[: len(data) // 2])
+    with pytest.raises(FormatError, match=r"cut.vox: (a broken \.vox file|the \.vox chunk .* runs past)"):
+        glvox.load(tmp_path / "cut.vox")
+    (tmp_path / "png.vox").write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(40))
+    with pytest.raises(FormatError, match=r"png.vox: not a MagicaVoxel \.vox file"):
+        glvox.load(tmp_path / "png.vox")
+    plain = vox._dict
+    monkeypatch.setattr(vox, "_dict", lambda d: plain({**d, "_r": "17"} if "_t" in d else d))
+    (tmp_path / "rot.vox").write_bytes(vox.vox_bytes(g))   # every model turned (a rotation byte of 17)
+    with pytest.raises(FormatError, match=r"translated, not rotated \(node 2 has rotation 17\)"):
+        glvox.load(tmp_path / "rot.vox")
+
+
+def test_render_command_draws_a_vox_file_in_its_colours(tmp_path):
+    """End to end through the command line: a .vox file's colours on the picture (unlit)."""
+    import subprocess
+    import sys
+
+    pytest.importorskip("matplotlib")
+    import matplotlib.image
+
+    spec = GridSpec((2, 1, 1), (0, 0, 0), 1.0)
+    glvox.save(colored(np.ones(spec.dims), spec, np.array([[250, 20, 20, 255], [20, 20, 250, 255]], np.uint8)),
+               tmp_path / "two.vox")
+    p = subprocess.run([sys.executable, "-m", "glvox", "render", tmp_path / "two.vox", "-o", tmp_path / "two.png",
+                        "--size", "120", "60", "--direction", "0", "0", "1", "--flat", "-q"],
+                       capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr
+    img = (matplotlib.image.imread(tmp_path / "two.png")[..., :3] * 255).round().astype(int)
+    ys, xs = np.nonzero((img != 255).any(axis=-1))
+    y, x0, x1 = (ys.min() + ys.max()) // 2, xs.min(), xs.max() + 1
+    assert img[y, x0 + (x1 - x0) // 4].tolist() == [250, 20, 20]      # voxel (0, 0, 0) on the left
+    assert img[y, x0 + 3 * (x1 - x0) // 4].tolist() == [20, 20, 250]

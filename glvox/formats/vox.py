@@ -33,6 +33,10 @@ Placement.  .vox has no world units: the root ``nTRN``'s attributes keep
 glvox's ``glvox_origin`` (world, min corner of voxel 0), ``glvox_voxel_size``,
 ``glvox_dims`` and ``glvox_up`` as text (other readers ignore them).  The
 other attributes (triangle, normal, material) and extra masks are not written.
+
+Read (:func:`read`): the models composed by the scene graph (translations;
+rotated instances refused), colours from the palette; glvox's own files
+come back on their grid.
 """
 
 from __future__ import annotations
@@ -40,11 +44,13 @@ from __future__ import annotations
 import struct
 import warnings
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from ..errors import FormatError, FormatWarning
-from ..results import Result
+from ..grid import MAX_VOXELS, GridSpec
+from ..results import Result, VoxelGrid
 from .colors import DEFAULT_COLOR, pillow, quantize, voxel_colors
 from .common import Format
 
@@ -180,4 +186,168 @@ def write(result: Result, path: Path, *, up: str = "z") -> None:
     path.write_bytes(data)
 
 
-FORMAT = Format("MagicaVoxel", (".vox",), write, None, library=pillow, options=("up",))
+# -- reading ------------------------------------------------------------------------------------------
+
+def _children(data: bytes, start: int, end: int, path: Path):
+    """(id, content) of each chunk in ``data[start:end]``, descending into every chunk's children."""
+    at = start
+    while at < end:
+        if at + 12 > end:
+            raise FormatError(f"{path}: a .vox chunk header runs past the end of its parent at byte {at}")
+        cid = data[at:at + 4]
+        n, m = struct.unpack_from("<ii", data, at + 4)
+        if n < 0 or m < 0 or at + 12 + n + m > end:
+            raise FormatError(f"{path}: the .vox chunk {cid!r} at byte {at} runs past the end of its parent")
+        yield cid, data[at + 12:at + 12 + n]
+        yield from _children(data, at + 12 + n, at + 12 + n + m, path)
+        at += 12 + n + m
+
+
+class _Reader:
+    """A cursor over one chunk's content: ints, STRINGs and DICTs as the format defines them."""
+
+    def __init__(self, content: bytes):
+        self.content, self.at = content, 0
+
+    def int(self) -> int:
+        (v,) = struct.unpack_from("<i", self.content, self.at)
+        self.at += 4
+        return v
+
+    def string(self) -> str:
+        n = self.int()
+        s = self.content[self.at:self.at + n].decode("utf-8", "replace")
+        self.at += n
+        return s
+
+    def dict(self) -> dict[str, str]:
+        return {self.string(): self.string() for _ in range(self.int())}
+
+
+def _scene(chunks: list[tuple[bytes, bytes]], n_models: int, path: Path):
+    """(model id, translation (3,) int64) of every shape instance, and the root's attributes."""
+    nodes: dict[int, tuple[bytes, Any]] = {}
+    for cid, content in chunks:
+        if cid not in (b"nTRN", b"nGRP", b"nSHP"):
+            continue
+        r = _Reader(content)
+        node = r.int()
+        attrs = r.dict()
+        if cid == b"nTRN":
+            child, _reserved, _layer, frames = r.int(), r.int(), r.int(), r.int()
+            frame = r.dict() if frames > 0 else {}
+            if frame.get("_r", "4") != "4":              # 4: the identity (rows x, y, z, all positive)
+                raise FormatError(f"{path}: glvox reads .vox models that are translated, not rotated "
+                                  f"(node {node} has rotation {frame['_r']})")
+            t = np.array([int(v) for v in frame.get("_t", "0 0 0").split()], dtype=np.int64)
+            nodes[node] = (cid, (child, t, attrs))
+        elif cid == b"nGRP":
+            nodes[node] = (cid, [r.int() for _ in range(r.int())])
+        else:
+            models = []
+            for _ in range(r.int()):
+                models.append(r.int())
+                r.dict()                                 # the model's attributes (frame index)
+            nodes[node] = (cid, models)
+    if not nodes:                                        # no scene graph (older files): models at the origin
+        return [(m, np.zeros(3, np.int64)) for m in range(n_models)], {}
+    out, stack, seen = [], [(0, np.zeros(3, np.int64))], set()
+    while stack:
+        node, t = stack.pop()
+        if node in seen:
+            raise FormatError(f"{path}: the .vox scene graph visits node {node} twice")
+        seen.add(node)
+        if node not in nodes:
+            raise FormatError(f"{path}: the .vox scene graph names node {node}, which the file lacks")
+        cid, data = nodes[node]
+        if cid == b"nTRN":
+            stack.append((data[0], t + data[1]))
+        elif cid == b"nGRP":
+            stack.extend((c, t) for c in data)
+        else:
+            out.extend((m, t) for m in data)
+    return out, nodes[0][1][2] if nodes.get(0, (None,))[0] == b"nTRN" else {}
+
+
+def _placement(root: dict[str, str], path: Path):
+    """glvox's (dims, origin, voxel size, up) from the root node's attributes, or None."""
+    try:
+        dims = np.array([int(v) for v in root["glvox_dims"].split()], dtype=np.int64)
+        origin = np.array([float(v) for v in root["glvox_origin"].split()])
+        h, up = float(root["glvox_voxel_size"]), root.get("glvox_up", "z")
+    except (KeyError, ValueError):
+        return None
+    if dims.shape != (3,) or origin.shape != (3,) or up not in UPS:
+        raise FormatError(f"{path}: the glvox placement of this .vox file is malformed: {root}")
+    return dims, origin, h, up
+
+
+def read(path: Path) -> VoxelGrid:
+    """A VoxelGrid with a ``'color'`` attribute from a .vox file (models composed by the scene graph).
+
+    Files glvox wrote come back on their grid (origin, voxel size, dims and
+    axes from the root node's attributes).  Other files: voxel size 1 and
+    the scene's own coordinates (voxel p of the scene is the box [p, p + 1]),
+    the grid the voxels' bounding box.  Colours from the ``RGBA`` palette
+    (entry c - 1 for index c); a file without one (MagicaVoxel's default
+    palette, which glvox does not carry) reads without colours.  Rotated
+    instances are refused.
+    """
+    data = path.read_bytes()
+    try:
+        return _read(data, path)
+    except FormatError:
+        raise
+    except (struct.error, ValueError, UnicodeError) as exc:  # a truncated chunk, a malformed number
+        raise FormatError(f"{path}: a broken .vox file ({exc})") from None
+
+
+def _read(data: bytes, path: Path) -> VoxelGrid:
+    """:func:`read` of the file's bytes (struct.error / ValueError where a chunk is cut short)."""
+    if len(data) < 20 or data[:4] != b"VOX " or data[8:12] != b"MAIN":
+        raise FormatError(f"{path}: not a MagicaVoxel .vox file (no 'VOX ' header and MAIN chunk)")
+    n, m = struct.unpack_from("<ii", data, 12)
+    chunks = list(_children(data, 20 + n, min(len(data), 20 + n + m), path))
+    sizes = [np.array(struct.unpack_from("<3i", c), np.int64) for cid, c in chunks if cid == b"SIZE"]
+    xyzi = [np.frombuffer(c, np.uint8, 4 * struct.unpack_from("<i", c)[0], 4).reshape(-1, 4)
+            for cid, c in chunks if cid == b"XYZI"]
+    if not sizes or len(sizes) != len(xyzi):
+        raise FormatError(f"{path}: a .vox file needs SIZE and XYZI chunks in pairs, "
+                          f"got {len(sizes)} and {len(xyzi)}")
+    rgba = next((np.frombuffer(c, np.uint8, 1024).reshape(256, 4) for cid, c in chunks if cid == b"RGBA"), None)
+    instances, root = _scene(chunks, len(sizes), path)
+    pos, index = [np.zeros((0, 3), np.int64)], [np.zeros(0, np.uint8)]
+    for model, t in instances:
+        if not 0 <= model < len(sizes):
+            raise FormatError(f"{path}: the .vox scene graph names model {model} of {len(sizes)}")
+        v = xyzi[model][xyzi[model][:, 3] > 0]           # index 0 is empty (writers may list such cells)
+        pos.append(t + v[:, :3].astype(np.int64) - sizes[model] // 2)
+        index.append(v[:, 3])
+    pos, index = np.concatenate(pos), np.concatenate(index)
+    placement = _placement(root, path)
+    if placement is not None:
+        dims, origin, h, up = placement
+        p = pos + (dims[[0, 2, 1]] if up == "y" else dims) // 2
+        ijk = p if up == "z" else np.stack([p[:, 0], p[:, 2], dims[2] - 1 - p[:, 1]], axis=1)
+    else:
+        lo = pos.min(axis=0) if len(pos) else np.zeros(3, np.int64)
+        ijk = pos - lo
+        dims = ijk.max(axis=0) + 1 if len(pos) else sizes[0]
+        origin, h = lo.astype(np.float64), 1.0
+    if len(ijk) and (ijk.min() < 0 or np.any(ijk >= dims)):
+        raise FormatError(f"{path}: voxels lie outside the grid {tuple(dims)} its glvox placement gives")
+    spec = GridSpec(tuple(int(d) for d in dims), origin, h)
+    if spec.n_voxels > MAX_VOXELS:
+        raise FormatError(f"{path}: its voxels span {spec.dims}, more than the {MAX_VOXELS} voxels glvox keeps dense")
+    lin = np.ravel_multi_index(ijk.T, spec.dims) if len(ijk) else np.zeros(0, np.int64)
+    lin, last = np.unique(lin[::-1], return_index=True)  # overlapping instances: the last one listed wins
+    occ = np.zeros(spec.dims, bool)
+    occ.reshape(-1)[lin] = True
+    grid = VoxelGrid(occ, spec)
+    if rgba is not None:
+        # the attribute layout of issue 21 (one row per voxel of indices(), C order = sorted lin)
+        grid.attributes = {"color": rgba[index[::-1][last].astype(np.int64) - 1].copy()}
+    return grid
+
+
+FORMAT = Format("MagicaVoxel", (".vox",), write, read, library=pillow, options=("up",))
