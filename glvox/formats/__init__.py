@@ -11,7 +11,7 @@ VTK image   ``.vti``              none (glvox writes XML)     occupancy + extra 
 OpenVDB     ``.vdb``              OpenVDB's Python module     BoolGrids (+ octree coverage FloatGrid),
                                                               sparse: octrees never become dense
 MagicaVoxel ``.vox``              Pillow (``formats``)        voxels in a <= 255-colour palette, models
-                                                              of <= 256 per axis (write only)
+                                                              of <= 256 per axis by the scene graph
 points      ``.points.ply/.glb``  trimesh                     voxel centers in their colours (write only)
 cubes       ``.cubes.ply/.glb``   trimesh                     exposed cube faces in the voxels' colours
                                                               (write only)
