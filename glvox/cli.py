@@ -374,7 +374,8 @@ def _add_convert_parser(sub) -> None:
     pcv = sub.add_parser(
         "convert", help="convert a voxel file to another format (placement kept)",
         description="Read INPUT and write OUTPUT in the format of its suffix: .npz, .binvox, .nrrd, .nii, "
-                    ".nii.gz, .vti, .vdb, .vox, .points.ply/.glb, .cubes.ply/.glb.  Placement (origin, voxel size, dims) is kept; extra masks where "
+                    ".nii.gz, .vti, .vdb, .vox, .points.ply/.glb, .cubes.ply/.glb (the last three in the "
+                    "voxels' colours).  Placement (origin, voxel size, dims) is kept; extra masks where "
                     "the output format holds them (.npz, .vti, .vdb; a warning names what is dropped).  "
                     "NRRD and NIfTI need `pip install 'glvox[formats]'`, .vdb OpenVDB's Python module.")
     pcv.add_argument("input", help="voxel file to read")

@@ -334,3 +334,14 @@ def test_render_command_draws_a_vox_file_in_its_colours(tmp_path):
     y, x0, x1 = (ys.min() + ys.max()) // 2, xs.min(), xs.max() + 1
     assert img[y, x0 + (x1 - x0) // 4].tolist() == [250, 20, 20]      # voxel (0, 0, 0) on the left
     assert img[y, x0 + 3 * (x1 - x0) // 4].tolist() == [20, 20, 250]
+
+
+def test_vox_empty_grid_and_octree(tmp_path):
+    """An empty grid writes one empty model and reads back empty on its grid; an octree is decoded."""
+    spec = GridSpec((300, 4, 5), (0.5, -1.0, 2.0), 0.25)
+    glvox.save(VoxelGrid(np.zeros(spec.dims, bool), spec), tmp_path / "empty.vox")
+    back = glvox.load(tmp_path / "empty.vox")
+    assert back.count == 0 and back.dims == spec.dims and back.spec.same_placement(spec)
+    o = glvox.voxelize("gen:box", 12, method="ss-octree")
+    glvox.save(o, tmp_path / "o.vox")
+    assert glvox.load(tmp_path / "o.vox").equal(o.to_grid())
