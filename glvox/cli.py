@@ -1,4 +1,5 @@
-"""Command line: ``glvox info | methods | voxelize | convert | batch | ldi | volume | compare | bench | data | inspect``.
+"""Command line: ``glvox info | methods | voxelize | convert | batch | ldi | volume | compare | bench | data | inspect
+| render``.
 
 Errors glvox raises on purpose print one line ``glvox: error: ...`` and exit
 with status 1 (2 for wrong usage, as argparse does, in the same one-line
@@ -149,6 +150,24 @@ def cmd_convert(args) -> int:
     options = {"coverage": False} if args.no_coverage else {}
     _save(result, dst, convention=args.convention, **options)
     say(f"wrote {dst} ({dst.stat().st_size} bytes)")
+    return 0
+
+
+def cmd_render(args) -> int:
+    """``glvox render RESULT -o PICTURE.png``: the voxels as lit cubes in their own colours."""
+    # imported here for start-up time, as in cmd_compare: the renderer needs moderngl and matplotlib
+    from .study.render import render_voxels, save_png
+
+    say = Stages(args.quiet)
+    result = io.load(args.input)
+    if isinstance(result, LDI):
+        raise GlvoxError(f"glvox render draws voxel grids; {args.input} holds an LDI (depths per ray)")
+    grid = result.to_grid() if isinstance(result, SparseOctree) else result
+    say(f"read {args.input}: {grid!r}")
+    img = render_voxels(get_context(args.backend), grid, size=tuple(args.size), direction=tuple(args.direction),
+                        up=tuple(args.up), own_colors=not args.single_color, flat=args.flat)
+    save_png(img, Path(args.output))
+    say(f"wrote {args.output} ({args.size[0]} x {args.size[1]})")
     return 0
 
 
@@ -340,7 +359,8 @@ def _add_voxelize_parser(sub) -> None:
     pv.add_argument("mesh")
     pv.add_argument("-r", "--resolution", type=int, help="voxels along the longest axis (cubic N^3 grid)")
     pv.add_argument("-m", "--method", default=None, help="registry name (see `glvox methods`)")
-    pv.add_argument("-o", "--output", help="output file: .npz, .binvox, .nrrd, .nii(.gz), .vti or .vdb")
+    pv.add_argument("-o", "--output", help="output file: .npz, .binvox, .nrrd, .nii(.gz), .vti, .vdb, .vox, "
+                                           ".points.ply/.glb or .cubes.ply/.glb")
     pv.add_argument("-O", "--option", action="append", default=[], metavar="KEY=VALUE",
                     help="method option (repeatable); `--KEY VALUE` works too, e.g. --axis 2")
     _add_grid_arguments(pv, bounds=True)
@@ -354,7 +374,8 @@ def _add_convert_parser(sub) -> None:
     pcv = sub.add_parser(
         "convert", help="convert a voxel file to another format (placement kept)",
         description="Read INPUT and write OUTPUT in the format of its suffix: .npz, .binvox, .nrrd, .nii, "
-                    ".nii.gz, .vti, .vdb.  Placement (origin, voxel size, dims) is kept; extra masks where "
+                    ".nii.gz, .vti, .vdb, .vox, .points.ply/.glb, .cubes.ply/.glb (the last three in the "
+                    "voxels' colours).  Placement (origin, voxel size, dims) is kept; extra masks where "
                     "the output format holds them (.npz, .vti, .vdb; a warning names what is dropped).  "
                     "NRRD and NIfTI need `pip install 'glvox[formats]'`, .vdb OpenVDB's Python module.")
     pcv.add_argument("input", help="voxel file to read")
@@ -365,6 +386,28 @@ def _add_convert_parser(sub) -> None:
                      help="write an octree to .vdb without its coverage FloatGrid")
     pcv.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
     pcv.set_defaults(func=cmd_convert, validate=preflight.validate_convert)
+
+
+def _add_render_parser(sub) -> None:
+    pr = sub.add_parser(
+        "render", help="draw a voxel file as lit cubes in the voxels' own colours (PNG)",
+        description="Read RESULT (any voxel file glvox reads; an octree is decoded) and draw its exposed "
+                    "voxels as lit cubes, headless, in the voxels' own colours where it has them (the "
+                    "'color' attribute), else in one blue-grey; large grids are pooled by 2 until at most "
+                    "1.5 million cubes remain.  Needs matplotlib: pip install 'glvox[compare]'.")
+    pr.add_argument("input", metavar="RESULT", help="voxel file to draw")
+    pr.add_argument("-o", "--output", required=True, help="picture to write (.png)")
+    pr.add_argument("--size", type=int, nargs=2, default=[960, 720], metavar=("W", "H"),
+                    help="picture size in pixels (default 960 720)")
+    pr.add_argument("--direction", type=float, nargs=3, default=[0.9, 0.65, 1.25], metavar=("X", "Y", "Z"),
+                    help="where the camera looks from, relative to the voxels' center (world axes)")
+    pr.add_argument("--up", type=float, nargs=3, default=[0.0, 1.0, 0.0], metavar=("X", "Y", "Z"),
+                    help="the picture's up direction (default +y)")
+    pr.add_argument("--flat", action="store_true", help="unlit: every face in its voxel's colour exactly")
+    pr.add_argument("--single-color", action="store_true", help="ignore the voxels' colours")
+    pr.add_argument("--backend", choices=["egl", "osmesa", "auto"], default=None)
+    pr.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+    pr.set_defaults(func=cmd_render, validate=preflight.validate_render)
 
 
 def _add_batch_parser(sub) -> None:
@@ -499,7 +542,7 @@ def _add_data_parser(sub) -> None:
 #: One function per command, each adding its subparser.
 _COMMANDS = (_add_info_parser, _add_methods_parser, _add_voxelize_parser, _add_convert_parser, _add_batch_parser,
              _add_ldi_parser, _add_volume_parser, _add_compare_parser, _add_bench_parser, _add_data_parser,
-             _add_inspect_parser)
+             _add_inspect_parser, _add_render_parser)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -17,6 +17,7 @@ holds the grid (:func:`format_fits`).  Below them, each command's
 
 from __future__ import annotations
 
+import importlib.util
 import math
 import os
 import tempfile
@@ -286,6 +287,30 @@ def validate_convert(args) -> None:
         raise GlvoxError(f"--no-coverage is an option of .vdb output, not of {fmt.name}: {dst}")
     if dst.exists() and src.resolve() == dst.resolve():
         raise GlvoxError(f"input and output are the same file: {src}")
+
+
+#: Largest picture side ``glvox render`` draws: the GL_MAX_RENDERBUFFER_SIZE every
+#: OpenGL 4.5 driver must reach (llvmpipe reports exactly this), so no context is
+#: needed to check it.
+MAX_PICTURE = 16384
+
+
+def validate_render(args) -> None:
+    """``glvox render RESULT -o PICTURE.png``: the picture writable, the input readable,
+    size, direction and up sensible, matplotlib (which writes the PNG) importable."""
+    output_file(args.output, (".png",), "picture")
+    io.check_readable(args.input)
+    w, h = args.size
+    if not (0 < w <= MAX_PICTURE and 0 < h <= MAX_PICTURE):
+        raise GlvoxError(f"--size must be two integers in 1..{MAX_PICTURE} (pixels), got {w} {h}")
+    d, u = np.asarray(args.direction, float), np.asarray(args.up, float)
+    if not (np.all(np.isfinite(d)) and np.all(np.isfinite(u))) or np.linalg.norm(d) == 0:
+        raise GlvoxError(f"--direction must be a finite non-zero vector, got {args.direction}")
+    if np.linalg.norm(np.cross(d / np.linalg.norm(d), u)) < 1e-6:
+        raise GlvoxError(f"--up {args.up} must not be parallel to --direction {args.direction}")
+    if importlib.util.find_spec("matplotlib") is None:
+        raise GlvoxError("glvox render writes PNG with matplotlib, which is not installed: "
+                         "pip install 'glvox[compare]'")
 
 
 def validate_study(args, presets: dict, name: str) -> None:

@@ -139,6 +139,7 @@ BAD_OUTPUT = {
     "compare": ["compare", "--meshes", "/nonexistent.obj", "-r", "8", "-o", "/proc/glvox_x"],
     "bench": ["bench", "--meshes", "/nonexistent.obj", "-r", "8", "-o", "/proc/glvox_x"],
     "bench-baseline": ["bench", "--meshes", "/nonexistent.obj", "-r", "8", "--save-baseline", "/proc/glvox_b.json"],
+    "render": ["render", "/nonexistent.npz", "-o", "/proc/glvox_x.png"],
 }
 
 

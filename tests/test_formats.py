@@ -178,14 +178,17 @@ def test_vti_keeps_float_fields_where_vtk_reads_them(tmp_path):
     assert np.array_equal(back.fields["winding"], g.fields["winding"])
 
 
-@pytest.mark.parametrize("suffix", [".nrrd", ".nii.gz", ".binvox", pytest.param(".vdb", marks=needs_vdb)])
+@pytest.mark.parametrize("suffix", [".nrrd", ".nii.gz", ".binvox", ".vox", ".points.ply", ".cubes.glb",
+                                    pytest.param(".vdb", marks=needs_vdb)])
 def test_formats_without_float_fields_name_them(tmp_path, suffix):
     spec = GridSpec((6, 6, 6), (1.5, 2.5, -3.0), 0.5)
-    g = with_field(random_grid(spec))
-    with pytest.warns(FormatWarning, match=r"the float fields \['winding'\] are not written"):
+    g = with_field(random_grid(spec, extras=("rim",)))
+    masks = "" if suffix == ".vdb" else r"the extra masks \['rim'\] and "
+    with pytest.warns(FormatWarning, match=masks + r"the float fields \['winding'\] are not written"):
         path = io.save(g, tmp_path / f"f{suffix}")
-    back = io.load(path)
-    assert back.equal(g) and not back.fields
+    if format_for(path).read is not None:
+        back = io.load(path)
+        assert back.equal(g) and not back.fields
 
 
 @pytest.mark.parametrize("suffix", [".nrrd", ".nii", ".nii.gz", ".binvox"])
@@ -426,8 +429,8 @@ def test_large_octree_becomes_a_vdb_without_a_dense_grid(tmp_path, monkeypatch, 
 # -- refusals before any work ---------------------------------------------------------------------------
 
 def test_check_writable_refuses_before_work(tmp_path):
-    with pytest.raises(FormatError, match=r"unknown voxel file suffix '.vox'.*use .npz, .binvox, .nrrd"):
-        check_writable(tmp_path / "x.vox")
+    with pytest.raises(FormatError, match=r"unknown voxel file suffix '.ply'.*use .npz, .binvox, .nrrd"):
+        check_writable(tmp_path / "x.ply")
     with pytest.raises(FormatError, match="an LDI is saved as .npz"):
         check_writable(tmp_path / "x.nrrd", kind="ldi")
     with pytest.raises(FormatError, match=r"binvox stores cubic grids only, got dims \(4, 5, 6\)"):
@@ -529,7 +532,7 @@ def test_convert_octree_npz_to_vdb_and_back_to_a_grid(tmp_path, capsys, monkeypa
 
 
 @pytest.mark.parametrize("args, message", [
-    (["in.npz", "out.vox"], "unknown voxel file suffix '.vox'"),
+    (["in.npz", "out.ply"], "unknown voxel file suffix '.ply'"),
     (["in.obj", "out.npz"], "unknown voxel file suffix '.obj'"),
     (["missing.npz", "out.vti"], "voxel file not found"),
     (["in.npz", "nofolder/out.vti"], "output folder nofolder does not exist"),

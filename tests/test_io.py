@@ -92,8 +92,8 @@ def test_binvox_refuses_non_cubic(tmp_path):
 
 def test_unknown_suffix_and_bad_files(tmp_path):
     g = random_grid()
-    with pytest.raises(FormatError, match=r"unknown voxel file suffix '.vox'"):
-        io.save(g, tmp_path / "x.vox")
+    with pytest.raises(FormatError, match=r"unknown voxel file suffix '.ply'"):
+        io.save(g, tmp_path / "x.ply")
     with pytest.raises(FormatError, match="voxel file not found"):
         io.load(tmp_path / "missing.npz")
     bad = tmp_path / "bad.binvox"

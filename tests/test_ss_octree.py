@@ -384,7 +384,7 @@ def test_npz_round_trip_and_cli(gl_context, tmp_path):
     glvox.save(o, tmp_path / "t.binvox")
     assert glvox.load(tmp_path / "t.binvox").equal(o.to_grid())
     with pytest.raises(FormatError, match="unknown voxel file suffix"):
-        glvox.save(o, tmp_path / "t.vox")
+        glvox.save(o, tmp_path / "t.ply")
     arrays = dict(np.load(path))
     del arrays["octree_L1_child"]
     np.savez(tmp_path / "cut.npz", **arrays)

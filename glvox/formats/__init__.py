@@ -10,6 +10,11 @@ NIfTI-1     ``.nii``, ``.nii.gz`` nibabel (``formats``)       occupancy, uint8, 
 VTK image   ``.vti``              none (glvox writes XML)     occupancy + extra masks, uint8 cell data
 OpenVDB     ``.vdb``              OpenVDB's Python module     BoolGrids (+ octree coverage FloatGrid),
                                                               sparse: octrees never become dense
+MagicaVoxel ``.vox``              Pillow (``formats``)        voxels in a <= 255-colour palette, models
+                                                              of <= 256 per axis by the scene graph
+points      ``.points.ply/.glb``  trimesh                     voxel centers in their colours (write only)
+cubes       ``.cubes.ply/.glb``   trimesh                     exposed cube faces in the voxels' colours
+                                                              (write only)
 ==========  ====================  ==========================  ========================================
 
 Placement is the same in every format: the world position of voxel
@@ -29,11 +34,12 @@ from typing import Sequence
 
 from ..errors import FormatError
 from ..grid import MAX_VOXELS
-from . import binvox, nifti, npz, nrrd, vdb, vti
+from . import binvox, colored, nifti, npz, nrrd, vdb, vox, vti
 from .common import Format
 
 #: Every format, in the order error messages list them.
-FORMATS: tuple[Format, ...] = (npz.FORMAT, binvox.FORMAT, nrrd.FORMAT, nifti.FORMAT, vti.FORMAT, vdb.FORMAT)
+FORMATS: tuple[Format, ...] = (npz.FORMAT, binvox.FORMAT, nrrd.FORMAT, nifti.FORMAT, vti.FORMAT, vdb.FORMAT,
+                              vox.FORMAT, colored.POINTS, colored.CUBES)
 
 #: Result kinds :func:`check_writable` knows: a dense grid, a sparse octree, an LDI.
 KINDS = ("surface", "solid", "sparse", "ldi")

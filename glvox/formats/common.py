@@ -94,15 +94,16 @@ def as_grid(result: Result, fmt: str) -> VoxelGrid:
     return result
 
 
-def warn_dropped(grid: VoxelGrid, fmt: str, *, keeps_masks: bool = False) -> None:
+def warn_dropped(grid, fmt: str, *, keeps: str = "the occupancy only", keeps_masks: bool = False) -> None:
     """A :class:`FormatWarning` naming the extra masks and float fields (``gwn-solid``'s
-    winding numbers) a format does not keep; ``keeps_masks``: it keeps the masks."""
-    dropped = [] if keeps_masks else [f"the extra masks {sorted(grid.extras)}"] * bool(grid.extras)
-    dropped += [f"the float fields {sorted(grid.fields)}"] * bool(grid.fields)
+    winding numbers) of ``grid`` that format ``fmt`` does not write; ``keeps`` says what
+    it does write, ``keeps_masks`` that the masks are among it."""
+    extras, fields = getattr(grid, "extras", None) or {}, getattr(grid, "fields", None) or {}
+    dropped = [] if keeps_masks else [f"the extra masks {sorted(extras)}"] * bool(extras)
+    dropped += [f"the float fields {sorted(fields)}"] * bool(fields)
     if dropped:
-        warnings.warn(FormatWarning(f"{fmt} keeps {'the masks' if keeps_masks else 'the occupancy'} only; "
-                                    f"{' and '.join(dropped)} are not written (.npz and .vti keep both"
-                                    f"{'' if keeps_masks else ', .vdb the masks'})"), stacklevel=3)
+        warnings.warn(FormatWarning(f"{fmt} keeps {keeps}; {' and '.join(dropped)} are not written (.npz and "
+                                    f".vti keep both{'' if keeps_masks else ', .vdb the masks'})"), stacklevel=3)
 
 
 def grid_from_matrix(data: np.ndarray, steps: np.ndarray, first_center: np.ndarray, path: Path,

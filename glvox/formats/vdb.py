@@ -234,7 +234,7 @@ def write(result: Result, path: Path, *, coverage: bool = True) -> None:
     elif isinstance(result, VoxelGrid):
         # float fields would go cell by cell through the accessor (numpy 2 cannot reach
         # Debian's copyFromArray): named in a warning instead
-        warn_dropped(result, "OpenVDB", keeps_masks=True)
+        warn_dropped(result, "OpenVDB", keeps="the occupancy and the masks", keeps_masks=True)
         grids = [_bool_grid(vdb, "occupancy", dense_boxes(result.dense()), result)]
         grids += [_bool_grid(vdb, f"extra_{k}", dense_boxes(g.dense()), result) for k, g in result.extras.items()]
     else:

@@ -1,8 +1,9 @@
 """Pictures of voxelizations, rendered headless in glvox's own GL context.
 
 * :func:`render_voxels`: the exposed voxels of a grid as lit cubes
-  (instanced), optionally with the mesh's edges drawn over them, seen from a
-  three-quarter view that frames the grid.
+  (instanced), in the voxels' own colours when the grid carries them
+  (``attributes['color']``), optionally with the mesh's edges drawn over
+  them, seen from a three-quarter view that frames the grid.
 * :func:`disagreement_slice`: one slice of two grids colored by where they
   agree and where each has voxels the other lacks (like Zhang et al. Fig. 15c).
 
@@ -16,6 +17,7 @@ from pathlib import Path
 import moderngl
 import numpy as np
 
+from glvox.formats.colors import filled, has_colors, voxel_colors
 from glvox.gl.shaders import render_program
 from glvox.results.voxels import VoxelGrid
 
@@ -83,9 +85,38 @@ def camera(extent: np.ndarray, size: tuple[int, int], direction=(0.9, 0.65, 1.25
     return proj @ _look_at(eye, np.zeros(3), np.asarray(up, float))
 
 
+def pooled_colors(indices: np.ndarray, colors: np.ndarray, level: int, dims, cells: np.ndarray) -> np.ndarray:
+    """The mean RGB of the coloured voxels in each cell of a grid pooled ``level`` times by 2.
+
+    Parameters
+    ----------
+    indices : (M, 3) int64
+        Set voxels of the full grid.
+    colors : (M, 4) uint8
+        Their RGBA; alpha 0 (no colour) rows count as :data:`~glvox.formats.colors.DEFAULT_COLOR`.
+    level : int
+        Poolings by 2 (cell = index // 2**level).
+    dims : (3,) int
+        Dims of the pooled grid.
+    cells : (K, 3) int64
+        Pooled cells whose colour is wanted (each holds a set voxel).
+
+    Returns
+    -------
+    (K, 3) float32 RGB in [0, 1]
+    """
+    rgb = filled(colors, len(indices))[:, :3].astype(np.float64)
+    lin = np.ravel_multi_index((indices >> level).T, dims)
+    keys, inverse = np.unique(lin, return_inverse=True)
+    total = np.bincount(inverse, minlength=len(keys)).astype(np.float64)
+    means = np.stack([np.bincount(inverse, rgb[:, c], minlength=len(keys)) for c in range(3)], axis=1)
+    rows = np.searchsorted(keys, np.ravel_multi_index(cells.T, dims))
+    return (means[rows] / total[rows, None] / 255.0).astype("f4")
+
+
 def render_voxels(ctx, grid: VoxelGrid, size: tuple[int, int] = (960, 720), mesh=None,
                   color=(0.55, 0.68, 0.86), background=(1.0, 1.0, 1.0), direction=(0.9, 0.65, 1.25),
-                  up=(0.0, 1.0, 0.0)) -> np.ndarray:
+                  up=(0.0, 1.0, 0.0), own_colors: bool = True, flat: bool = False) -> np.ndarray:
     """Lit cubes of ``grid``'s exposed voxels, optionally with ``mesh``'s edges.
 
     Parameters
@@ -95,8 +126,16 @@ def render_voxels(ctx, grid: VoxelGrid, size: tuple[int, int] = (960, 720), mesh
     size : (width, height) in pixels
     mesh : glvox.mesh.Mesh, optional
         Drawn as dark edges over the voxels.
+    color : RGB in [0, 1]
+        The cubes' colour, for grids without colours (and ``own_colors=False``).
     direction, up : 3-vectors
         Where the camera looks from (relative to the grid's center) and its up axis.
+    own_colors : bool
+        Draw each voxel in its ``attributes['color']`` when the grid has
+        one (voxels with alpha 0 in :data:`~glvox.formats.colors.DEFAULT_COLOR`;
+        where the grid is pooled, a cell in the mean of its voxels' colours).
+    flat : bool
+        Unlit: each face in its voxel's colour exactly (for pictures read back).
 
     Returns
     -------
@@ -106,6 +145,8 @@ def render_voxels(ctx, grid: VoxelGrid, size: tuple[int, int] = (960, 720), mesh
     mgl = ctx.mgl
     occ = np.asarray(grid.dense())
     h, origin = grid.voxel_size, np.asarray(grid.origin, float)
+    indices, colors = voxel_colors(grid, "render") if own_colors and has_colors(grid) else (None, None)
+    level = 0
     while True:
         vox = np.argwhere(exposed(occ))
         if len(vox) <= MAX_CUBES:
@@ -114,6 +155,11 @@ def render_voxels(ctx, grid: VoxelGrid, size: tuple[int, int] = (960, 720), mesh
         occ = np.pad(occ, pad).reshape(occ.shape[0] // 2 + pad[0][1], 2, occ.shape[1] // 2 + pad[1][1], 2,
                                        occ.shape[2] // 2 + pad[2][1], 2).any(axis=(1, 3, 5))
         h *= 2.0
+        level += 1
+    if colors is not None:
+        vox_rgb = pooled_colors(indices, colors, level, occ.shape, vox)
+    else:
+        vox_rgb = np.tile(np.asarray(color, "f4"), (len(vox), 1))
     # frame the set voxels (the grid is cubic around the mesh's longest side)
     if len(vox):
         lo, hi = vox.min(axis=0) * h + origin, (vox.max(axis=0) + 1) * h + origin
@@ -136,12 +182,12 @@ def render_voxels(ctx, grid: VoxelGrid, size: tuple[int, int] = (960, 720), mesh
             prog["u_mvp"].write(mvp.T.tobytes())
             prog["u_origin"].value = tuple(origin - center)
             prog["u_h"].value = float(h)
-            prog["u_color"].value = tuple(color)
             prog["u_light"].value = (0.6, 0.9, 0.8)
+            prog["u_flat"].value = bool(flat)
             vbo = mgl.buffer(_cube().tobytes())
-            ibo = mgl.buffer(vox.astype("f4").tobytes())
+            ibo = mgl.buffer(np.concatenate([vox.astype("f4"), vox_rgb], axis=1).tobytes())
             vao = mgl.vertex_array(prog, [(vbo, "3f 3f", "in_pos", "in_normal"),
-                                          (ibo, "3f/i", "in_voxel")])
+                                          (ibo, "3f 3f/i", "in_voxel", "in_color")])
             objects += [vbo, ibo, vao]
             vao.render(moderngl.TRIANGLES, instances=len(vox))
         if mesh is not None:
