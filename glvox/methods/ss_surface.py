@@ -141,21 +141,22 @@ def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int
         dispatch_1d(ctx, classify, n, _LOCAL)
         barrier(ctx)
     if variant != "sorted":
-        _voxelize_unsorted(ctx, timer, n, defines, common, args, max_groups)
+        voxelize_unsorted(ctx, timer, n, defines, common, args, max_groups)
     else:
         _voxelize_sorted(ctx, timer, pool, n, defines, common, (vox, bufs.faces, grid, stats, per_tri, keys, args),
                          max_groups)
     return grid, stats
 
 
-def _voxelize_unsorted(ctx, timer, n, defines, common, args, max_groups):
-    """Stage ``voxelize`` of the simple and specialized variants: indirect dispatches
-    over the triangles, at most GL_MAX_COMPUTE_WORK_GROUP_COUNT groups each."""
+def voxelize_unsorted(ctx, timer, n, defines, common, args, max_groups, stage: str = "voxelize"):
+    """Stage ``voxelize`` (or ``stage``) of the simple and specialized variants: indirect
+    dispatches over the triangles, at most GL_MAX_COMPUTE_WORK_GROUP_COUNT groups each
+    (the attribute passes run them too, with ``SS_ATTR_PASS`` defined)."""
     dargs = compute_program(ctx, "ss/dispatch_args.comp")
     prog = compute_program(ctx, "ss/surface.comp", defines)
     set_uniforms(prog, common)
     batch = max_groups * _LOCAL  # triangles per dispatch along x
-    with timer.stage("voxelize"):
+    with timer.stage(stage):
         for offset in range(0, n, batch):
             count = min(batch, n - offset)
             set_uniforms(dargs, {"u_sorted": False, "u_groups_x": -(-count // _LOCAL),

@@ -1,0 +1,237 @@
+"""Per-voxel attributes on the GPU: source triangles, then what they carry.
+
+The rule (glvox/grid.py's convention, DESIGN.md "attributes"): a set voxel's
+source triangle is, among the triangles overlapping its box, the one whose
+closest point to the voxel center is nearest (ties: the lowest index); its
+attributes are evaluated at that closest point.  Any method's grid gets them
+the same way, after the method (surface and solid alike; interior voxels of a
+solid overlap no triangle and get none):
+
+``attr_rank``
+    popcount per grid word and an exclusive scan (:func:`glvox.gpu.sort.exclusive_scan`):
+    the slot of a set voxel is its rank in the grid's word order.
+``attr_pairs`` (two passes)
+    the conservative (triangle, voxel) pairs of ``ss/surface.comp``
+    (specialized variant) revisited with ``attributes/pair.glsl`` instead of
+    the writes: pass 1 ``atomicMin`` of the distance from the voxel center to
+    the closest point (double, kept as float bits), pass 2 ``atomicMin`` of
+    the index among the pairs at that minimum.  No 64-bit atomics on
+    llvmpipe (no GL_NV_shader_atomic_int64), hence two passes.
+``attr_evaluate``
+    one invocation per word: colour and normal at the closest point; one
+    more pass per texture, the image uploaded once as a GL texture and
+    sampled with its filter and wrap.
+``attr_readback``
+    the slots' triangle, colour and normal read back; reordered into C order
+    (:meth:`VoxelGrid.indices`) with one argsort; ``triangle`` and
+    ``material`` are gathers of per-face arrays.
+"""
+
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+
+from ..gl.shaders import compute_program
+from ..gpu.buffers import buffer_pool
+from ..gpu.dispatch import barrier, dispatch_1d, grid_uniforms, set_uniforms
+from ..gpu.sort import exclusive_scan
+from ..gpu.transform import transform_vertices
+from ..results.voxels import ATTRIBUTE_DTYPES
+from ..visuals import COLOR_TEXTURE
+from .ss_surface import CHUNK, _LOCAL, voxelize_unsorted
+
+#: The attributes a result can carry (``--attributes``).
+ATTRIBUTE_NAMES = tuple(ATTRIBUTE_DTYPES)
+#: ``--normals``: the source triangle's normal or the interpolated vertex normals.
+NORMAL_MODES = ("face", "vertex")
+_NONE = 0xFFFFFFFF
+_POOL = "attributes"
+
+
+def c_order(words: np.ndarray, dims) -> np.ndarray:
+    """The permutation taking the set voxels from the grid's word order (k, j, i)
+    to C order (i, j, k): ``attr_c = attr_words[perm]``."""
+    nx, ny, nz = dims
+    wpr = (nx + 31) // 32
+    flat = np.ascontiguousarray(np.asarray(words).reshape(-1).astype("<u4", copy=False))
+    nonzero = np.flatnonzero(flat)
+    bits = np.unpackbits(flat[nonzero].view(np.uint8).reshape(-1, 4), axis=1, bitorder="little")
+    row, bit = np.nonzero(bits)  # word order, then bit order: the slots' order
+    word = nonzero[row]
+    i = (word % wpr) * 32 + bit
+    jk = word // wpr
+    key = (i * ny + jk % ny) * nz + jk // ny
+    return np.argsort(key, kind="stable")
+
+
+def _face_buffers(ctx, mesh, pool, vertex_normals: bool):
+    """Per-face data of the evaluation: info, corner UVs and colours, normals."""
+    vis = mesh.visuals
+    n = mesh.n_triangles
+    info = np.zeros((n, 4), np.uint32)
+    if vis is not None:
+        info[:, 0] = vis.color_source
+        info[:, 1] = np.maximum(vis.texture, 0)
+        info[:, 3] = vis.face_color.view(np.uint32).ravel()
+        uv = vis.corner_uv.astype(np.float32)
+        cc = np.ascontiguousarray(vis.corner_color).view(np.uint32).reshape(n, 3)
+    else:
+        uv, cc = np.zeros((n, 3, 2), np.float32), np.zeros((n, 3), np.uint32)
+    tri = mesh.triangles()
+    fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
+    normals = np.zeros((n, 12), np.float32)
+    normals[:, :3] = fn
+    if vertex_normals and vis is not None:
+        normals[:, 3:] = vis.corner_normal.reshape(n, 9)
+    out = []
+    for name, arr in (("attr_face_info", info), ("attr_uv", uv), ("attr_corner_color", cc),
+                      ("attr_normals", normals)):
+        buf = pool.get(name, arr.nbytes, clear=False)
+        buf.write(np.ascontiguousarray(arr).tobytes())
+        out.append(buf)
+    return out
+
+
+def _rank(ctx, spec, grid, pool, timer):
+    """Stage ``attr_rank``: the exclusive scan of the words' popcounts (binding 9)."""
+    offsets = pool.get("attr_offsets", spec.n_words * 4, what="the set voxels' ranks", clear=False)
+    prog = compute_program(ctx, "attributes/popcount.comp")
+    set_uniforms(prog, {"u_words": spec.n_words})
+    with timer.stage("attr_rank"):
+        grid.bind_to_storage_buffer(3)
+        offsets.bind_to_storage_buffer(9)
+        dispatch_1d(ctx, prog, spec.n_words, 256)
+        barrier(ctx)
+        exclusive_scan(ctx, offsets, offsets, spec.n_words)
+        barrier(ctx)
+    return offsets
+
+
+def _pairs(ctx, mesh, spec, grid, offsets, count, pool, timer):
+    """Stage ``attr_pairs``: the source triangle of every slot (binding 11)."""
+    n = mesh.n_triangles
+    max_groups = int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])
+    best_dist = pool.get("attr_dist", count * 4, what="the set voxels' distances", clear=False)
+    best_tri = pool.get("attr_tri", count * 4, what="the set voxels' source triangles", clear=False)
+    best_dist.clear(size=count * 4, chunk=b"\xff\xff\xff\xff")
+    best_tri.clear(size=count * 4, chunk=b"\xff\xff\xff\xff")
+    bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool, stage="attr_transform")
+    stats = pool.get("stats", 8 * 4)
+    per_tri = pool.get("per_triangle", n * 4, what="per-triangle work", clear=False)
+    args = pool.get("args", 9 * 4, clear=False)
+    defines = {"SS_CRITERION": 0, "SS_VARIANT": 1, "SS_CHUNK": CHUNK}
+    common = {**grid_uniforms(spec, bufs.anchor), "u_triangles": n, "u_tri_offset": 0,
+              "u_local_size": _LOCAL, "u_max_groups": max_groups}
+    for binding, buf in ((1, vox), (2, bufs.faces), (3, grid), (4, stats), (5, per_tri), (8, args),
+                         (9, offsets), (10, best_dist), (11, best_tri)):
+        buf.bind_to_storage_buffer(binding)
+    classify = compute_program(ctx, "ss/classify.comp", defines)
+    set_uniforms(classify, common)
+    with timer.stage("attr_classify"):
+        dispatch_1d(ctx, classify, n, _LOCAL)
+        barrier(ctx)
+    for p in (1, 2):
+        voxelize_unsorted(ctx, timer, n, {**defines, "SS_ATTR_PASS": p}, common, args, max_groups,
+                          stage=f"attr_pairs{p}")
+    return bufs, vox, best_tri
+
+
+def _evaluate(ctx, mesh, spec, buffers, count, pool, timer, want_color, normals):
+    """Stage ``attr_evaluate``: colour (uint32 RGBA8) and normal (3 float32) per slot."""
+    bufs, vox, grid, offsets, best_tri = buffers
+    color = pool.get("attr_color", count * 4, what="the set voxels' colours")
+    normal = pool.get("attr_normal", count * 12, what="the set voxels' normals", clear=False)
+    face = _face_buffers(ctx, mesh, pool, normals == "vertex")
+    prog = compute_program(ctx, "attributes/evaluate.comp")
+    set_uniforms(prog, {**grid_uniforms(spec, bufs.anchor), "u_words": spec.n_words, "u_color": want_color,
+                        "u_normal": normals is not None, "u_vertex_normals": normals == "vertex",
+                        "u_tex": 0, "u_factor": (1.0, 1.0, 1.0, 1.0)})
+    for binding, buf in ((1, vox), (2, bufs.faces), (3, grid), (9, offsets), (11, best_tri), (12, face[0]),
+                         (13, face[1]), (14, face[2]), (15, face[3]), (5, color), (6, normal)):
+        buf.bind_to_storage_buffer(binding)
+    textures = mesh.visuals.textures if (want_color and mesh.visuals is not None) else []
+    used = set(np.unique(mesh.visuals.texture[mesh.visuals.color_source == COLOR_TEXTURE])) if textures else set()
+    with timer.stage("attr_evaluate"):
+        set_uniforms(prog, {"u_tex_index": -1})
+        dispatch_1d(ctx, prog, spec.n_words, 64)
+        barrier(ctx)
+        for k, tex in enumerate(textures):
+            if k not in used:
+                continue
+            gl_tex = _texture(ctx, tex)
+            gl_tex.use(0)
+            set_uniforms(prog, {"u_tex_index": k, "u_factor": tuple(float(x) for x in tex.factor)})
+            dispatch_1d(ctx, prog, spec.n_words, 64)
+            barrier(ctx)
+            gl_tex.release()
+    return color, normal
+
+
+def _texture(ctx, tex):
+    """``tex`` as a GL texture: RGBA8, rows flipped so UV (0, 0) is the image's
+    bottom-left, its filter and wrap, no mipmaps."""
+    img = np.ascontiguousarray(tex.image[::-1])
+    t = ctx.mgl.texture((img.shape[1], img.shape[0]), 4, img.tobytes())
+    f = moderngl.LINEAR if tex.filter == "linear" else moderngl.NEAREST
+    t.filter = (f, f)
+    t.repeat_x = t.repeat_y = tex.wrap == "repeat"
+    return t
+
+
+def gpu_attributes(ctx, mesh, result, timer, names, normals: str = "face", grid_buffer=None) -> dict:
+    """The attributes ``names`` of ``result``'s set voxels, by the rule of the module docstring.
+
+    Parameters
+    ----------
+    ctx : GLContext
+    mesh : Mesh
+        With ``visuals`` where colour or vertex normals are asked for.
+    result : VoxelGrid
+        The method's grid (its words are uploaded unless ``grid_buffer`` holds them).
+    timer : StageTimer
+    names : sequence of str
+        Of :data:`ATTRIBUTE_NAMES`.
+    normals : {'face', 'vertex'}
+
+    Returns
+    -------
+    dict of name to array, one row per set voxel in C order
+    (:data:`glvox.results.voxels.ATTRIBUTE_DTYPES`).
+    """
+    spec, count = result.spec, result.count
+    names = list(names)
+    if count == 0:
+        return {k: np.zeros((0, *ATTRIBUTE_DTYPES[k][1]), ATTRIBUTE_DTYPES[k][0]) for k in names}
+    pool = buffer_pool(ctx, _POOL)
+    words = result.words()
+    if grid_buffer is None:
+        grid_buffer = pool.get("attr_grid", spec.n_words * 4, what=f"the {spec.dims} bit grid", clear=False)
+        grid_buffer.write(np.ascontiguousarray(words).tobytes())
+    offsets = _rank(ctx, spec, grid_buffer, pool, timer)
+    bufs, vox, best_tri = _pairs(ctx, mesh, spec, grid_buffer, offsets, count, pool, timer)
+    want_color = "color" in names
+    want_normal = normals if "normal" in names else None
+    if want_color or want_normal:
+        color, normal = _evaluate(ctx, mesh, spec, (bufs, vox, grid_buffer, offsets, best_tri), count, pool,
+                                  timer, want_color, want_normal)
+    with timer.stage("attr_readback", gpu=False):
+        perm = c_order(words, spec.dims)
+        tri = np.frombuffer(best_tri.read(size=count * 4), dtype="<u4")[perm].astype(np.int64)
+        tri[tri == _NONE] = -1
+        has = tri >= 0
+        ts = np.where(has, tri, 0)
+        out: dict[str, np.ndarray] = {}
+        for name in names:
+            if name == "triangle":
+                src = mesh.source_faces[ts] if mesh.source_faces is not None else ts
+                out[name] = np.where(has, src, -1).astype(np.int32)
+            elif name == "material":
+                mat = mesh.visuals.material[ts] if mesh.visuals is not None else np.zeros(count, np.int32)
+                out[name] = np.where(has, mat, -1).astype(np.int32)
+            elif name == "color":
+                out[name] = np.frombuffer(color.read(size=count * 4), np.uint8).reshape(count, 4)[perm]
+            elif name == "normal":
+                out[name] = np.frombuffer(normal.read(size=count * 12), np.float32).reshape(count, 3)[perm]
+    return out
