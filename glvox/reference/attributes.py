@@ -68,12 +68,18 @@ def closest_points(tris: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np
         v = (d11 * d20 - d01 * d21) / den
         w = (d00 * d21 - d01 * d20) / den
     u = 1.0 - v - w
-    inside = (den > 0.0) & (u >= 0.0) & (v >= 0.0) & (w >= 0.0)
+    # strictly inside: a point on an edge takes the edge path below, which
+    # computes a shared edge bit for bit alike for both its triangles, so exact
+    # ties stay exact (and go to the lower index)
+    inside = (den > 0.0) & (u > 0.0) & (v > 0.0) & (w > 0.0)
     bary = np.where(inside[:, None], np.stack([u, v, w], axis=1), 0.0)
     q = a + v[:, None] * e0 + w[:, None] * e1
     dist = np.where(inside, np.linalg.norm(points - np.where(inside[:, None], q, 0.0), axis=1), np.inf)
-    # outside (or a degenerate triangle): the nearest point of the three edges
+    # outside (or a degenerate triangle): the nearest point of the three edges,
+    # each walked from its lexicographically smaller end
     for s, t, (ks, kt) in ((a, b, (0, 1)), (b, c, (1, 2)), (c, a, (2, 0))):
+        swap = _lex_greater(s, t)
+        s, t = np.where(swap[:, None], t, s), np.where(swap[:, None], s, t)
         st = t - s
         ll = np.einsum("ij,ij->i", st, st)
         f = np.clip(np.einsum("ij,ij->i", points - s, st) / np.where(ll > 0.0, ll, 1.0), 0.0, 1.0)
@@ -81,9 +87,20 @@ def closest_points(tris: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np
         better = ~inside & (d < dist)
         dist = np.where(better, d, dist)
         nb = np.zeros_like(bary)
-        nb[:, ks], nb[:, kt] = 1.0 - f, f
+        nb[:, ks] = np.where(swap, f, 1.0 - f)
+        nb[:, kt] = np.where(swap, 1.0 - f, f)
         bary = np.where(better[:, None], nb, bary)
     return dist, bary
+
+
+def _lex_greater(s: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """(P,) bool: row s[m] comes after row t[m] in lexicographic order."""
+    out = np.zeros(len(s), bool)
+    undecided = np.ones(len(s), bool)
+    for c in range(3):
+        out |= undecided & (s[:, c] > t[:, c])
+        undecided &= s[:, c] == t[:, c]
+    return out
 
 
 def source_triangles(tris: np.ndarray, dims, voxels: np.ndarray, half: float = 0.5) -> Sources:
