@@ -32,6 +32,7 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
+from ..errors import MethodError
 from ..gl.shaders import compute_program
 from ..gpu.buffers import buffer_pool
 from ..gpu.dispatch import barrier, dispatch_1d, grid_uniforms, set_uniforms
@@ -180,7 +181,35 @@ def _texture(ctx, tex):
     return t
 
 
-def gpu_attributes(ctx, mesh, result, timer, names, normals: str = "face", grid_buffer=None) -> dict:
+def _flood(ctx, spec, grid, offsets, best_tri, count, pool, timer):
+    """Stage ``attr_fill``: the slot of each set voxel's nearest surface voxel by a
+    jump flood (``attributes/flood.comp``), uint32 per slot (NONE: none reachable)."""
+    seeds = [pool.get(f"attr_seed{n}", count * 8, what="the jump flood's seeds", clear=False) for n in (0, 1)]
+    seed_slot = pool.get("attr_seed_slot", count * 4, what="the jump flood's seeds", clear=False)
+    prog = compute_program(ctx, "attributes/flood.comp")
+    set_uniforms(prog, {**grid_uniforms(spec, np.zeros(3)), "u_words": spec.n_words})
+    for binding, buf in ((3, grid), (9, offsets), (11, best_tri), (14, seed_slot)):
+        buf.bind_to_storage_buffer(binding)
+    steps = []
+    step = 1 << max(int(max(spec.dims)) - 1, 1).bit_length()
+    while step > 1:
+        step //= 2
+        steps.append(step)
+    steps.append(1)  # JFA+1: one more step of 1 repairs most of the flood's misses
+    with timer.stage("attr_fill"):
+        cur = 0
+        for mode, step in [(0, 0)] + [(1, s) for s in steps] + [(2, 0)]:
+            seeds[cur].bind_to_storage_buffer(12)
+            seeds[1 - cur].bind_to_storage_buffer(13)
+            set_uniforms(prog, {"u_mode": mode, "u_step": step})
+            dispatch_1d(ctx, prog, spec.n_words, 64)
+            barrier(ctx)
+            if mode != 2:
+                cur = 1 - cur
+    return seed_slot
+
+
+def gpu_attributes(ctx, mesh, result, timer, names, normals: str = "face", fill: str = "none") -> dict:
     """The attributes ``names`` of ``result``'s set voxels, by the rule of the module docstring.
 
     Parameters
@@ -189,11 +218,14 @@ def gpu_attributes(ctx, mesh, result, timer, names, normals: str = "face", grid_
     mesh : Mesh
         With ``visuals`` where colour or vertex normals are asked for.
     result : VoxelGrid
-        The method's grid (its words are uploaded unless ``grid_buffer`` holds them).
+        The method's grid (its words are uploaded once).
     timer : StageTimer
     names : sequence of str
         Of :data:`ATTRIBUTE_NAMES`.
     normals : {'face', 'vertex'}
+    fill : {'none', 'nearest'}
+        Voxels without a source triangle (a solid's interior) keep none, or
+        take the attributes of the surface voxel the jump flood finds nearest.
 
     Returns
     -------
@@ -206,19 +238,25 @@ def gpu_attributes(ctx, mesh, result, timer, names, normals: str = "face", grid_
         return {k: np.zeros((0, *ATTRIBUTE_DTYPES[k][1]), ATTRIBUTE_DTYPES[k][0]) for k in names}
     pool = buffer_pool(ctx, _POOL)
     words = result.words()
-    if grid_buffer is None:
-        grid_buffer = pool.get("attr_grid", spec.n_words * 4, what=f"the {spec.dims} bit grid", clear=False)
-        grid_buffer.write(np.ascontiguousarray(words).tobytes())
-    offsets = _rank(ctx, spec, grid_buffer, pool, timer)
-    bufs, vox, best_tri = _pairs(ctx, mesh, spec, grid_buffer, offsets, count, pool, timer)
+    grid = pool.get("attr_grid", spec.n_words * 4, what=f"the {spec.dims} bit grid", clear=False)
+    grid.write(np.ascontiguousarray(words).tobytes())
+    offsets = _rank(ctx, spec, grid, pool, timer)
+    bufs, vox, best_tri = _pairs(ctx, mesh, spec, grid, offsets, count, pool, timer)
     want_color = "color" in names
     want_normal = normals if "normal" in names else None
     if want_color or want_normal:
-        color, normal = _evaluate(ctx, mesh, spec, (bufs, vox, grid_buffer, offsets, best_tri), count, pool,
+        color, normal = _evaluate(ctx, mesh, spec, (bufs, vox, grid, offsets, best_tri), count, pool,
                                   timer, want_color, want_normal)
+    seed_slot = _flood(ctx, spec, grid, offsets, best_tri, count, pool, timer) if fill == "nearest" else None
     with timer.stage("attr_readback", gpu=False):
+        # word order first (the slots), then the fill's gather, then C order
+        rows = np.arange(count)
+        if seed_slot is not None:
+            seed = np.frombuffer(seed_slot.read(size=count * 4), dtype="<u4").astype(np.int64)
+            rows = np.where(seed == _NONE, rows, seed)
         perm = c_order(words, spec.dims)
-        tri = np.frombuffer(best_tri.read(size=count * 4), dtype="<u4")[perm].astype(np.int64)
+        take = rows[perm]
+        tri = np.frombuffer(best_tri.read(size=count * 4), dtype="<u4")[take].astype(np.int64)
         tri[tri == _NONE] = -1
         has = tri >= 0
         ts = np.where(has, tri, 0)
@@ -231,7 +269,51 @@ def gpu_attributes(ctx, mesh, result, timer, names, normals: str = "face", grid_
                 mat = mesh.visuals.material[ts] if mesh.visuals is not None else np.zeros(count, np.int32)
                 out[name] = np.where(has, mat, -1).astype(np.int32)
             elif name == "color":
-                out[name] = np.frombuffer(color.read(size=count * 4), np.uint8).reshape(count, 4)[perm]
+                out[name] = np.frombuffer(color.read(size=count * 4), np.uint8).reshape(count, 4)[take]
             elif name == "normal":
-                out[name] = np.frombuffer(normal.read(size=count * 12), np.float32).reshape(count, 3)[perm]
+                out[name] = np.frombuffer(normal.read(size=count * 12), np.float32).reshape(count, 3)[take]
     return out
+
+
+#: ``--fill-attributes``: interior voxels of a solid carry none, or those of the nearest surface voxel.
+FILL_MODES = ("none", "nearest")
+
+
+def parse_attributes(value) -> tuple[str, ...]:
+    """``'triangle,color'`` or a sequence of names as a checked tuple (MethodError otherwise)."""
+    if value is None:
+        return ()
+    names = [v.strip() for v in value.split(",")] if isinstance(value, str) else [str(v) for v in value]
+    names = [n for n in names if n]
+    unknown = [n for n in names if n not in ATTRIBUTE_NAMES]
+    if unknown:
+        raise MethodError(f"unknown attribute {', '.join(map(repr, unknown))}; known: {', '.join(ATTRIBUTE_NAMES)}")
+    return tuple(dict.fromkeys(names))
+
+
+def check_request(info, names, normals: str, fill: str) -> None:
+    """MethodError unless ``info``'s method can carry ``names`` with these modes (before any work)."""
+    if normals not in NORMAL_MODES:
+        raise MethodError(f"normals must be one of {', '.join(NORMAL_MODES)}, got {normals!r}")
+    if fill not in FILL_MODES:
+        raise MethodError(f"fill_attributes must be one of {', '.join(FILL_MODES)}, got {fill!r}")
+    if names and info.kind not in ("surface", "solid"):
+        raise MethodError(f"method {info.name!r} (kind {info.kind!r}) returns no voxel grid to carry attributes; "
+                          "use a surface or solid method")
+    if fill != "none" and info.kind != "solid":
+        raise MethodError(f"fill_attributes={fill!r} fills a solid's interior; {info.name!r} is a "
+                          f"{info.kind} method")
+    if fill != "none" and not names:
+        raise MethodError("fill_attributes needs attributes to fill (attributes=[...], --attributes)")
+
+
+def check_mesh(mesh, names, normals: str) -> None:
+    """MethodError when ``mesh`` lacks what ``names`` need: colours for ``color``,
+    visuals for vertex normals (a one-line error, no silent grey)."""
+    vis = mesh.visuals
+    if "color" in names and (vis is None or not vis.has_color):
+        raise MethodError(f"{mesh.name} carries no colours (no face or vertex colours, no texture); "
+                          "drop 'color' from the attributes")
+    if "normal" in names and normals == "vertex" and vis is None:
+        raise MethodError(f"{mesh.name} was loaded without its visuals: vertex normals need the file "
+                          "(glvox.voxelize(path, attributes=...)) or normals='face'")

@@ -247,8 +247,35 @@ def _colors(vis, t: np.ndarray, bary: np.ndarray) -> np.ndarray:
     return out
 
 
-def reference_attributes(mesh, tris: np.ndarray, dims, voxels: np.ndarray, names,
-                         normals: str = "face") -> tuple[Sources, dict[str, np.ndarray]]:
-    """:func:`source_triangles` then :func:`evaluate`: the attributes of ``voxels``."""
+def nearest_seeds(voxels: np.ndarray, seeded: np.ndarray) -> np.ndarray:
+    """For each voxel, the row of the nearest voxel with ``seeded`` True (center
+    distance, exact by a k-d tree; itself when seeded; -1 when none is).
+
+    Parameters
+    ----------
+    voxels : (M, 3) int64
+    seeded : (M,) bool
+    """
+    from scipy.spatial import cKDTree  # lazy: scipy is heavy, and only this fill needs it
+
+    rows = np.arange(len(voxels))
+    if not seeded.any():
+        return np.full(len(voxels), -1, np.int64)
+    seeds = np.flatnonzero(seeded)
+    _, k = cKDTree(voxels[seeds]).query(voxels[~seeded])
+    rows[~seeded] = seeds[k]
+    return rows
+
+
+def reference_attributes(mesh, tris: np.ndarray, dims, voxels: np.ndarray, names, normals: str = "face",
+                         fill: str = "none") -> tuple[Sources, dict[str, np.ndarray]]:
+    """:func:`source_triangles` then :func:`evaluate`: the attributes of ``voxels``;
+    ``fill='nearest'``: voxels without a source triangle take the attributes of
+    the nearest voxel with one (:func:`nearest_seeds`)."""
     sources = source_triangles(tris, dims, voxels)
-    return sources, evaluate(mesh, sources, names, normals)
+    out = evaluate(mesh, sources, names, normals)
+    if fill == "nearest":
+        rows = nearest_seeds(np.asarray(voxels).reshape(-1, 3), sources.triangle >= 0)
+        rows = np.where(rows < 0, np.arange(len(rows)), rows)
+        out = {k: v[rows] for k, v in out.items()}
+    return sources, out
