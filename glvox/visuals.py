@@ -184,18 +184,14 @@ def load_visual_mesh(mesh: Any, *, name: str | None = None):
     ----------
     mesh : path, trimesh.Trimesh or trimesh.Scene, or Mesh
         A file is loaded by trimesh with its materials (textures need
-        Pillow); a Mesh that already has visuals is returned as is.
+        Pillow: ``pip install 'glvox[attributes]'``); a Mesh is returned as is.
 
     Raises
     ------
     MeshLoadError
-        The file cannot be read, or a Mesh without visuals was given (its
-        source file is not known any more).
+        The file cannot be read; it has a texture and Pillow is missing.
     """
-    if isinstance(mesh, Mesh):
-        if mesh.visuals is None:
-            raise MeshLoadError(f"{mesh.name}: attributes need the mesh's visuals; pass the file path "
-                                "(or a trimesh object) instead of a loaded Mesh")
+    if isinstance(mesh, Mesh):  # as is: run_method names what its missing visuals cannot give
         return mesh
     if isinstance(mesh, (str, Path)) and str(mesh).startswith("gen:"):
         m = load_mesh(mesh)
@@ -215,12 +211,27 @@ def load_visual_mesh(mesh: Any, *, name: str | None = None):
         label = path.name
     else:
         loaded, label = mesh, type(mesh).__name__
+    _check_pillow(loaded, label)
     try:
         verts, faces, vis = visuals_from_trimesh(loaded)
     except MeshError as exc:
         raise MeshLoadError(f"{label}: {exc}") from None
     m = load_mesh((verts, faces), name=name or label)
     return _attach(m, vis)
+
+
+def _check_pillow(loaded, label: str) -> None:
+    """MeshLoadError when a part has texture UVs but trimesh could not read the image
+    because Pillow is missing (it would silently lose the texture)."""
+    try:
+        import PIL  # noqa: F401 - only whether it is there
+        return
+    except ImportError:
+        pass
+    geoms = loaded.geometry.values() if hasattr(loaded, "geometry") else [loaded]
+    if any(getattr(getattr(g, "visual", None), "kind", None) == "texture" for g in geoms):
+        raise MeshLoadError(f"{label} has textures, and reading them needs Pillow: "
+                            "pip install 'glvox[attributes]'")
 
 
 def _attach(m, vis: Visuals | None):
