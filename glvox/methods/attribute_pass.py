@@ -14,7 +14,7 @@ solid overlap no triangle and get none):
     the conservative (triangle, voxel) pairs of ``ss/surface.comp``
     (specialized variant) revisited with ``attributes/pair.glsl`` instead of
     the writes: pass 1 ``atomicMin`` of the distance from the voxel center to
-    the closest point (double, kept as float bits), pass 2 ``atomicMin`` of
+    the closest point (double, kept as 2^-31 voxel fixed point), pass 2 ``atomicMin`` of
     the index among the pairs at that minimum.  No 64-bit atomics on
     llvmpipe (no GL_NV_shader_atomic_int64), hence two passes.
 ``attr_evaluate``

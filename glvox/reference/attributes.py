@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..visuals import COLOR_FACE, COLOR_TEXTURE, COLOR_VERTEX, Texture
+from ..tolerances import ATTR_TIE_EPS, TIE_EPS
 from ._candidates import check_dims, check_tris
 from .surface import conservative_pairs
 
@@ -279,3 +280,54 @@ def reference_attributes(mesh, tris: np.ndarray, dims, voxels: np.ndarray, names
         rows = np.where(rows < 0, np.arange(len(rows)), rows)
         out = {k: v[rows] for k, v in out.items()}
     return sources, out
+
+
+def proven_ties(tris: np.ndarray, dims, voxels: np.ndarray, triangle: np.ndarray, sources: Sources,
+                eps: float = ATTR_TIE_EPS) -> np.ndarray:
+    """Which voxels' source triangle ``triangle`` (e.g. the GPU's, indices into
+    ``tris``, -1 none) is a proven tie against the reference ``sources``.
+
+    A voxel is a tie when the two triangles' distances to its center are
+    within ``eps`` voxel, or when either one's overlap of the voxel is itself a
+    tie (it overlaps the box of half-size 0.5 + TIE_EPS but not 0.5 - TIE_EPS:
+    DESIGN.md, "Ties").  Voxels where both agree are False.
+
+    Returns
+    -------
+    (M,) bool
+    """
+    vox = np.asarray(voxels, dtype=np.int64).reshape(-1, 3)
+    differ = np.asarray(triangle) != sources.triangle
+    out = np.zeros(len(vox), bool)
+    if not differ.any():
+        return out
+    rows = np.flatnonzero(differ)
+    a, b = np.asarray(triangle)[rows], sources.triangle[rows]
+    both = (a >= 0) & (b >= 0)
+    da, _ = closest_points(tris[np.maximum(a, 0)], vox[rows] + 0.5)
+    db, _ = closest_points(tris[np.maximum(b, 0)], vox[rows] + 0.5)
+    out[rows] = both & (np.abs(da - db) <= eps)
+    sel = np.unique(np.concatenate([a[a >= 0], b[b >= 0]]))  # only the triangles in question
+    loose = _overlap_pairs(tris, sel, dims, vox[rows], 0.5 + TIE_EPS)
+    tight = _overlap_pairs(tris, sel, dims, vox[rows], 0.5 - TIE_EPS)
+    for n, (ta, tb) in enumerate(zip(a, b)):
+        for t in (ta, tb):
+            if t >= 0 and (n, t) in loose and (n, t) not in tight:
+                out[rows[n]] = True
+    return out
+
+
+def _overlap_pairs(tris, sel, dims, voxels, half) -> set[tuple[int, int]]:
+    """The (row of ``voxels``, triangle of ``sel``) pairs that overlap at box half-size ``half``."""
+    nx, ny, nz = check_dims(dims)
+    keys = (voxels[:, 0] * ny + voxels[:, 1]) * nz + voxels[:, 2]
+    lookup = {int(k): n for n, k in enumerate(keys)}
+    out = set()
+    if len(sel) == 0:
+        return out
+    for tri, ijk in conservative_pairs(tris[sel], dims, half):
+        for t, k in zip(sel[tri].tolist(), ((ijk[:, 0] * ny + ijk[:, 1]) * nz + ijk[:, 2]).tolist()):
+            n = lookup.get(k)
+            if n is not None:
+                out.add((n, t))
+    return out

@@ -2,7 +2,11 @@
 // (SS_ATTR_PASS 1 or 2, SS_CRITERION 0): the conservative (triangle, voxel)
 // pairs, restricted to the voxels set in the method's grid, with the
 // distance from the voxel center to the triangle's closest point.
-//   pass 1: atomicMin of the distance (float bits: non-negative floats order as uints)
+//   pass 1: atomicMin of the distance as fixed point (2^-31 voxel steps; a touching
+//           triangle is at most sqrt(3)/2 voxel away, so it fits in 31 bits).  Fixed
+//           point, not float bits: an exact tie (a point on an edge two triangles
+//           share, computed from each) may come out as 0 and 1e-17, which float bits
+//           would tell apart and the rounding to 2^-31 does not.
 //   pass 2: atomicMin of the triangle index among pairs at that minimum
 // A voxel's slot is its rank among the set voxels in the grid's word order:
 // word_offset (an exclusive scan of the words' popcounts) plus the set bits
@@ -37,7 +41,7 @@ void set_voxel(ivec3 v) {
     uint slot = word_offset[w] + uint(bitCount(word & (b - 1u)));
     dvec3 p = dvec3(v - attr_base) + 0.5lf;
     dvec3 q = closest_bary(p, attr_a, attr_b, attr_c);
-    uint key = floatBitsToUint(float(bary_distance(p, attr_a, attr_b, attr_c, q)));
+    uint key = uint(min(bary_distance(p, attr_a, attr_b, attr_c, q), 1.0lf) * 2147483648.0lf + 0.5lf);
 #if SS_ATTR_PASS == 1
     atomicMin(best_dist[slot], key);
 #else
