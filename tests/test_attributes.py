@@ -152,11 +152,11 @@ def test_vertex_coloured_triangle():
     assert outside.any() and (~outside).any()
 
 
-def _checker_quad(filter_="linear"):
-    """The quad [0, 8]^2 at z = 0.5, UV = (x, y) / 8, an 8x8 texture whose texel
-    (i, j) (j counted from the bottom) has colour (32 i, 32 j, 255 * ((i + j) % 2))."""
-    i, j = np.meshgrid(np.arange(8), np.arange(8), indexing="xy")  # [row from bottom, column]
-    img = np.stack([32 * i, 32 * j, 255 * ((i + j) % 2), np.full_like(i, 200)], axis=-1).astype(np.uint8)
+def _checker_quad(filter_="linear", n=8):
+    """The quad [0, 8]^2 at z = 0.5, UV = (x, y) / 8, an n x n texture whose texel
+    (i, j) (j counted from the bottom) has colour (256 i / n, 256 j / n, 255 * ((i + j) % 2))."""
+    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="xy")  # [row from bottom, column]
+    img = np.stack([256 // n * i, 256 // n * j, 255 * ((i + j) % 2), np.full_like(i, 200)], axis=-1).astype(np.uint8)
     v = np.array([[0, 0, 0.5], [8, 0, 0.5], [8, 8, 0.5], [0, 8, 0.5]])
     mesh = glvox.load_mesh((v, np.array([[0, 1, 2], [0, 2, 3]])))
     # the Visuals a textured file would give, by hand
@@ -177,6 +177,21 @@ def test_textured_quad_checkerboard_aligned_with_voxels(gl_context, filter_):
     assert len(idx) == 64
     # voxel (i, j)'s center is texel (i, j)'s center: exactly that texel, alpha kept
     assert np.array_equal(g.attributes["color"], img[idx[:, 1], idx[:, 0]])
+
+
+@pytest.mark.parametrize("filter_", ["linear", "nearest"])
+def test_textured_quad_filters_between_texels(gl_context, filter_):
+    """A 16 x 16 texture on the same quad: every voxel center falls on the corner
+    of four texels (2i..2i+1, 2j..2j+1): bilinear averages them, nearest takes
+    texel (2i + 1, 2j + 1) (GL's floor(u * 16))."""
+    mesh, spec, img = _checker_quad(filter_, n=16)
+    g = run_method("ss-conservative", mesh, spec, attributes=["color"])
+    i, j = g.indices()[:, 0], g.indices()[:, 1]
+    if filter_ == "nearest":
+        expected = img[2 * j + 1, 2 * i + 1].astype(float)
+    else:
+        expected = sum(img[2 * j + b, 2 * i + a].astype(float) for a in (0, 1) for b in (0, 1)) / 4
+    assert np.abs(g.attributes["color"] - expected).max() <= 0.5 + ATTR_COLOR_TOL
 
 
 def test_reference_texture_sampling_bilinear_and_repeat():
