@@ -8,8 +8,9 @@ the same way, after the method (surface and solid alike; interior voxels of a
 solid overlap no triangle and get none):
 
 ``attr_rank``
-    popcount per grid word and an exclusive scan (:func:`glvox.gpu.sort.exclusive_scan`):
-    the slot of a set voxel is its rank in the grid's word order.
+    set voxels per grid row, an exclusive scan over the rows
+    (:func:`glvox.gpu.sort.exclusive_scan`), each word's first slot: the slot
+    of a set voxel is its rank in the grid's word order.
 ``attr_pairs`` (two passes)
     the conservative (triangle, voxel) pairs of ``ss/surface.comp``
     (specialized variant) revisited with ``attributes/pair.glsl`` instead of
@@ -18,7 +19,7 @@ solid overlap no triangle and get none):
     the index among the pairs at that minimum.  No 64-bit atomics on
     llvmpipe (no GL_NV_shader_atomic_int64), hence two passes.
 ``attr_evaluate``
-    one invocation per word: colour and normal at the closest point; one
+    one invocation per slot: colour and normal at the closest point; one
     more pass per texture, the image uploaded once as a GL texture and
     sampled with its filter and wrap.
 ``attr_readback``
@@ -96,16 +97,27 @@ def _face_buffers(ctx, mesh, pool, vertex_normals: bool):
 
 
 def _rank(ctx, spec, grid, pool, timer):
-    """Stage ``attr_rank``: the exclusive scan of the words' popcounts (binding 9)."""
+    """Stage ``attr_rank``: each word's first slot (binding 9), by row counts, a scan
+    over the rows and the rows' words (``attributes/rank.comp``)."""
+    rows = spec.dims[1] * spec.dims[2]
     offsets = pool.get("attr_offsets", spec.n_words * 4, what="the set voxels' ranks", clear=False)
-    prog = compute_program(ctx, "attributes/popcount.comp")
-    set_uniforms(prog, {"u_words": spec.n_words})
+    row_count = pool.get("attr_rows", rows * 4, what="the rows' counts", clear=False)
+    prog = compute_program(ctx, "attributes/rank.comp")
+    set_uniforms(prog, {"u_rows": rows, "u_dims": tuple(int(d) for d in spec.dims)})
     with timer.stage("attr_rank"):
         grid.bind_to_storage_buffer(3)
         offsets.bind_to_storage_buffer(9)
-        dispatch_1d(ctx, prog, spec.n_words, 256)
+        row_count.bind_to_storage_buffer(10)
+        set_uniforms(prog, {"u_mode": 0})
+        dispatch_1d(ctx, prog, rows, 64)
         barrier(ctx)
-        exclusive_scan(ctx, offsets, offsets, spec.n_words)
+        exclusive_scan(ctx, row_count, row_count, rows)
+        barrier(ctx)
+        grid.bind_to_storage_buffer(3)  # the scan may have bound its own buffers
+        offsets.bind_to_storage_buffer(9)
+        row_count.bind_to_storage_buffer(10)
+        set_uniforms(prog, {"u_mode": 1})
+        dispatch_1d(ctx, prog, rows, 64)
         barrier(ctx)
     return offsets
 
@@ -116,6 +128,7 @@ def _pairs(ctx, mesh, spec, grid, offsets, count, pool, timer):
     max_groups = int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])
     best_dist = pool.get("attr_dist", count * 4, what="the set voxels' distances", clear=False)
     best_tri = pool.get("attr_tri", count * 4, what="the set voxels' source triangles", clear=False)
+    slot_voxel = pool.get("attr_slot_voxel", count * 8, what="the set voxels' coordinates", clear=False)
     best_dist.clear(size=count * 4, chunk=b"\xff\xff\xff\xff")
     best_tri.clear(size=count * 4, chunk=b"\xff\xff\xff\xff")
     bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool, stage="attr_transform")
@@ -126,7 +139,7 @@ def _pairs(ctx, mesh, spec, grid, offsets, count, pool, timer):
     common = {**grid_uniforms(spec, bufs.anchor), "u_triangles": n, "u_tri_offset": 0,
               "u_local_size": _LOCAL, "u_max_groups": max_groups}
     for binding, buf in ((1, vox), (2, bufs.faces), (3, grid), (4, stats), (5, per_tri), (8, args),
-                         (9, offsets), (10, best_dist), (11, best_tri)):
+                         (9, offsets), (10, best_dist), (11, best_tri), (12, slot_voxel)):
         buf.bind_to_storage_buffer(binding)
     classify = compute_program(ctx, "ss/classify.comp", defines)
     set_uniforms(classify, common)
@@ -136,27 +149,27 @@ def _pairs(ctx, mesh, spec, grid, offsets, count, pool, timer):
     for p in (1, 2):
         voxelize_unsorted(ctx, timer, n, {**defines, "SS_ATTR_PASS": p}, common, args, max_groups,
                           stage=f"attr_pairs{p}")
-    return bufs, vox, best_tri
+    return bufs, vox, best_tri, slot_voxel
 
 
 def _evaluate(ctx, mesh, spec, buffers, count, pool, timer, want_color, normals):
     """Stage ``attr_evaluate``: colour (uint32 RGBA8) and normal (3 float32) per slot."""
-    bufs, vox, grid, offsets, best_tri = buffers
+    bufs, vox, best_tri, slot_voxel = buffers
     color = pool.get("attr_color", count * 4, what="the set voxels' colours")
     normal = pool.get("attr_normal", count * 12, what="the set voxels' normals", clear=False)
     face = _face_buffers(ctx, mesh, pool, normals == "vertex")
     prog = compute_program(ctx, "attributes/evaluate.comp")
-    set_uniforms(prog, {**grid_uniforms(spec, bufs.anchor), "u_words": spec.n_words, "u_color": want_color,
+    set_uniforms(prog, {"u_slots": count, "u_color": want_color,
                         "u_normal": normals is not None, "u_vertex_normals": normals == "vertex",
                         "u_tex": 0, "u_factor": (1.0, 1.0, 1.0, 1.0)})
-    for binding, buf in ((1, vox), (2, bufs.faces), (3, grid), (9, offsets), (11, best_tri), (12, face[0]),
+    for binding, buf in ((1, vox), (2, bufs.faces), (11, best_tri), (12, slot_voxel), (7, face[0]),
                          (13, face[1]), (14, face[2]), (15, face[3]), (5, color), (6, normal)):
         buf.bind_to_storage_buffer(binding)
     textures = mesh.visuals.textures if (want_color and mesh.visuals is not None) else []
     used = set(np.unique(mesh.visuals.texture[mesh.visuals.color_source == COLOR_TEXTURE])) if textures else set()
     with timer.stage("attr_evaluate"):
         set_uniforms(prog, {"u_tex_index": -1})
-        dispatch_1d(ctx, prog, spec.n_words, 64)
+        dispatch_1d(ctx, prog, count, 64)
         barrier(ctx)
         for k, tex in enumerate(textures):
             if k not in used:
@@ -164,7 +177,7 @@ def _evaluate(ctx, mesh, spec, buffers, count, pool, timer, want_color, normals)
             gl_tex = _texture(ctx, tex)
             gl_tex.use(0)
             set_uniforms(prog, {"u_tex_index": k, "u_factor": tuple(float(x) for x in tex.factor)})
-            dispatch_1d(ctx, prog, spec.n_words, 64)
+            dispatch_1d(ctx, prog, count, 64)
             barrier(ctx)
             gl_tex.release()
     return color, normal
@@ -241,11 +254,11 @@ def gpu_attributes(ctx, mesh, result, timer, names, normals: str = "face", fill:
     grid = pool.get("attr_grid", spec.n_words * 4, what=f"the {spec.dims} bit grid", clear=False)
     grid.write(np.ascontiguousarray(words).tobytes())
     offsets = _rank(ctx, spec, grid, pool, timer)
-    bufs, vox, best_tri = _pairs(ctx, mesh, spec, grid, offsets, count, pool, timer)
+    bufs, vox, best_tri, slot_voxel = _pairs(ctx, mesh, spec, grid, offsets, count, pool, timer)
     want_color = "color" in names
     want_normal = normals if "normal" in names else None
     if want_color or want_normal:
-        color, normal = _evaluate(ctx, mesh, spec, (bufs, vox, grid, offsets, best_tri), count, pool,
+        color, normal = _evaluate(ctx, mesh, spec, (bufs, vox, best_tri, slot_voxel), count, pool,
                                   timer, want_color, want_normal)
     seed_slot = _flood(ctx, spec, grid, offsets, best_tri, count, pool, timer) if fill == "nearest" else None
     with timer.stage("attr_readback", gpu=False):

@@ -7,18 +7,15 @@
 //   u_tex_index -1: every voxel whose colour needs no texture, and the normals;
 //   k >= 0: only the colour of voxels whose source triangle samples texture k
 //   (bound to u_tex), one pass per texture.
-#include "common/bits.glsl"
-#include "common/voxel_space.glsl"
 #include "attributes/closest.glsl"
 layout(local_size_x = 64) in;
 #include "common/dispatch.glsl"
 layout(std430, binding = 1) readonly buffer VoxVerts { float vox[]; };
 layout(std430, binding = 2) readonly buffer Faces { uint faces[]; };
-layout(std430, binding = 3) readonly buffer Grid { uint grid[]; };
-layout(std430, binding = 9) readonly buffer Offsets { uint word_offset[]; };
 layout(std430, binding = 11) readonly buffer BestTri { uint best_tri[]; };
+layout(std430, binding = 12) readonly buffer SlotVoxel { uvec2 slot_voxel[]; };  // (i | j << 16, k)
 // per face: colour source (glvox.visuals.COLOR_*), texture index, unused, face RGBA8
-layout(std430, binding = 12) readonly buffer FaceInfo { uvec4 face_info[]; };
+layout(std430, binding = 7) readonly buffer FaceInfo { uvec4 face_info[]; };
 layout(std430, binding = 13) readonly buffer CornerUV { float corner_uv[]; };       // 6 per face
 layout(std430, binding = 14) readonly buffer CornerColor { uint corner_color[]; };  // 3 RGBA8 per face
 layout(std430, binding = 15) readonly buffer Normals { float normals[]; };  // face normal, then 3 corners: 12 per face
@@ -27,7 +24,7 @@ layout(std430, binding = 6) writeonly buffer OutNormal { float out_normal[]; };
 uniform sampler2D u_tex;
 uniform int u_tex_index;
 uniform vec4 u_factor;
-uniform uint u_words;
+uniform uint u_slots;
 uniform bool u_color;
 uniform bool u_normal;
 uniform bool u_vertex_normals;
@@ -63,29 +60,23 @@ uint color_at(uint t, vec3 q, uvec4 info) {
 }
 
 void main() {
-    uint w = global_index_1d();
-    if (w >= u_words) return;
-    uint word = grid[w];
-    uint row = w / words_per_row();
-    int i0 = int((w % words_per_row()) * 32u);
-    ivec2 jk = ivec2(int(row % uint(u_dims.y)), int(row / uint(u_dims.y)));
-    uint slot = word_offset[w];
-    for (; word != 0u; word &= word - 1u, ++slot) {
-        uint t = best_tri[slot];
-        uvec4 info = t == NONE ? uvec4(0u) : face_info[t];
-        bool textured = info.x == 3u;
-        if (u_tex_index >= 0 && !(textured && int(info.y) == u_tex_index)) continue;
-        vec3 q = vec3(0.0);
-        if (t != NONE) {
-            dvec3 p = dvec3(ivec3(i0 + findLSB(word), jk)) + 0.5lf;
-            q = vec3(closest_bary(p, vertex(faces[3u * t]), vertex(faces[3u * t + 1u]), vertex(faces[3u * t + 2u])));
-        }
-        if (u_color && (u_tex_index >= 0 || !textured)) out_color[slot] = t == NONE ? 0u : color_at(t, q, info);
-        if (u_normal && u_tex_index < 0) {
-            vec3 n = t == NONE ? vec3(0.0) : normal_at(t, q);
-            out_normal[3u * slot] = n.x;
-            out_normal[3u * slot + 1u] = n.y;
-            out_normal[3u * slot + 2u] = n.z;
-        }
+    uint slot = global_index_1d();
+    if (slot >= u_slots) return;
+    uint t = best_tri[slot];
+    uvec4 info = t == NONE ? uvec4(0u) : face_info[t];
+    bool textured = info.x == 3u;
+    if (u_tex_index >= 0 && !(textured && int(info.y) == u_tex_index)) return;
+    vec3 q = vec3(0.0);
+    if (t != NONE) {
+        uvec2 sv = slot_voxel[slot];
+        dvec3 p = dvec3(ivec3(int(sv.x & 0xFFFFu), int(sv.x >> 16), int(sv.y))) + 0.5lf;
+        q = vec3(closest_bary(p, vertex(faces[3u * t]), vertex(faces[3u * t + 1u]), vertex(faces[3u * t + 2u])));
+    }
+    if (u_color && (u_tex_index >= 0 || !textured)) out_color[slot] = t == NONE ? 0u : color_at(t, q, info);
+    if (u_normal && u_tex_index < 0) {
+        vec3 n = t == NONE ? vec3(0.0) : normal_at(t, q);
+        out_normal[3u * slot] = n.x;
+        out_normal[3u * slot + 1u] = n.y;
+        out_normal[3u * slot + 2u] = n.z;
     }
 }

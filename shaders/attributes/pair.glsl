@@ -7,7 +7,8 @@
 //           point, not float bits: an exact tie (a point on an edge two triangles
 //           share, computed from each) may come out as 0 and 1e-17, which float bits
 //           would tell apart and the rounding to 2^-31 does not.
-//   pass 2: atomicMin of the triangle index among pairs at that minimum
+//   pass 2: atomicMin of the triangle index among pairs at that minimum, and the
+//           voxel's coordinates for the slot (every such pair writes the same)
 // A voxel's slot is its rank among the set voxels in the grid's word order:
 // word_offset (an exclusive scan of the words' popcounts) plus the set bits
 // below it in its word.
@@ -17,6 +18,7 @@ layout(std430, binding = 3) readonly buffer Grid { uint grid[]; };
 layout(std430, binding = 9) readonly buffer Offsets { uint word_offset[]; };
 layout(std430, binding = 10) buffer BestDist { uint best_dist[]; };
 layout(std430, binding = 11) buffer BestTri { uint best_tri[]; };
+layout(std430, binding = 12) writeonly buffer SlotVoxel { uvec2 slot_voxel[]; };  // (i | j << 16, k)
 
 uint attr_t;
 ivec3 attr_base;
@@ -45,6 +47,9 @@ void set_voxel(ivec3 v) {
 #if SS_ATTR_PASS == 1
     atomicMin(best_dist[slot], key);
 #else
-    if (key == best_dist[slot]) atomicMin(best_tri[slot], attr_t);
+    if (key == best_dist[slot]) {
+        atomicMin(best_tri[slot], attr_t);
+        slot_voxel[slot] = uvec2(uint(v.x) | (uint(v.y) << 16), uint(v.z));
+    }
 #endif
 }
