@@ -222,7 +222,7 @@ def attribute_args(info: MethodInfo, args, out: Path | None) -> None:
 
 
 #: Output suffixes that store per-voxel attributes.
-ATTRIBUTE_SUFFIXES = (".npz",)
+ATTRIBUTE_SUFFIXES = (".npz", ".vti")
 
 
 def validate_voxelize(args) -> None:

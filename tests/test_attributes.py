@@ -12,7 +12,7 @@ import pytest
 import trimesh
 
 import glvox
-from glvox.errors import FormatError, GridError, MethodError
+from glvox.errors import FormatError, FormatWarning, GridError, MethodError
 from glvox.gpu.transform import gpu_vertices_voxel
 from glvox.grid import GridSpec
 from glvox.methods import run_method
@@ -327,3 +327,32 @@ def test_cli_voxelize_and_batch_write_attributes(tmp_path, shared_mesh, gl_conte
                  "--attributes", "color,material", "-q"]) == 0
     b = glvox.load(tmp_path / "out" / "c.npz")
     assert (b.attributes["color"][:, 3] == 255).all() and (b.attributes["material"] == 0).all()
+
+
+# -- voxel files ------------------------------------------------------------------
+
+def test_vti_keeps_attributes_and_vtk_reads_them(tmp_path):
+    occ, g, attrs = _grid_with_attributes()
+    glvox.save(g, tmp_path / "a.vti")
+    back = glvox.load(tmp_path / "a.vti")
+    assert np.array_equal(back.dense(), occ)
+    for k, v in attrs.items():
+        assert back.attributes[k].dtype == v.dtype and np.array_equal(back.attributes[k], v), k
+    vtk = pytest.importorskip("vtk")
+    from vtk.util.numpy_support import vtk_to_numpy
+
+    reader = vtk.vtkXMLImageDataReader()
+    reader.SetFileName(str(tmp_path / "a.vti"))
+    reader.Update()
+    color = vtk_to_numpy(reader.GetOutput().GetCellData().GetArray("attr_color"))
+    i, j, k = np.argwhere(occ).T
+    nx, ny = occ.shape[:2]
+    assert np.array_equal(color[i + nx * (j + ny * k)], attrs["color"])  # VTK's cell id, x fastest
+
+
+@pytest.mark.parametrize("suffix", [".nrrd", ".nii.gz"])
+def test_one_array_formats_warn_that_attributes_are_dropped(tmp_path, suffix):
+    pytest.importorskip("nrrd" if suffix == ".nrrd" else "nibabel")
+    _, g, _ = _grid_with_attributes()
+    with pytest.warns(FormatWarning, match="attributes"):
+        glvox.save(g, tmp_path / f"a{suffix}")

@@ -95,10 +95,13 @@ def as_grid(result: Result, fmt: str) -> VoxelGrid:
 
 
 def warn_dropped(grid: VoxelGrid, fmt: str) -> None:
-    """A :class:`FormatWarning` naming the extra masks a one-array format does not keep."""
+    """A :class:`FormatWarning` naming the extra masks and attributes a one-array format does not keep."""
     if grid.extras:
         warnings.warn(FormatWarning(f"{fmt} keeps the occupancy only; the extra masks {sorted(grid.extras)} "
                                     "are not written (.npz, .vti and .vdb keep them)"), stacklevel=3)
+    if getattr(grid, "attributes", None):
+        warnings.warn(FormatWarning(f"{fmt} keeps the occupancy only; the attributes {sorted(grid.attributes)} "
+                                    "are not written (.npz and .vti keep them)"), stacklevel=3)
 
 
 def grid_from_matrix(data: np.ndarray, steps: np.ndarray, first_center: np.ndarray, path: Path,

@@ -37,11 +37,12 @@ from __future__ import annotations
 import contextlib
 import importlib
 import io
+import warnings
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import FormatError
+from ..errors import FormatError, FormatWarning
 from ..grid import MAX_VOXELS
 from ..results import Result, SparseOctree, VoxelGrid
 from .common import Format, grid_from_matrix
@@ -232,6 +233,10 @@ def write(result: Result, path: Path, *, coverage: bool = True) -> None:
         if coverage:
             grids.append(_coverage(vdb, result))
     elif isinstance(result, VoxelGrid):
+        if result.attributes:
+            warnings.warn(FormatWarning(f"OpenVDB files from glvox keep occupancy and masks; the attributes "
+                                        f"{sorted(result.attributes)} are not written (.npz and .vti keep them)"),
+                          stacklevel=3)
         grids = [_bool_grid(vdb, "occupancy", dense_boxes(result.dense()), result)]
         grids += [_bool_grid(vdb, f"extra_{k}", dense_boxes(g.dense()), result) for k, g in result.extras.items()]
     else:
