@@ -53,7 +53,8 @@ _POOL = "attributes"
 
 def c_order(words: np.ndarray, dims) -> np.ndarray:
     """The permutation taking the set voxels from the grid's word order (k, j, i)
-    to C order (i, j, k): ``attr_c = attr_words[perm]``."""
+    to C order (i, j, k): ``attr_c = attr_words[perm]`` (from the words alone,
+    for grids where some set voxel has no source triangle)."""
     nx, ny, nz = dims
     wpr = (nx + 31) // 32
     flat = np.ascontiguousarray(np.asarray(words).reshape(-1).astype("<u4", copy=False))
@@ -61,10 +62,30 @@ def c_order(words: np.ndarray, dims) -> np.ndarray:
     bits = np.unpackbits(flat[nonzero].view(np.uint8).reshape(-1, 4), axis=1, bitorder="little")
     row, bit = np.nonzero(bits)  # word order, then bit order: the slots' order
     word = nonzero[row]
-    i = (word % wpr) * 32 + bit
-    jk = word // wpr
-    key = (i * ny + jk % ny) * nz + jk // ny
-    return np.argsort(key, kind="stable")
+    return _c_perm((word % wpr) * 32 + bit, (word // wpr) % ny)
+
+
+def _c_perm(i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """C order of voxels listed in word order (sorted by k, then j, then i), from
+    their i and j: stable sorts by j, then by i (numpy's radix sort for 16-bit
+    keys, O(M))."""
+    key_type = np.uint16 if max(int(i.max(initial=0)), int(j.max(initial=0))) < 1 << 16 else np.uint32
+    i, j = i.astype(key_type), j.astype(key_type)
+    perm = np.argsort(j, kind="stable")
+    return perm[np.argsort(i[perm], kind="stable")]
+
+
+def _slot_indices(slot_voxel, words, spec, count) -> tuple[np.ndarray, np.ndarray]:
+    """(perm, indices): the slots' C-order permutation and the (M, 3) int64 C-ordered
+    voxel indices, from the coordinates pass 2 recorded (every slot with a source
+    triangle), else from the grid words."""
+    sv = np.frombuffer(slot_voxel.read(size=count * 8), dtype="<u4").reshape(count, 2)
+    if (sv[:, 0] != _NONE).all():
+        ijk = np.empty((count, 3), np.int64)
+        ijk[:, 0], ijk[:, 1], ijk[:, 2] = sv[:, 0] & 0xFFFF, sv[:, 0] >> 16, sv[:, 1]
+        perm = _c_perm(ijk[:, 0], ijk[:, 1])
+        return perm, ijk[perm]
+    return c_order(words, spec.dims), None
 
 
 def _face_buffers(ctx, mesh, pool, vertex_normals: bool):
@@ -96,14 +117,14 @@ def _face_buffers(ctx, mesh, pool, vertex_normals: bool):
     return out
 
 
-def _rank(ctx, spec, grid, pool, timer):
+def _rank(ctx, spec, grid, count, pool, timer):
     """Stage ``attr_rank``: each word's first slot (binding 9), by row counts, a scan
     over the rows and the rows' words (``attributes/rank.comp``)."""
     rows = spec.dims[1] * spec.dims[2]
     offsets = pool.get("attr_offsets", spec.n_words * 4, what="the set voxels' ranks", clear=False)
     row_count = pool.get("attr_rows", rows * 4, what="the rows' counts", clear=False)
     prog = compute_program(ctx, "attributes/rank.comp")
-    set_uniforms(prog, {"u_rows": rows, "u_dims": tuple(int(d) for d in spec.dims)})
+    set_uniforms(prog, {"u_rows": rows, "u_total": count, "u_dims": tuple(int(d) for d in spec.dims)})
     with timer.stage("attr_rank"):
         grid.bind_to_storage_buffer(3)
         offsets.bind_to_storage_buffer(9)
@@ -129,6 +150,7 @@ def _pairs(ctx, mesh, spec, grid, offsets, count, pool, timer):
     best_dist = pool.get("attr_dist", count * 4, what="the set voxels' distances", clear=False)
     best_tri = pool.get("attr_tri", count * 4, what="the set voxels' source triangles", clear=False)
     slot_voxel = pool.get("attr_slot_voxel", count * 8, what="the set voxels' coordinates", clear=False)
+    slot_voxel.clear(size=count * 8, chunk=b"\xff\xff\xff\xff")  # NONE: no triangle recorded it
     best_dist.clear(size=count * 4, chunk=b"\xff\xff\xff\xff")
     best_tri.clear(size=count * 4, chunk=b"\xff\xff\xff\xff")
     bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool, stage="attr_transform")
@@ -252,8 +274,8 @@ def gpu_attributes(ctx, mesh, result, timer, names, normals: str = "face", fill:
     pool = buffer_pool(ctx, _POOL)
     words = result.words()
     grid = pool.get("attr_grid", spec.n_words * 4, what=f"the {spec.dims} bit grid", clear=False)
-    grid.write(np.ascontiguousarray(words).tobytes())
-    offsets = _rank(ctx, spec, grid, pool, timer)
+    grid.write(np.ascontiguousarray(words))  # the array itself: no bytes copy of 128 MiB at 1024^3
+    offsets = _rank(ctx, spec, grid, count, pool, timer)
     bufs, vox, best_tri, slot_voxel = _pairs(ctx, mesh, spec, grid, offsets, count, pool, timer)
     want_color = "color" in names
     want_normal = normals if "normal" in names else None
@@ -267,7 +289,7 @@ def gpu_attributes(ctx, mesh, result, timer, names, normals: str = "face", fill:
         if seed_slot is not None:
             seed = np.frombuffer(seed_slot.read(size=count * 4), dtype="<u4").astype(np.int64)
             rows = np.where(seed == _NONE, rows, seed)
-        perm = c_order(words, spec.dims)
+        perm, indices = _slot_indices(slot_voxel, words, spec, count)
         take = rows[perm]
         tri = np.frombuffer(best_tri.read(size=count * 4), dtype="<u4")[take].astype(np.int64)
         tri[tri == _NONE] = -1
@@ -285,6 +307,8 @@ def gpu_attributes(ctx, mesh, result, timer, names, normals: str = "face", fill:
                 out[name] = np.frombuffer(color.read(size=count * 4), np.uint8).reshape(count, 4)[take]
             elif name == "normal":
                 out[name] = np.frombuffer(normal.read(size=count * 12), np.float32).reshape(count, 3)[take]
+    if indices is not None:
+        result.cache_indices(indices)
     return out
 
 

@@ -144,6 +144,7 @@ class VoxelGrid(Result):
         self._dense: np.ndarray | None = None
         self._words: np.ndarray | None = None
         self._count = None if count is None else int(count)
+        self._indices: np.ndarray | None = None
         if occupancy is not None:
             occ = np.asarray(occupancy)
             if occ.shape != spec.dims:
@@ -207,8 +208,19 @@ class VoxelGrid(Result):
         return self.count
 
     def indices(self) -> np.ndarray:
-        """(M, 3) int64 indices of the set voxels, sorted by i, then j, then k (as ``np.argwhere``)."""
-        return set_indices(self.words(), self.spec.dims)
+        """(M, 3) int64 indices of the set voxels, sorted by i, then j, then k (as ``np.argwhere``);
+        read-only view."""
+        idx = self._indices if self._indices is not None else set_indices(self.words(), self.spec.dims)
+        v = idx.view()
+        v.setflags(write=False)
+        return v
+
+    def cache_indices(self, indices: np.ndarray) -> None:
+        """Keep :meth:`indices` (the attribute pass has them at hand): (M, 3) int64, C order."""
+        idx = np.asarray(indices)
+        if idx.shape != (self.count, 3) or idx.dtype != np.int64:
+            raise GridError(f"indices must be int64 of shape {(self.count, 3)}, got {idx.dtype} {idx.shape}")
+        self._indices = idx
 
     def attribute_grid(self, name: str) -> np.ndarray:
         """The dense form of attribute ``name``: (nx, ny, nz, ...) of its dtype, indexed
