@@ -356,3 +356,32 @@ def test_one_array_formats_warn_that_attributes_are_dropped(tmp_path, suffix):
     _, g, _ = _grid_with_attributes()
     with pytest.warns(FormatWarning, match="attributes"):
         glvox.save(g, tmp_path / f"a{suffix}")
+
+
+def test_scene_parts_keep_their_own_visuals_and_input_face_ids(gl_context):
+    """Two parts: a red face-coloured box (material 0) and a vertex-coloured blue
+    one (material 1) placed by the scene graph; a zero-area face dropped from the
+    input still counts in the triangle ids (they index the input's faces)."""
+    a = trimesh.creation.box(extents=(1, 1, 1))
+    a.visual.face_colors = [255, 0, 0, 255]
+    b = trimesh.creation.box(extents=(1, 1, 1))
+    b.visual.vertex_colors = [0, 0, 255, 255]
+    scene = trimesh.Scene()
+    scene.add_geometry(a, node_name="a", geom_name="a")
+    scene.add_geometry(b, node_name="b", geom_name="b", transform=trimesh.transformations.translation_matrix([3, 0, 0]))
+    mesh = load_visual_mesh(scene)
+    g = run_method("ss-conservative", mesh, GridSpec((16, 4, 4), np.array([-0.5, -0.5, -0.5]), 0.25),
+                   attributes=["color", "material", "triangle"])
+    x = g.points()[:, 0]
+    left, right = x < 1.0, x > 2.0
+    assert left.any() and right.any() and (left | right).all()
+    assert (g.attributes["material"][left] == 0).all() and (g.attributes["material"][right] == 1).all()
+    assert (g.attributes["color"][left] == [255, 0, 0, 255]).all()
+    assert (g.attributes["color"][right] == [0, 0, 255, 255]).all()
+    assert (g.attributes["triangle"][left] < 12).all() and (g.attributes["triangle"][right] >= 12).all()
+
+    tri = trimesh.Trimesh([[0, 0, 0.5], [8, 0, 0.5], [0, 8, 0.5]], [[0, 0, 1], [0, 1, 2]], process=False)
+    flat = load_visual_mesh(tri)
+    assert flat.n_degenerate == 1
+    g = run_method("ss-conservative", flat, GridSpec((8, 8, 1), np.zeros(3), 1.0), attributes=["triangle"])
+    assert (g.attributes["triangle"] == 1).all()
