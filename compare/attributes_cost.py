@@ -53,6 +53,7 @@ def main() -> None:
     for name in args.meshes:
         path = str(resolve_mesh(name))
         for n in args.sizes:
+            buffer_pool(get_context(), "attributes").release()  # this cell's buffers only, below
             _once(path, n, None), _once(path, n, ATTRS)  # warm-up: shaders compiled, buffers pooled
             plain, attr = [], []
             for _ in range(args.repeat):
