@@ -13,7 +13,7 @@ solid overlap no triangle and get none):
     of a set voxel is its rank in the grid's word order.
 ``attr_pairs`` (two passes)
     the conservative (triangle, voxel) pairs of ``ss/surface.comp``
-    (specialized variant) revisited with ``attributes/pair.glsl`` instead of
+    (the sorted or specialized variant, as ss-conservative's ``auto`` picks) revisited with ``attributes/pair.glsl`` instead of
     the writes: pass 1 ``atomicMin`` of the distance from the voxel center to
     the closest point (double, kept as 2^-31 voxel fixed point), pass 2 ``atomicMin`` of
     the index among the pairs at that minimum.  No 64-bit atomics on
@@ -41,7 +41,7 @@ from ..gpu.sort import exclusive_scan
 from ..gpu.transform import transform_vertices
 from ..results.voxels import ATTRIBUTE_DTYPES
 from ..visuals import COLOR_TEXTURE
-from .ss_surface import CHUNK, _LOCAL, voxelize_unsorted
+from .ss_surface import CHUNK, LOCAL_SIZE, VARIANTS, auto_variant, sort_by_case, voxelize_sorted, voxelize_unsorted
 
 #: The attributes a result can carry (``--attributes``).
 ATTRIBUTE_NAMES = tuple(ATTRIBUTE_DTYPES)
@@ -144,9 +144,12 @@ def _rank(ctx, spec, grid, count, pool, timer):
 
 
 def _pairs(ctx, mesh, spec, grid, offsets, count, pool, timer):
-    """Stage ``attr_pairs``: the source triangle of every slot (binding 11)."""
+    """Stage ``attr_pairs``: the source triangle of every slot (binding 11) and its
+    voxel (binding 12), through ss-conservative's variant ``auto`` picks."""
     n = mesh.n_triangles
     max_groups = int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])
+    variant = auto_variant(n, spec.dims, max_groups)
+    variant = "specialized" if variant == "simple" else variant  # simple: the same pairs, tested per voxel
     best_dist = pool.get("attr_dist", count * 4, what="the set voxels' distances", clear=False)
     best_tri = pool.get("attr_tri", count * 4, what="the set voxels' source triangles", clear=False)
     slot_voxel = pool.get("attr_slot_voxel", count * 8, what="the set voxels' coordinates", clear=False)
@@ -157,20 +160,29 @@ def _pairs(ctx, mesh, spec, grid, offsets, count, pool, timer):
     stats = pool.get("stats", 8 * 4)
     per_tri = pool.get("per_triangle", n * 4, what="per-triangle work", clear=False)
     args = pool.get("args", 9 * 4, clear=False)
-    defines = {"SS_CRITERION": 0, "SS_VARIANT": 1, "SS_CHUNK": CHUNK}
+    keys = pool.get("keys", n * 4, what="sort keys", clear=False)
+    defines = {"SS_CRITERION": 0, "SS_VARIANT": VARIANTS[variant], "SS_CHUNK": CHUNK}
     common = {**grid_uniforms(spec, bufs.anchor), "u_triangles": n, "u_tri_offset": 0,
-              "u_local_size": _LOCAL, "u_max_groups": max_groups}
-    for binding, buf in ((1, vox), (2, bufs.faces), (3, grid), (4, stats), (5, per_tri), (8, args),
-                         (9, offsets), (10, best_dist), (11, best_tri), (12, slot_voxel)):
+              "u_local_size": LOCAL_SIZE, "u_max_groups": max_groups}
+    own = ((9, offsets), (10, best_dist), (11, best_tri), (12, slot_voxel))
+    for binding, buf in ((1, vox), (2, bufs.faces), (3, grid), (4, stats), (5, per_tri), (7, keys), (8, args), *own):
         buf.bind_to_storage_buffer(binding)
     classify = compute_program(ctx, "ss/classify.comp", defines)
     set_uniforms(classify, common)
     with timer.stage("attr_classify"):
-        dispatch_1d(ctx, classify, n, _LOCAL)
+        dispatch_1d(ctx, classify, n, LOCAL_SIZE)
         barrier(ctx)
+    if variant == "sorted":
+        sort_by_case(ctx, timer, pool, n, (stats, per_tri, keys, args), max_groups, prefix="attr_")
     for p in (1, 2):
-        voxelize_unsorted(ctx, timer, n, {**defines, "SS_ATTR_PASS": p}, common, args, max_groups,
-                          stage=f"attr_pairs{p}")
+        for binding, buf in own:  # the sort binds buffers of its own
+            buf.bind_to_storage_buffer(binding)
+        pass_defines = {**defines, "SS_ATTR_PASS": p}
+        if variant == "sorted":
+            voxelize_sorted(ctx, timer, pass_defines, common, (vox, bufs.faces, grid, per_tri, args),
+                            stage=f"attr_pairs{p}")
+        else:
+            voxelize_unsorted(ctx, timer, n, pass_defines, common, args, max_groups, stage=f"attr_pairs{p}")
     return bufs, vox, best_tri, slot_voxel
 
 
