@@ -211,7 +211,6 @@ def cmd_ldi(args) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         result = run_method(args.method, mesh, spec, backend=args.backend, allow_open=args.allow_open,
-                            attributes=names, normals=args.normals, fill_attributes=args.fill_attributes,
                             **options)
     for w in caught:
         print(f"glvox: warning: {w.message}", file=sys.stderr)
