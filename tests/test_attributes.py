@@ -385,3 +385,37 @@ def test_scene_parts_keep_their_own_visuals_and_input_face_ids(gl_context):
     assert flat.n_degenerate == 1
     g = run_method("ss-conservative", flat, GridSpec((8, 8, 1), np.zeros(3), 1.0), attributes=["triangle"])
     assert (g.attributes["triangle"] == 1).all()
+
+
+def _ridges(count=40, seed=5):
+    """Roofs of two triangles meeting at a ridge below the center of voxel (2, 2, 2),
+    non-dyadic coordinates: the center's closest point on both is the same ridge
+    point, an exact tie however each triangle's arithmetic rounds."""
+    rng = np.random.default_rng(seed)
+    c = np.array([2.5, 2.5, 2.5])
+    for _ in range(count):
+        axis = rng.normal(size=3) * [1, 1, 0.1]
+        axis /= np.linalg.norm(axis)
+        up = np.cross(axis, np.cross([0, 0, 1.0], axis))
+        up /= np.linalg.norm(up)
+        side = np.cross(axis, up)
+        m = c - rng.uniform(0.05, 0.3) * up  # the ridge passes this far below the center
+        p, q = m - rng.uniform(0.2, 0.4) * axis, m + rng.uniform(0.2, 0.4) * axis
+        r1 = m + rng.uniform(0.3, 0.4) * side - rng.uniform(0.3, 0.4) * up
+        r2 = m - rng.uniform(0.3, 0.4) * side - rng.uniform(0.3, 0.4) * up
+        yield np.array([[p, q, r1], [q, p, r2]])
+
+
+def test_exact_ties_on_a_shared_edge_go_to_the_lower_index(gl_context):
+    from glvox.reference.attributes import source_triangles
+
+    spec = GridSpec((5, 5, 5), np.zeros(3), 1.0)
+    for tris in _ridges():
+        for order in ([0, 1], [1, 0]):
+            t = tris[order]
+            src = source_triangles(t, spec.dims, np.array([[2, 2, 2]]))
+            assert src.triangle[0] == 0, "reference"
+            g = run_method("ss-conservative", glvox.load_mesh((t.reshape(-1, 3), np.arange(6).reshape(2, 3))),
+                           spec, attributes=["triangle"])
+            row = np.flatnonzero((g.indices() == [2, 2, 2]).all(axis=1))
+            assert g.attributes["triangle"][row[0]] == 0, "GPU"
