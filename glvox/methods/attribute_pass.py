@@ -30,12 +30,14 @@ solid overlap no triangle and get none):
 
 from __future__ import annotations
 
+import weakref
+
 import moderngl
 import numpy as np
 
 from ..errors import MethodError
 from ..gl.shaders import compute_program
-from ..gpu.buffers import buffer_pool
+from ..gpu.buffers import buffer_pool, check_buffer_size, object_cache
 from ..gpu.dispatch import barrier, dispatch_1d, grid_uniforms, set_uniforms
 from ..gpu.sort import exclusive_scan
 from ..gpu.transform import transform_vertices
@@ -88,8 +90,21 @@ def _slot_indices(slot_voxel, words, spec, count) -> tuple[np.ndarray, np.ndarra
     return c_order(words, spec.dims), None
 
 
-def _face_buffers(ctx, mesh, pool, vertex_normals: bool):
-    """Per-face data of the evaluation: info, corner UVs and colours, normals."""
+def _release_faces(cache: dict) -> None:
+    for entry in cache.values():
+        for buf in entry[1]:
+            buf.release()
+    cache.clear()
+
+
+def _face_buffers(ctx, mesh, vertex_normals: bool):
+    """Per-face data of the evaluation (info, corner UVs, corner colours, normals), uploaded
+    once per mesh and context (freed with the mesh, as its vertex buffers are)."""
+    cache = object_cache(ctx, _POOL, _release_faces)
+    key = (id(mesh), vertex_normals)
+    entry = cache.get(key)
+    if entry is not None and entry[0]() is mesh:
+        return entry[1]
     vis = mesh.visuals
     n = mesh.n_triangles
     info = np.zeros((n, 4), np.uint32)
@@ -108,13 +123,20 @@ def _face_buffers(ctx, mesh, pool, vertex_normals: bool):
     normals[:, :3] = fn
     if vertex_normals and vis is not None:
         normals[:, 3:] = vis.corner_normal.reshape(n, 9)
-    out = []
-    for name, arr in (("attr_face_info", info), ("attr_uv", uv), ("attr_corner_color", cc),
-                      ("attr_normals", normals)):
-        buf = pool.get(name, arr.nbytes, clear=False)
-        buf.write(np.ascontiguousarray(arr).tobytes())
-        out.append(buf)
-    return out
+    for arr, what in ((info, "per-face colour sources"), (uv, "UVs"), (cc, "vertex colours"),
+                      (normals, "normals")):
+        check_buffer_size(ctx, arr.nbytes, what)
+    bufs = [ctx.mgl.buffer(np.ascontiguousarray(a)) for a in (info, uv, cc, normals)]
+
+    def drop(cache=cache, key=key):
+        old = cache.pop(key, None)
+        if old is not None and not ctx.released:
+            for buf in old[1]:
+                buf.release()
+
+    cache[key] = (weakref.ref(mesh), bufs)
+    weakref.finalize(mesh, drop)
+    return bufs
 
 
 def _rank(ctx, spec, grid, count, pool, timer):
@@ -191,7 +213,7 @@ def _evaluate(ctx, mesh, spec, buffers, count, pool, timer, want_color, normals)
     bufs, vox, best_tri, slot_voxel = buffers
     color = pool.get("attr_color", count * 4, what="the set voxels' colours")
     normal = pool.get("attr_normal", count * 12, what="the set voxels' normals", clear=False)
-    face = _face_buffers(ctx, mesh, pool, normals == "vertex")
+    face = _face_buffers(ctx, mesh, normals == "vertex")
     prog = compute_program(ctx, "attributes/evaluate.comp")
     set_uniforms(prog, {"u_slots": count, "u_color": want_color,
                         "u_normal": normals is not None, "u_vertex_normals": normals == "vertex",
