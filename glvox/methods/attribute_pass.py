@@ -19,9 +19,9 @@ solid overlap no triangle and get none):
     the index among the pairs at that minimum.  No 64-bit atomics on
     llvmpipe (no GL_NV_shader_atomic_int64), hence two passes.
 ``attr_evaluate``
-    one invocation per slot: colour and normal at the closest point; one
-    more pass per texture, the image uploaded once as a GL texture and
-    sampled with its filter and wrap.
+    one invocation per slot: colour and normal at the closest point, with
+    the first texture; one more pass per further texture, each image
+    uploaded once as a GL texture and sampled with its filter and wrap.
 ``attr_readback``
     the slots' triangle, colour and normal read back; reordered into C order
     (:meth:`VoxelGrid.indices`) with one argsort; ``triangle`` and
@@ -222,32 +222,48 @@ def _evaluate(ctx, mesh, spec, buffers, count, pool, timer, want_color, normals)
                          (13, face[1]), (14, face[2]), (15, face[3]), (5, color), (6, normal)):
         buf.bind_to_storage_buffer(binding)
     textures = mesh.visuals.textures if (want_color and mesh.visuals is not None) else []
-    used = set(np.unique(mesh.visuals.texture[mesh.visuals.color_source == COLOR_TEXTURE])) if textures else set()
+    used = sorted(set(np.unique(mesh.visuals.texture[mesh.visuals.color_source == COLOR_TEXTURE]).tolist())
+                  if textures else ())
     with timer.stage("attr_evaluate"):
-        set_uniforms(prog, {"u_tex_index": -1})
-        dispatch_1d(ctx, prog, count, 64)
-        barrier(ctx)
-        for k, tex in enumerate(textures):
-            if k not in used:
-                continue
-            gl_tex = _texture(ctx, tex)
-            gl_tex.use(0)
-            set_uniforms(prog, {"u_tex_index": k, "u_factor": tuple(float(x) for x in tex.factor)})
+        # the first pass does the normals, the untextured colours and the first texture
+        for n, k in enumerate(used or [-1]):
+            if k >= 0:
+                _texture(ctx, textures[k]).use(0)
+            set_uniforms(prog, {"u_tex_index": k, "u_first": n == 0,
+                                "u_factor": tuple(float(x) for x in textures[k].factor) if k >= 0 else (1.0,) * 4})
             dispatch_1d(ctx, prog, count, 64)
             barrier(ctx)
-            gl_tex.release()
     return color, normal
 
 
 def _texture(ctx, tex):
-    """``tex`` as a GL texture: RGBA8, rows flipped so UV (0, 0) is the image's
-    bottom-left, its filter and wrap, no mipmaps."""
+    """``tex`` as a GL texture, uploaded once per texture and context (freed with it):
+    RGBA8, rows flipped so UV (0, 0) is the image's bottom-left, its filter and
+    wrap, no mipmaps."""
+    cache = object_cache(ctx, _POOL + "-textures", _release_textures)
+    entry = cache.get(id(tex))
+    if entry is not None and entry[0]() is tex:
+        return entry[1]
     img = np.ascontiguousarray(tex.image[::-1])
-    t = ctx.mgl.texture((img.shape[1], img.shape[0]), 4, img.tobytes())
+    t = ctx.mgl.texture((img.shape[1], img.shape[0]), 4, img)
     f = moderngl.LINEAR if tex.filter == "linear" else moderngl.NEAREST
     t.filter = (f, f)
     t.repeat_x = t.repeat_y = tex.wrap == "repeat"
+
+    def drop(cache=cache, key=id(tex)):
+        old = cache.pop(key, None)
+        if old is not None and not ctx.released:
+            old[1].release()
+
+    cache[id(tex)] = (weakref.ref(tex), t)
+    weakref.finalize(tex, drop)
     return t
+
+
+def _release_textures(cache: dict) -> None:
+    for _, t in cache.values():
+        t.release()
+    cache.clear()
 
 
 def _flood(ctx, spec, grid, offsets, best_tri, count, pool, timer):

@@ -4,9 +4,10 @@
 // colour (face colour, vertex colours interpolated, or the texture sampled at
 // the interpolated UV) and normal (the face's, or the interpolated vertex
 // normals).  One invocation per grid word, at most 32 voxels each.
-//   u_tex_index -1: every voxel whose colour needs no texture, and the normals;
-//   k >= 0: only the colour of voxels whose source triangle samples texture k
-//   (bound to u_tex), one pass per texture.
+//   u_first: the first pass: every voxel's normal and the colour of every voxel
+//   whose triangle samples no texture or texture u_tex_index; the next passes:
+//   only the colour of voxels whose triangle samples texture u_tex_index (bound to
+//   u_tex), one pass per further texture.  u_tex_index -1: no texture.
 #include "attributes/closest.glsl"
 layout(local_size_x = 64) in;
 #include "common/dispatch.glsl"
@@ -23,6 +24,7 @@ layout(std430, binding = 5) buffer OutColor { uint out_color[]; };
 layout(std430, binding = 6) writeonly buffer OutNormal { float out_normal[]; };
 uniform sampler2D u_tex;
 uniform int u_tex_index;
+uniform bool u_first;
 uniform vec4 u_factor;
 uniform uint u_slots;
 uniform bool u_color;
@@ -65,15 +67,16 @@ void main() {
     uint t = best_tri[slot];
     uvec4 info = t == NONE ? uvec4(0u) : face_info[t];
     bool textured = info.x == 3u;
-    if (u_tex_index >= 0 && !(textured && int(info.y) == u_tex_index)) return;
+    bool this_texture = textured && int(info.y) == u_tex_index;
+    if (!u_first && !this_texture) return;
     vec3 q = vec3(0.0);
     if (t != NONE) {
         uvec2 sv = slot_voxel[slot];
         dvec3 p = dvec3(ivec3(int(sv.x & 0xFFFFu), int(sv.x >> 16), int(sv.y))) + 0.5lf;
         q = vec3(closest_bary(p, vertex(faces[3u * t]), vertex(faces[3u * t + 1u]), vertex(faces[3u * t + 2u])));
     }
-    if (u_color && (u_tex_index >= 0 || !textured)) out_color[slot] = t == NONE ? 0u : color_at(t, q, info);
-    if (u_normal && u_tex_index < 0) {
+    if (u_color && (this_texture || (u_first && !textured))) out_color[slot] = t == NONE ? 0u : color_at(t, q, info);
+    if (u_normal && u_first) {
         vec3 n = t == NONE ? vec3(0.0) : normal_at(t, q);
         out_normal[3u * slot] = n.x;
         out_normal[3u * slot + 1u] = n.y;
