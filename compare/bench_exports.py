@@ -49,7 +49,7 @@ def with_gradient(grid, seed: int = 0):
     rng = np.random.default_rng(seed)
     rgb = ijk * (255.0 / max(grid.dims)) + rng.normal(0, 6, ijk.shape)
     colors = np.concatenate([np.clip(np.rint(rgb), 0, 255), np.full((len(ijk), 1), 255)], axis=1)
-    grid.attributes = {"color": colors.astype(np.uint8)}
+    grid.set_attributes({"color": colors.astype(np.uint8)})
     return grid
 
 

@@ -25,8 +25,10 @@ from .inspect import MeshReport, inspect_mesh
 from .io import load, save
 from .mesh import Mesh, load_mesh
 from .methods import DEFAULT_METHOD, get_method, method_infos, run_method
+from .methods.attribute_pass import check_request, parse_attributes
 from .methods.leung_wang import overlap_bounds, overlap_grid, run_intersection
 from .results import LDI, SparseOctree, VoxelGrid
+from .visuals import load_visual_mesh
 
 __all__ = [
     "voxelize", "grid_for", "load_mesh", "fit_grid", "save", "load", "list_methods", "info",
@@ -42,7 +44,8 @@ def voxelize(mesh: Any, resolution: int | None = None, method: str = DEFAULT_MET
              grid: GridSpec | None = None, dims: Sequence[int] | None = None,
              voxel_size: float | None = None, bounds: Any = None, padding: int = 0,
              tight: bool = False, allow_open: bool = False, backend: str | None = None,
-             ctx=None, **options: Any):
+             ctx=None, attributes: Any = None, normals: str = "face", fill_attributes: str = "none",
+             **options: Any):
     """Voxelize a mesh with a registered method.
 
     Parameters
@@ -61,6 +64,14 @@ def voxelize(mesh: Any, resolution: int | None = None, method: str = DEFAULT_MET
         Let solid methods run on meshes that are not watertight.
     backend : {'egl', 'osmesa', 'auto'}, optional
     ctx : GLContext, optional
+    attributes : sequence of str or comma-separated str, optional
+        ``triangle``, ``color``, ``normal``, ``material``: carried per set
+        voxel from its source triangle (``result.attributes``, one row per
+        ``result.indices()`` row; README "Attributes").  The mesh is then
+        loaded with its materials and textures.
+    normals : {'face', 'vertex'}
+    fill_attributes : {'none', 'nearest'}
+        Solid methods: what interior voxels carry.
     **options
         Method options.
 
@@ -69,13 +80,17 @@ def voxelize(mesh: Any, resolution: int | None = None, method: str = DEFAULT_MET
     VoxelGrid (surface and solid methods) or the method kind's result type;
     ``.run`` holds method, grid, timings and statistics.
     """
-    m = load_mesh(mesh)
+    names = parse_attributes(attributes)
+    if names:  # before loading: unknown names and methods without a grid fail fast
+        check_request(get_method(method).info, names, normals, fill_attributes)
+    m = load_visual_mesh(mesh) if names else load_mesh(mesh)
     if grid is None:
         if resolution is None and dims is None and voxel_size is None:
             raise GridError("give a resolution (or dims, voxel_size or grid)")
         grid = grid_for(m, resolution, dims=dims, voxel_size=voxel_size, bounds=bounds,
                         padding=padding, tight=tight)
-    return run_method(method, m, grid, ctx=ctx, backend=backend, allow_open=allow_open, **options)
+    return run_method(method, m, grid, ctx=ctx, backend=backend, allow_open=allow_open, attributes=names,
+                      normals=normals, fill_attributes=fill_attributes, **options)
 
 
 def ldi(mesh: Any, resolution: int | None = None, method: str = "leung-wang-ldi", *,

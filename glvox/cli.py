@@ -34,8 +34,10 @@ from .grid import grid_for
 from .inspect import inspect_mesh
 from .mesh import load_mesh
 from .methods import DEFAULT_METHOD, get_method, method_infos, run_method
+from .methods.attribute_pass import ATTRIBUTE_NAMES, FILL_MODES, NORMAL_MODES, parse_attributes
 from .methods.leung_wang import overlap_bounds, overlap_grid, run_intersection
 from .progress import Stages
+from .visuals import load_visual_mesh
 from .results import LDI, SparseOctree
 from .study.options import add_bench_arguments, add_compare_arguments
 
@@ -99,7 +101,8 @@ def cmd_voxelize(args) -> int:
     options = preflight.parse_options(args.option, args.extra)
     mesh_path = datasets.resolve_mesh(args.mesh, quiet=args.quiet or args.json)
     say(f"loading {args.mesh}")
-    mesh = load_mesh(mesh_path)
+    names = parse_attributes(args.attributes)
+    mesh = load_visual_mesh(mesh_path) if names else load_mesh(mesh_path)
     say(f"{mesh.n_triangles} triangles ({mesh.n_degenerate} zero-area dropped), "
         f"{'watertight' if mesh.watertight else 'NOT watertight'}")
     bounds = np.array(args.bounds, dtype=np.float64).reshape(2, 3) if args.bounds is not None else None
@@ -111,6 +114,7 @@ def cmd_voxelize(args) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         result = run_method(args.method, mesh, spec, backend=args.backend, allow_open=args.allow_open,
+                            attributes=names, normals=args.normals, fill_attributes=args.fill_attributes,
                             **options)
     for w in caught:
         print(f"glvox: warning: {w.message}", file=sys.stderr)
@@ -178,7 +182,8 @@ def cmd_batch(args) -> int:
         method=args.method, resolution=args.resolution,
         dims=tuple(args.dims) if args.dims is not None else None, voxel_size=args.voxel_size,
         padding=args.padding, tight=args.tight, options=tuple(sorted(options.items())),
-        allow_open=args.allow_open, backend=args.backend, fmt=args.format, inspect=args.inspect)
+        allow_open=args.allow_open, backend=args.backend, fmt=args.format, inspect=args.inspect,
+        attributes=parse_attributes(args.attributes), normals=args.normals, fill_attributes=args.fill_attributes)
 
     def on_term(signum, frame):  # batch schedulers stop jobs with SIGTERM: keep the manifest
         raise KeyboardInterrupt
@@ -337,6 +342,16 @@ def _add_grid_arguments(p: argparse.ArgumentParser, bounds: bool = False) -> Non
     p.add_argument("--tight", action="store_true", help="non-cubic dims fitted to the bounding box")
 
 
+def _add_attribute_arguments(p) -> None:
+    """--attributes, --normals, --fill-attributes of voxelize and batch (README "Attributes")."""
+    p.add_argument("--attributes", metavar="NAMES", default=None,
+                   help=f"per-voxel data from the mesh, comma-separated: {','.join(ATTRIBUTE_NAMES)} (npz output)")
+    p.add_argument("--normals", choices=NORMAL_MODES, default="face",
+                   help="normal attribute: the source triangle's, or interpolated vertex normals (default face)")
+    p.add_argument("--fill-attributes", choices=FILL_MODES, default="none",
+                   help="solids: interior voxels carry none (default) or the nearest surface voxel's")
+
+
 def _add_info_parser(sub) -> None:
     pi = sub.add_parser("info", help="print the GL backend, renderer, version and limits")
     pi.add_argument("--backend", choices=["egl", "osmesa", "auto"], default=None)
@@ -367,6 +382,7 @@ def _add_voxelize_parser(sub) -> None:
     pv.add_argument("--allow-open", action="store_true",
                     help="let solid methods run on meshes that are not watertight")
     _add_output_arguments(pv, "print counts and timings as JSON")
+    _add_attribute_arguments(pv)
     pv.set_defaults(func=cmd_voxelize, validate=preflight.validate_voxelize)
 
 
@@ -440,6 +456,7 @@ def _add_batch_parser(sub) -> None:
                     help="also report each mesh's defects (glvox inspect) in the manifest's extra columns")
     pb.add_argument("--suffix", action="append", metavar="SUFFIX",
                     help="mesh suffix to search for (repeatable; default: every format trimesh loads)")
+    _add_attribute_arguments(pb)
     _add_output_arguments(pb, "print the summary as JSON", "no progress bar, messages or summary")
     pb.set_defaults(func=cmd_batch, validate=preflight.validate_batch)
 

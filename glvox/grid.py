@@ -15,6 +15,22 @@ spans [0, 2] in x and [-0.5, 1.5] in y and z, so origin = (0, -0.5, -0.5).
 Voxel (0, 1, 1)'s center is (0.25, 0.25, 0.25).  With ``tight=True`` the
 dims become (4, 2, 2) and origin (0, 0, 0).
 
+Attributes (``attributes=[...]``, ``--attributes``)
+---------------------------------------------------
+A set voxel takes its data from its *source triangle*: among the triangles
+that overlap or touch its closed box (the conservative test, whatever the
+method), the one whose closest point to the voxel's center is nearest;
+ties (equal distances) go to the lowest triangle index.  ``triangle``,
+``material``, ``color`` and ``normal`` are that triangle's, evaluated at that
+closest point (vertex colours, UVs and vertex normals interpolated with its
+barycentric weights).  A set voxel no triangle overlaps (a solid's interior,
+a scanline-ilv voxel off the surface) has none (triangle -1, alpha 0), or,
+with ``fill_attributes='nearest'``, those of the nearest voxel that has them.
+Per-voxel arrays list the set voxels in C order of the dense (nx, ny, nz)
+array (``np.argwhere(grid.dense())``, i.e. :meth:`VoxelGrid.indices`).
+GPU and reference agree except at proven ties (two distances within
+``glvox.tolerances.ATTR_TIE_EPS``, or an overlap that is itself a tie).
+
 Bit-packed layout (shared with the GLSL side, ``shaders/common/voxel_space.glsl``)
 -------------------------------------------------------------------------------
 Adjacent x voxels are consecutive bits of 32-bit words (S&S Sec. 3.2): a row

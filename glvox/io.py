@@ -19,7 +19,7 @@ from .formats import check_readable, check_writable, format_for
 from .formats.binvox import CONVENTIONS, binvox_bytes
 from .results import Result
 
-__all__ = ["CONVENTIONS", "binvox_bytes", "check_readable", "check_writable", "load", "save"]
+__all__ = ["CONVENTIONS", "binvox_bytes", "check_readable", "check_writable", "format_for", "load", "save"]
 
 
 def _options(fmt, takes: tuple[str, ...], given: dict[str, Any], path: Path) -> dict[str, Any]:

@@ -48,6 +48,11 @@ class Mesh:
         vertex positions), as trimesh judges it.
     name : str
         File name or a short description.
+    source_faces : (F,) int64 or None
+        Index of each kept face in the input's faces; None when none was dropped.
+    visuals : glvox.visuals.Visuals or None
+        Colours, textures, normals and parts per kept face, loaded only when
+        attributes are asked for (:func:`glvox.visuals.load_visual_mesh`).
     """
 
     vertices: np.ndarray
@@ -55,6 +60,8 @@ class Mesh:
     n_degenerate: int = 0
     watertight: bool = False
     name: str = "<arrays>"
+    source_faces: np.ndarray | None = None
+    visuals: Any = None
 
     @property
     def n_triangles(self) -> int:
@@ -287,7 +294,8 @@ def _validate(vertices: Any, faces: Any, name: str) -> Mesh:
     if len(keep) == 0:
         raise EmptyMeshError(f"{name}: all {len(f)} triangles have zero area")
     return Mesh(vertices=v, faces=keep, n_degenerate=int(degenerate.sum()),
-                watertight=is_watertight(v, keep), name=name)
+                watertight=is_watertight(v, keep), name=name,
+                source_faces=np.flatnonzero(~degenerate) if degenerate.any() else None)
 
 
 def _doubled_areas(cols: Sequence[np.ndarray], f: np.ndarray) -> np.ndarray:

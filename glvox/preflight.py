@@ -30,6 +30,7 @@ from . import datasets, io
 from .errors import FormatError, GlvoxError, GridError, MeshLoadError
 from .grid import GridSpec, fit_grid
 from .methods import get_method, validate_options
+from .methods.attribute_pass import check_request, parse_attributes
 from .methods.base import MethodInfo
 from .study.options import BENCH_PRESETS, CHECKOUT_BASELINE, COMPARE_PRESETS
 
@@ -211,9 +212,21 @@ def _grid_args(args, bounds: bool = False) -> GridSpec | None:
                      getattr(args, "padding", 0), getattr(args, "tight", False))
 
 
+def attribute_args(info: MethodInfo, args, out: Path | None) -> None:
+    """--attributes, --normals, --fill-attributes: known names, a method with a grid,
+    and an output that keeps them (npz and .vti all; .vox, points and cubes the colour)."""
+    names = parse_attributes(args.attributes)
+    check_request(info, names, args.normals, args.fill_attributes)
+    dropped = io.format_for(out).drops(names) if names and out is not None else []
+    if dropped:
+        raise GlvoxError(f"{out.name} would drop the attributes {dropped}: .npz and .vti keep every attribute, "
+                         ".vox, .points.* and .cubes.* the colour only")
+
+
 def validate_voxelize(args) -> None:
     info, _ = method_args(args.method, parse_options(args.option, args.extra))
     out = result_file(args.output, kind=info.kind) if args.output else None
+    attribute_args(info, args, out)
     mesh_arg(args.mesh)
     spec = _grid_args(args, bounds=True)
     if out is not None:
@@ -231,7 +244,8 @@ def validate_batch(args) -> None:
                          "workers run the batch, so give one or the other")
     if args.workers is not None and args.workers < 0:
         raise GlvoxError(f"--workers must be 0 (in this process) or more, got {args.workers}")
-    method_args(args.method, parse_options(args.option), command="glvox batch")
+    info, _ = method_args(args.method, parse_options(args.option), command="glvox batch")
+    attribute_args(info, args, Path(f"x.{args.format}"))
     spec = _grid_args(args)
     if args.format == "binvox" and (spec is None or len(set(spec.dims)) != 1):
         raise GlvoxError("binvox stores cubic grids only: use -r N without --tight or --voxel-size, or cubic "

@@ -24,6 +24,33 @@ from __future__ import annotations
 #: surface (DESIGN.md, "Ties"; :mod:`glvox.reference.ties`).
 TIE_EPS = 1e-4
 
+#: (voxels) Attribute ties: a voxel's source triangle (the overlapping
+#: triangle nearest to its center, glvox/grid.py) may differ between the GPU
+#: and the float64 reference only where two candidates' distances are within
+#: this of each other, or where a candidate's overlap itself is a TIE_EPS tie.
+#: The GPU computes the distances in double from the same float32 voxel-space
+#: vertices and keeps them in 2^-31 voxel fixed point for its atomicMin
+#: (attributes/pair.glsl): two distances that round to the same key differ by
+#: less than 5e-10 voxel, and double rounding adds ~1e-16; 1e-6 is the
+#: issue's bound, far above both.
+ATTR_TIE_EPS = 1e-6
+
+#: (RGBA8 units) Colours of the GPU against the reference's float64 value
+#: rounded to 8 bits: both round a value that may sit at a half step, and
+#: llvmpipe filters RGBA8 textures with 8-bit weights, so one unit (1/255).
+ATTR_COLOR_TOL = 1
+
+#: (unit vectors) Normals: float32 interpolation and normalization of
+#: float64-exact inputs stay within ~1e-7 per component; 1e-5 is the issue's bound.
+ATTR_NORMAL_TOL = 1e-5
+
+#: (voxels) --fill-attributes nearest is a jump flood (JFA+1), approximate by
+#: design: the surface voxel whose attributes an interior voxel takes may be
+#: farther than the exact nearest one (k-d tree) by at most this.  Measured on
+#: the fuze's gwn-solid at 64^3: exact for 99.98% of the interior voxels,
+#: worst 0.27 voxel (tests/test_attributes.py).
+JFA_SLACK = 0.5
+
 #: (voxels) The plane snap, the one tie policy for geometry on voxel planes
 #: (:func:`glvox.grid.snap_to_planes`, ``shaders/common/snap.glsl``): a
 #: voxel-space vertex coordinate within this distance of a multiple of 1/2

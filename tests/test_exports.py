@@ -23,7 +23,7 @@ def colored(occ, spec, colors):
     grid = VoxelGrid(np.asarray(occ, bool), spec)
     if colors is not None:
         assert colors.shape == (grid.count, 4)
-        grid.attributes = {"color": np.asarray(colors, np.uint8)}
+        grid.set_attributes({"color": np.asarray(colors, np.uint8)})
     return grid
 
 
@@ -345,3 +345,31 @@ def test_vox_empty_grid_and_octree(tmp_path):
     o = glvox.voxelize("gen:box", 12, method="ss-octree")
     glvox.save(o, tmp_path / "o.vox")
     assert glvox.load(tmp_path / "o.vox").equal(o.to_grid())
+
+
+# -- from a coloured mesh, as a user runs it ----------------------------------------------------------
+
+def test_mesh_colours_reach_a_vox_through_the_cli(tmp_path, shared_mesh, gl_context, capsys):
+    """glvox voxelize --attributes color -o x.vox: midvoxio reads the voxels glvox set, each in
+    its palette colour within the quantization of the mesh's own colours; attributes .vox cannot
+    hold are refused before any work, naming them."""
+    from glvox.cli import main
+
+    mesh = shared_mesh("colored_reference.obj")
+    out = tmp_path / "c.vox"
+    assert main(["voxelize", str(mesh), "-r", "40", "--attributes", "color", "-o", str(out), "-q"]) == 0
+    g = glvox.voxelize(mesh, 40, attributes="color")
+    idx, rgba, v = read_vox(out)
+    assert np.array_equal(idx, g.indices())
+    want = g.attributes["color"].astype(np.float64)
+    # quantize's promise, checked on the file's own palette: each voxel's entry is the nearest to its colour
+    palette = np.array(v.palettes[0], dtype=np.float64)[:255]
+    nearest = np.sqrt(((palette[None] - want[:, None]) ** 2).sum(2)).min(1)
+    assert np.allclose(np.sqrt(((rgba - want) ** 2).sum(1)), nearest)
+    assert len(np.unique(g.attributes["color"].view("<u4"))) > 255  # the quantized case, not the exact one
+    capsys.readouterr()
+    assert main(["voxelize", str(mesh), "-r", "8", "--attributes", "color,normal", "-o", str(tmp_path / "n.vox")]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err == ("glvox: error: n.vox would drop the attributes ['normal']: .npz and .vti keep every attribute, "
+                   ".vox, .points.* and .cubes.* the colour only")
+    assert not (tmp_path / "n.vox").exists()

@@ -26,7 +26,7 @@ def colored(occ, spec, colors):
     """A VoxelGrid carrying ``colors`` (M, 4) uint8 as its 'color' attribute (the contract's layout)."""
     grid = VoxelGrid(np.asarray(occ, bool), spec)
     if colors is not None:
-        grid.attributes = {"color": np.asarray(colors, np.uint8)}
+        grid.set_attributes({"color": np.asarray(colors, np.uint8)})
     return grid
 
 

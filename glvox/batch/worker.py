@@ -21,6 +21,7 @@ from ..grid import grid_for
 from ..inspect import inspect_mesh, uncertain_share
 from ..mesh import load_mesh
 from ..methods import run_method
+from ..visuals import load_visual_mesh
 from .atomic import atomic_save
 from .jobs import BatchSettings, Job
 from .manifest import INSPECT_COLUMNS, base_row, now
@@ -49,7 +50,7 @@ def voxelize_one(job: Job, settings: BatchSettings) -> dict[str, Any]:
     stage = "load"
     marks = {}
     try:
-        mesh = load_mesh(job.input)
+        mesh = load_visual_mesh(job.input) if settings.attributes else load_mesh(job.input)
         row.update(triangles=mesh.n_triangles, degenerate_dropped=mesh.n_degenerate,
                    watertight=mesh.watertight)
         marks["load"] = time.perf_counter()
@@ -61,7 +62,9 @@ def voxelize_one(job: Job, settings: BatchSettings) -> dict[str, Any]:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             result = run_method(settings.method, mesh, spec, backend=settings.backend,
-                                allow_open=settings.allow_open, **dict(settings.options))
+                                allow_open=settings.allow_open, attributes=settings.attributes,
+                                normals=settings.normals, fill_attributes=settings.fill_attributes,
+                                **dict(settings.options))
         run = result.run
         row["method"] = run.method  # an alias (-m solid) records the method it ran
         row["warnings"] = "; ".join(str(w.message) for w in caught)

@@ -127,15 +127,15 @@ def cubes(result: Result):
 
 def write_points(result: Result, path: Path) -> None:
     """Write the voxel centers in their colours (``.points.ply`` / ``.points.glb``)."""
-    warn_dropped(result, "points", keeps="the voxel centers and their colours")
+    warn_dropped(result, "points", keeps="the voxel centers and their colours", keeps_attributes=("color",))
     _export(points(result), path, "points")
 
 
 def write_cubes(result: Result, path: Path) -> None:
     """Write the voxels' exposed cube faces in their colours (``.cubes.ply`` / ``.cubes.glb``)."""
-    warn_dropped(result, "cubes", keeps="the voxels' faces and their colours")
+    warn_dropped(result, "cubes", keeps="the voxels' faces and their colours", keeps_attributes=("color",))
     _export(cubes(result), path, "cubes")
 
 
-POINTS = Format("points", (".points.ply", ".points.glb"), write_points, None)
-CUBES = Format("cubes", (".cubes.ply", ".cubes.glb"), write_cubes, None)
+POINTS = Format("points", (".points.ply", ".points.glb"), write_points, None, attributes=("color",))
+CUBES = Format("cubes", (".cubes.ply", ".cubes.glb"), write_cubes, None, attributes=("color",))

@@ -21,6 +21,10 @@ from ..tolerances import FORMAT_AXIS_RTOL
 EXTRA_HINT = "pip install 'glvox[formats]'"
 
 
+#: :attr:`Format.attributes` of a format that writes every per-voxel attribute.
+ALL_ATTRIBUTES = ("*",)
+
+
 @dataclass(frozen=True)
 class Format:
     """One file format: suffixes, its reader and writer, the library it needs.
@@ -48,6 +52,9 @@ class Format:
         Holds an :class:`LDI`.
     check_dims : callable or None
         ``check_dims(dims)`` raises FormatError for dims the format cannot hold.
+    attributes : tuple of str
+        The per-voxel attributes (``grid.attributes``) it writes; :data:`ALL_ATTRIBUTES`
+        for every one.
     """
 
     name: str
@@ -60,6 +67,11 @@ class Format:
     sparse: bool = False
     ldi: bool = False
     check_dims: Callable[[tuple[int, int, int]], None] | None = None
+    attributes: tuple[str, ...] = ()
+
+    def drops(self, names) -> list[str]:
+        """Those of the attribute ``names`` this format does not write."""
+        return [] if self.attributes == ALL_ATTRIBUTES else [n for n in names if n not in self.attributes]
 
     def require(self) -> Any:
         """The format's library (imported), or a FormatError saying how to get it."""
@@ -94,16 +106,20 @@ def as_grid(result: Result, fmt: str) -> VoxelGrid:
     return result
 
 
-def warn_dropped(grid, fmt: str, *, keeps: str = "the occupancy only", keeps_masks: bool = False) -> None:
-    """A :class:`FormatWarning` naming the extra masks and float fields (``gwn-solid``'s
-    winding numbers) of ``grid`` that format ``fmt`` does not write; ``keeps`` says what
-    it does write, ``keeps_masks`` that the masks are among it."""
+def warn_dropped(grid, fmt: str, *, keeps: str = "the occupancy only", keeps_masks: bool = False,
+                 keeps_attributes: tuple[str, ...] = ()) -> None:
+    """A :class:`FormatWarning` naming the extra masks, float fields (``gwn-solid``'s
+    winding numbers) and per-voxel attributes of ``grid`` that format ``fmt`` does not
+    write; ``keeps`` says what it does write, ``keeps_masks`` that the masks are among it,
+    ``keeps_attributes`` the attributes it writes."""
     extras, fields = getattr(grid, "extras", None) or {}, getattr(grid, "fields", None) or {}
+    attributes = [k for k in (getattr(grid, "attributes", None) or {}) if k not in keeps_attributes]
     dropped = [] if keeps_masks else [f"the extra masks {sorted(extras)}"] * bool(extras)
     dropped += [f"the float fields {sorted(fields)}"] * bool(fields)
+    dropped += [f"the attributes {sorted(attributes)}"] * bool(attributes)
     if dropped:
         warnings.warn(FormatWarning(f"{fmt} keeps {keeps}; {' and '.join(dropped)} are not written (.npz and "
-                                    f".vti keep both{'' if keeps_masks else ', .vdb the masks'})"), stacklevel=3)
+                                    f".vti keep them all{'' if keeps_masks else ', .vdb the masks'})"), stacklevel=3)
 
 
 def grid_from_matrix(data: np.ndarray, steps: np.ndarray, first_center: np.ndarray, path: Path,

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from ..results import Result, read_npz
 from ..results.base import write_npz
-from .common import Format
+from .common import ALL_ATTRIBUTES, Format
 
 
 def write(result: Result, path: Path) -> None:
@@ -23,4 +23,4 @@ def read(path: Path) -> Result:
     return read_npz(path)
 
 
-FORMAT = Format("npz", (".npz",), write, read, sparse=True, ldi=True)
+FORMAT = Format("npz", (".npz",), write, read, sparse=True, ldi=True, attributes=ALL_ATTRIBUTES)

@@ -232,7 +232,7 @@ def write(result: Result, path: Path, *, coverage: bool = True) -> None:
         if coverage:
             grids.append(_coverage(vdb, result))
     elif isinstance(result, VoxelGrid):
-        # float fields would go cell by cell through the accessor (numpy 2 cannot reach
+        # float fields and attributes would go cell by cell through the accessor (numpy 2 cannot reach
         # Debian's copyFromArray): named in a warning instead
         warn_dropped(result, "OpenVDB", keeps="the occupancy and the masks", keeps_masks=True)
         grids = [_bool_grid(vdb, "occupancy", dense_boxes(result.dense()), result)]

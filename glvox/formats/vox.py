@@ -178,7 +178,7 @@ def vox_bytes(result: Result, *, up: str = "z") -> bytes:
 def write(result: Result, path: Path, *, up: str = "z") -> None:
     """Write ``result`` as MagicaVoxel .vox (see the module docstring)."""
     data = vox_bytes(result, up=up)
-    warn_dropped(result, ".vox", keeps="the voxels and their colours")
+    warn_dropped(result, ".vox", keeps="the voxels and their colours", keeps_attributes=("color",))
     path.write_bytes(data)
 
 
@@ -339,11 +339,9 @@ def _read(data: bytes, path: Path) -> VoxelGrid:
     lin, last = np.unique(lin[::-1], return_index=True)  # overlapping instances: the last one listed wins
     occ = np.zeros(spec.dims, bool)
     occ.reshape(-1)[lin] = True
-    grid = VoxelGrid(occ, spec)
-    if rgba is not None:
-        # the attribute layout of issue 21 (one row per voxel of indices(), C order = sorted lin)
-        grid.attributes = {"color": rgba[index[::-1][last].astype(np.int64) - 1].copy()}
-    return grid
+    # one colour row per voxel of indices(), in C order = sorted lin
+    colors = None if rgba is None else {"color": rgba[index[::-1][last].astype(np.int64) - 1].copy()}
+    return VoxelGrid(occ, spec, attributes=colors)
 
 
-FORMAT = Format("MagicaVoxel", (".vox",), write, read, library=pillow, options=("up",))
+FORMAT = Format("MagicaVoxel", (".vox",), write, read, library=pillow, options=("up",), attributes=("color",))

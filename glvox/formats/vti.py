@@ -9,9 +9,13 @@ the files VTK writes in each of its encodings.
 
 Written: ``WholeExtent 0 nx 0 ny 0 nz`` (points), ``Origin`` the grid's min
 corner, ``Spacing h h h``, ``Direction`` the identity, and one uint8 **cell**
-array ``occupancy`` (1 = occupied) plus one ``extra_<name>`` per extra mask
-and one Float32 ``field_<name>`` per float field (``gwn-solid``'s winding numbers),
-zlib-compressed in appended raw binary (UInt64 headers).  Cell data, not
+array ``occupancy`` (1 = occupied) plus one ``extra_<name>`` per extra mask,
+one Float32 ``field_<name>`` per float field (``gwn-solid``'s winding numbers)
+and one ``attr_<name>`` per per-voxel attribute (``grid.attributes``:
+Int32 ``triangle`` / ``material``, 4-component UInt8 ``color``, 3-component
+Float32 ``normal``; unset voxels hold the empty values of
+:meth:`VoxelGrid.attribute_grid`), zlib-compressed in appended raw binary
+(UInt64 headers).  Cell data, not
 point data: the image's cells are glvox's voxels, so cell (i, j, k) is the
 box ``origin + [i, i+1] x [j, j+1] x [k, k+1] * h`` and its center
 ``origin + (i, j, k) h + h/2``, the image's bounds are the grid's, and
@@ -23,7 +27,9 @@ samples are the voxel centers); encodings ascii, binary (base64) and
 appended (raw or base64); no compression, zlib or LZMA; UInt32 or UInt64
 headers; either byte order.  The cell array ``occupancy`` is the occupancy
 (else the cell scalars, else the first cell array, else the point data's);
-cell arrays ``extra_<name>`` become extra masks, ``field_<name>`` float fields.
+cell arrays ``extra_<name>`` become extra masks, ``field_<name>`` float
+fields and ``attr_<name>`` the attributes of the occupied voxels (files whose
+axes are the world axes in glvox's order and sign, as glvox writes them).
 """
 
 from __future__ import annotations
@@ -37,9 +43,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FormatError
+from ..errors import FormatError, GridError
 from ..results import Result, VoxelGrid
-from .common import Format, as_grid, grid_from_matrix
+from .common import ALL_ATTRIBUTES, Format, as_grid, grid_from_matrix
 
 #: Uncompressed bytes per zlib block (VTK's own default is 32 KiB; bigger
 #: blocks mean fewer header entries at the same ratio).
@@ -77,6 +83,17 @@ def write(result: Result, path: Path) -> None:
         lo, hi = (_f(a.min()), _f(a.max())) if floats and a.size else ("0", "1")
         entries.append(f'        <DataArray type="{"Float32" if floats else "UInt8"}" Name="{name}" '
                        f'format="appended" RangeMin="{lo}" RangeMax="{hi}" offset="{offset}"/>')
+        payloads.append(blob)
+        offset += len(blob)
+    for name in grid.attributes:
+        dense = grid.attribute_grid(name)
+        comps = dense.shape[3] if dense.ndim == 4 else 1
+        # x fastest, the components of a cell together: C order of (k, j, i, component)
+        values = np.ascontiguousarray(dense.reshape(nx, ny, nz, comps).transpose(2, 1, 0, 3))
+        vtk_type = next(t for t, code in _TYPES.items() if np.dtype(code) == values.dtype)
+        blob = _compress(values.astype(values.dtype.newbyteorder("<"), copy=False).tobytes())
+        entries.append(f'        <DataArray type="{vtk_type}" Name="attr_{name}" NumberOfComponents="{comps}" '
+                       f'format="appended" offset="{offset}"/>')
         payloads.append(blob)
         offset += len(blob)
     extent = f"0 {nx} 0 {ny} 0 {nz}"
@@ -134,13 +151,21 @@ class _Decoder:
         sizes = np.frombuffer(take(w * (2 + nb)), self.uint).astype(np.int64)
         return b"".join(self.decompress(take(int(c))) for c in sizes[2:])
 
-    def array(self, el: ET.Element, count: int) -> np.ndarray:
-        """The values (count,) of DataArray ``el``, in its own dtype."""
+    def array(self, el: ET.Element, count: int, components: bool = False) -> np.ndarray:
+        """The values (count,) of DataArray ``el``, in its own dtype (``components``:
+        (count, n) for an array of n components)."""
         t = el.get("type", "")
         if t not in _TYPES:
             raise FormatError(f"{self.path}: unsupported VTK array type {t!r} of {el.get('Name')!r}")
-        if int(el.get("NumberOfComponents", "1")) != 1:
+        comps = int(el.get("NumberOfComponents", "1"))
+        if comps != 1 and not components:
             raise FormatError(f"{self.path}: array {el.get('Name')!r} has several components; glvox reads scalars")
+        if components:
+            return self.array_values(el, count * comps, t).reshape(count, comps)
+        return self.array_values(el, count, t)
+
+    def array_values(self, el: ET.Element, count: int, t: str) -> np.ndarray:
+        """The first ``count`` values of DataArray ``el`` of VTK type ``t``."""
         dtype = np.dtype(self.order + _TYPES[t])
         fmt = el.get("format", "ascii")
         if fmt == "ascii":
@@ -244,8 +269,30 @@ def read(path: Path) -> VoxelGrid:
                                       for k, el in cells.items() if k.startswith("extra_") and k != name}
     fields = {} if name is None else {k[len("field_"):]: _fortran(dec.array(el, n), dims).astype(np.float32)
                                       for k, el in cells.items() if k.startswith("field_") and k != name}
-    return grid_from_matrix(_fortran(dec.array(source, n), dims), steps, first, path, extras=extras,
+    grid = grid_from_matrix(_fortran(dec.array(source, n), dims), steps, first, path, extras=extras,
                             fields=fields)
+    attrs = {k[len("attr_"):]: el for k, el in cells.items() if k.startswith("attr_") and k != name}
+    if attrs and name is not None:
+        _read_attributes(grid, attrs, dec, dims, steps, path)
+    return grid
 
 
-FORMAT = Format("VTK image data", (".vti",), write, read)
+def _read_attributes(grid: VoxelGrid, attrs: dict, dec, dims, steps, path: Path) -> None:
+    """The ``attr_<name>`` cell arrays as ``grid.attributes`` (rows of the occupied voxels)."""
+    if not (grid.dims == dims and np.all(np.diag(steps) > 0)):
+        raise FormatError(f"{path}: per-voxel attributes are read from files in glvox's axis order and sign only")
+    idx = grid.indices()
+    n = dims[0] * dims[1] * dims[2]
+    out = {}
+    for key, el in attrs.items():
+        values = dec.array(el, n, components=True)  # (n, comps), x fastest
+        dense = values.reshape(dims[2], dims[1], dims[0], -1).transpose(2, 1, 0, 3)
+        rows = dense[idx[:, 0], idx[:, 1], idx[:, 2]]
+        out[key] = rows[:, 0] if rows.shape[1] == 1 else rows
+    try:
+        grid.set_attributes({k: v.astype(v.dtype.newbyteorder("="), copy=False) for k, v in out.items()})
+    except GridError as exc:
+        raise FormatError(f"{path}: {exc}") from None
+
+
+FORMAT = Format("VTK image data", (".vti",), write, read, attributes=ALL_ATTRIBUTES)

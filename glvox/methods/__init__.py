@@ -14,7 +14,9 @@ from typing import Any
 from ..errors import MethodError
 from ..grid import GridSpec
 from ..mesh import Mesh
+from ..reference.attributes import reference_attributes
 from .base import _REGISTRY, FAMILIES, KINDS, Method, MethodInfo, Option, Requirements, register
+from .attribute_pass import check_mesh, check_request, gpu_attributes, parse_attributes
 from .envelope import run_in_envelope
 
 #: The method :func:`glvox.voxelize` and ``glvox voxelize`` use when none is named.
@@ -79,7 +81,8 @@ def validate_options(info: MethodInfo, options: dict[str, Any]) -> dict[str, Any
 
 
 def run_method(name: str, mesh: Mesh, spec: GridSpec, *, ctx=None, backend: str | None = None,
-               allow_open: bool = False, debug: bool | None = None, **options: Any):
+               allow_open: bool = False, debug: bool | None = None, attributes=None, normals: str = "face",
+               fill_attributes: str = "none", **options: Any):
     """Run method ``name`` on a validated mesh and grid spec.
 
     Parameters
@@ -98,6 +101,17 @@ def run_method(name: str, mesh: Mesh, spec: GridSpec, *, ctx=None, backend: str 
         crossings is undefined for them); True runs them anyway.
     debug : bool, optional
         Check glGetError after every stage; default from ``GLVOX_DEBUG``.
+    attributes : sequence of str or comma-separated str, optional
+        Per-voxel attributes to carry (``triangle``, ``color``, ``normal``,
+        ``material``; surface and solid methods): ``result.attributes``, by
+        the source-triangle rule of :mod:`glvox.methods.attribute_pass`
+        (computed on the GPU; CPU methods use the float64 reference).
+    normals : {'face', 'vertex'}
+        The ``normal`` attribute: the source triangle's, or the mesh's vertex
+        normals interpolated at the closest point.
+    fill_attributes : {'none', 'nearest'}
+        Solids: interior voxels carry nothing (triangle -1, alpha 0), or the
+        attributes of the nearest surface voxel (a GPU jump flood).
     **options
         Method options (see ``glvox methods``).
 
@@ -114,12 +128,30 @@ def run_method(name: str, mesh: Mesh, spec: GridSpec, *, ctx=None, backend: str 
     method = get_method(requested.resolve(mesh))
     if method is not requested:  # the alias's options, then the defaults of the method it runs
         opts = validate_options(method.info, opts)
+    names = parse_attributes(attributes)
+    check_request(method.info, names, normals, fill_attributes)
+    if names:
+        check_mesh(mesh, names, normals)
 
     def work(ctx, timer):
-        return method.run(mesh, spec, ctx=ctx, timer=timer, **opts)
+        result = method.run(mesh, spec, ctx=ctx, timer=timer, **opts)
+        if names:
+            timer.stats["attributes"] = list(names)
+            result.set_attributes(_attributes(ctx, mesh, result, timer, names, normals, fill_attributes))
+        return result
 
     result = run_in_envelope(method.info, (mesh,), spec, work, options=opts, ctx=ctx, backend=backend,
                              allow_open=allow_open, debug=debug)
     if method is not requested:
         result.run.stats["requested"] = requested.info.name
     return result
+
+
+def _attributes(ctx, mesh, result, timer, names, normals, fill):
+    """The attributes of ``result`` on the GPU (``ctx``), or by the float64
+    reference for CPU methods (no context)."""
+    if ctx is not None:
+        return gpu_attributes(ctx, mesh, result, timer, names, normals, fill=fill)
+    with timer.stage("attributes", gpu=False):
+        return reference_attributes(mesh, mesh.triangles_voxel(result.spec), result.spec.dims, result.indices(),
+                                    names, normals, fill=fill)[1]

@@ -37,14 +37,14 @@ from ..results.voxels import VoxelGrid
 from .base import Method, MethodInfo, Option, Requirements, register
 
 _PAPER = "Schwarz & Seidel 2010"
-_LOCAL = 64  # local_size_x of ss/surface.comp and ss/classify.comp
+LOCAL_SIZE = 64  # local_size_x of ss/surface.comp and ss/classify.comp
 
 #: Work units (voxels or columns) per invocation.  A column costs at most six
 #: loop iterations (itself and up to five voxels), so an invocation stays far
 #: below LOOP_BUDGET; nearly every triangle is one chunk.
 CHUNK = 4096
 assert 6 * CHUNK < LOOP_BUDGET
-_VARIANTS = {"simple": 0, "specialized": 1, "sorted": 2}
+VARIANTS = {"simple": 0, "specialized": 1, "sorted": 2}
 _REQUIRES = Requirements(gl_version=430, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 7,
                                                  "GL_MAX_COMPUTE_WORK_GROUP_SIZE": 256})
 
@@ -73,10 +73,10 @@ def default_variant(n_triangles: int, dims) -> str:
     return "simple" if (n_triangles / AUTO_SIMPLE_DENSITY) ** 3 >= volume * volume else "sorted"
 
 
-def _auto(n_triangles: int, dims, max_groups: int) -> str:
+def auto_variant(n_triangles: int, dims, max_groups: int) -> str:
     """:func:`default_variant`, or :data:`AUTO_FALLBACK` where ``sorted`` cannot dispatch every triangle."""
     variant = default_variant(n_triangles, dims)
-    return AUTO_FALLBACK if variant == "sorted" and n_triangles > max_groups * _LOCAL else variant
+    return AUTO_FALLBACK if variant == "sorted" and n_triangles > max_groups * LOCAL_SIZE else variant
 
 
 def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int = 0):
@@ -110,11 +110,11 @@ def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int
     """
     n = mesh.n_triangles
     max_groups = int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])
-    if variant == "sorted" and n > max_groups * _LOCAL:
+    if variant == "sorted" and n > max_groups * LOCAL_SIZE:
         raise LimitError(
             f"the sorted variant dispatches each bounding-box type at once, at most "
-            f"{max_groups * _LOCAL} triangles (GL_MAX_COMPUTE_WORK_GROUP_COUNT {max_groups} x "
-            f"{_LOCAL}); this mesh has {n}: use variant 'specialized'"
+            f"{max_groups * LOCAL_SIZE} triangles (GL_MAX_COMPUTE_WORK_GROUP_COUNT {max_groups} x "
+            f"{LOCAL_SIZE}); this mesh has {n}: use variant 'specialized'"
         )
     # the grid first: a grid over the SSBO limit is refused before any other work
     grid = pool.get("grid", spec.n_words * 4, what=f"the {spec.dims} bit grid")
@@ -122,9 +122,9 @@ def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int
     stats = pool.get("stats", 8 * 4)
     per_tri = pool.get("per_triangle", n * 4, what="per-triangle work", clear=False)
     args = pool.get("args", 9 * 4, clear=False)
-    defines = {"SS_CRITERION": criterion, "SS_VARIANT": _VARIANTS[variant], "SS_CHUNK": CHUNK}
+    defines = {"SS_CRITERION": criterion, "SS_VARIANT": VARIANTS[variant], "SS_CHUNK": CHUNK}
     common = {**grid_uniforms(spec, bufs.anchor), "u_triangles": n, "u_tri_offset": 0,
-              "u_local_size": _LOCAL, "u_max_groups": max_groups}
+              "u_local_size": LOCAL_SIZE, "u_max_groups": max_groups}
     vox.bind_to_storage_buffer(1)
     bufs.faces.bind_to_storage_buffer(2)
     grid.bind_to_storage_buffer(3)
@@ -138,28 +138,29 @@ def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int
     classify = compute_program(ctx, "ss/classify.comp", defines)
     set_uniforms(classify, common)
     with timer.stage("classify"):
-        dispatch_1d(ctx, classify, n, _LOCAL)
+        dispatch_1d(ctx, classify, n, LOCAL_SIZE)
         barrier(ctx)
     if variant != "sorted":
-        _voxelize_unsorted(ctx, timer, n, defines, common, args, max_groups)
+        voxelize_unsorted(ctx, timer, n, defines, common, args, max_groups)
     else:
         _voxelize_sorted(ctx, timer, pool, n, defines, common, (vox, bufs.faces, grid, stats, per_tri, keys, args),
                          max_groups)
     return grid, stats
 
 
-def _voxelize_unsorted(ctx, timer, n, defines, common, args, max_groups):
-    """Stage ``voxelize`` of the simple and specialized variants: indirect dispatches
-    over the triangles, at most GL_MAX_COMPUTE_WORK_GROUP_COUNT groups each."""
+def voxelize_unsorted(ctx, timer, n, defines, common, args, max_groups, stage: str = "voxelize"):
+    """Stage ``voxelize`` (or ``stage``) of the simple and specialized variants: indirect
+    dispatches over the triangles, at most GL_MAX_COMPUTE_WORK_GROUP_COUNT groups each
+    (the attribute passes run them too, with ``SS_ATTR_PASS`` defined)."""
     dargs = compute_program(ctx, "ss/dispatch_args.comp")
     prog = compute_program(ctx, "ss/surface.comp", defines)
     set_uniforms(prog, common)
-    batch = max_groups * _LOCAL  # triangles per dispatch along x
-    with timer.stage("voxelize"):
+    batch = max_groups * LOCAL_SIZE  # triangles per dispatch along x
+    with timer.stage(stage):
         for offset in range(0, n, batch):
             count = min(batch, n - offset)
-            set_uniforms(dargs, {"u_sorted": False, "u_groups_x": -(-count // _LOCAL),
-                                 "u_max_groups": max_groups, "u_local_size": _LOCAL})
+            set_uniforms(dargs, {"u_sorted": False, "u_groups_x": -(-count // LOCAL_SIZE),
+                                 "u_max_groups": max_groups, "u_local_size": LOCAL_SIZE})
             dargs.run(1, 1, 1)
             barrier(ctx)
             set_uniforms(prog, {"u_tri_offset": offset})
@@ -171,16 +172,24 @@ def _voxelize_sorted(ctx, timer, pool, n, defines, common, buffers, max_groups):
     """Stages ``sort``, ``ranges`` and ``voxelize`` of the sorted variant: triangles
     sorted by case, one indirect dispatch per bounding-box type."""
     vox, faces, grid, stats, per_tri, keys, args = buffers
+    sort_by_case(ctx, timer, pool, n, (stats, per_tri, keys, args), max_groups)
+    voxelize_sorted(ctx, timer, defines, common, (vox, faces, grid, per_tri, args))
+
+
+def sort_by_case(ctx, timer, pool, n, buffers, max_groups, prefix: str = "") -> None:
+    """Stages ``sort`` and ``ranges`` of the sorted variant (``prefix`` before the
+    names): triangles sorted by case, the indirect arguments of each type."""
+    stats, per_tri, keys, args = buffers
     dargs = compute_program(ctx, "ss/dispatch_args.comp")
     ranges = pool.get("ranges", 8 * 4)
     ranges.bind_to_storage_buffer(6)
-    with timer.stage("sort"):
+    with timer.stage(f"{prefix}sort"):
         sort_pairs(ctx, keys, per_tri, n, key_bits=30)
         barrier(ctx)
     rng = compute_program(ctx, "ss/ranges.comp")
     set_uniforms(rng, {"u_count": n})
-    set_uniforms(dargs, {"u_sorted": True, "u_local_size": _LOCAL, "u_max_groups": max_groups})
-    with timer.stage("ranges"):
+    set_uniforms(dargs, {"u_sorted": True, "u_local_size": LOCAL_SIZE, "u_max_groups": max_groups})
+    with timer.stage(f"{prefix}ranges"):
         # the sort may have bound its own buffers: bind ours again
         keys.bind_to_storage_buffer(7)
         ranges.bind_to_storage_buffer(6)
@@ -190,7 +199,13 @@ def _voxelize_sorted(ctx, timer, pool, n, defines, common, buffers, max_groups):
         barrier(ctx)
         dargs.run(1, 1, 1)
         barrier(ctx)
-    with timer.stage("voxelize"):
+
+
+def voxelize_sorted(ctx, timer, defines, common, buffers, stage: str = "voxelize") -> None:
+    """Stage ``voxelize`` (or ``stage``) of the sorted variant, after :func:`sort_by_case`:
+    one indirect dispatch per bounding-box type (the attribute passes run it too)."""
+    vox, faces, grid, per_tri, args = buffers
+    with timer.stage(stage):
         vox.bind_to_storage_buffer(1)
         faces.bind_to_storage_buffer(2)
         grid.bind_to_storage_buffer(3)
@@ -233,14 +248,14 @@ class SSConservative(_SSSurface):
         requires=_REQUIRES,
         options={"variant": Option("auto", "Table 1's realization; auto: simple where triangles / N^2 >= "
                                            f"{AUTO_SIMPLE_DENSITY}, else sorted (measured, "
-                                           "compare/ss_variants.py)", ("auto", *_VARIANTS))},
+                                           "compare/ss_variants.py)", ("auto", *VARIANTS))},
     )
     criterion = 0
 
     def run(self, mesh, spec, *, ctx, timer, variant):
         if variant == "auto":
             max_groups = int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])
-            variant = timer.stats["variant"] = _auto(mesh.n_triangles, spec.dims, max_groups)
+            variant = timer.stats["variant"] = auto_variant(mesh.n_triangles, spec.dims, max_groups)
         return self._run(ctx, mesh, spec, timer, variant)
 
 

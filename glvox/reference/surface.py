@@ -201,6 +201,13 @@ def conservative_surface(tris: np.ndarray, dims: Sequence[int], half: float | np
     (nx, ny, nz) bool
         ``out[i, j, k]`` is True iff voxel (i, j, k) is set.
     """
+    tris, dims, halves, test = _conservative_setup(tris, dims, half, edge_shift, flip, no_plane, no_proj)
+    return _run(tris, dims, pruned_candidates(tris, dims, _pad(halves)), test)
+
+
+def _conservative_setup(tris, dims, half, edge_shift=None, flip=None, no_plane=None, no_proj=None):
+    """Checked ``tris``, ``dims``, the (T, 3) half-sizes and the pair test of
+    :func:`conservative_surface` (its parameters)."""
     tris = check_tris(tris)
     dims = check_dims(dims)
     halves = _halves(half, len(tris))
@@ -218,7 +225,25 @@ def conservative_surface(tris: np.ndarray, dims: Sequence[int], half: float | np
     if edge_shift is not None:
         oe += _edge_shift(edge_shift, len(tris)) * np.abs(ne).max(axis=-1)
     test = _planar_test(tris, n, o1, o2, ne, oe, 0.5 - halves, halves, no_plane, no_proj)
-    return _run(tris, dims, pruned_candidates(tris, dims, _pad(halves)), test)
+    return tris, dims, halves, test
+
+
+def conservative_pairs(tris: np.ndarray, dims: Sequence[int],
+                       half: float = 0.5) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """The (triangle, voxel) pairs of :func:`conservative_surface`: every triangle
+    with every voxel whose box of half-size ``half`` it overlaps or touches.
+
+    Yields
+    ------
+    tri : (P,) int64
+        Triangle indices into ``tris``.
+    ijk : (P, 3) int64
+        The voxels, inside the grid.
+    """
+    tris, dims, halves, test = _conservative_setup(tris, dims, half)
+    for tri, ijk in pruned_candidates(tris, dims, _pad(halves)):
+        keep = test(tri, ijk)
+        yield tri[keep], ijk[keep]
 
 
 def six_separating_surface(tris: np.ndarray, dims: Sequence[int], half: float | np.ndarray = 0.5, *,

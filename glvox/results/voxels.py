@@ -3,8 +3,11 @@
 npz layout (beside the common keys of :mod:`glvox.results.base`):
 ``occupancy`` (bool, (nx, ny, nz), indexed [i, j, k]), one ``extra_<name>``
 (bool, (nx, ny, nz)) per mask in ``grid.extras`` and one ``field_<name>``
-(float32, (nx, ny, nz)) per array in ``grid.fields``; ``kind`` is the run's
-kind (``'surface'`` or ``'solid'``).
+(float32, (nx, ny, nz)) per array in ``grid.fields``, one ``attr_<name>``
+per array in ``grid.attributes`` (one row per set voxel, in the order of
+:meth:`VoxelGrid.indices`; see :data:`ATTRIBUTE_DTYPES`); ``kind`` is the
+run's kind (``'surface'`` or ``'solid'``).  Files without ``attr_`` keys
+(every file written before attributes existed) read back with no attributes.
 """
 
 from __future__ import annotations
@@ -18,6 +21,20 @@ import numpy as np
 from ..errors import FormatError, GridError
 from ..grid import GridSpec, pack_bits, set_indices, unpack_bits
 from .base import Result, npz_type, require_keys
+
+#: Per-voxel attributes a grid may carry: name -> (dtype, trailing shape, the
+#: value of a voxel without one).  One row per set voxel, in C order of the
+#: dense (nx, ny, nz) array (``np.argwhere(grid.dense())``), so memory scales
+#: with the set voxels, not the grid.  ``triangle``: the source triangle's
+#: index in the input faces; ``color``: RGBA8, alpha 0 where none;
+#: ``normal``: unit world-space normal, zeros where none; ``material``: the
+#: index of the part / material, -1 where none (glvox/grid.py has the rule).
+ATTRIBUTE_DTYPES: dict[str, tuple[np.dtype, tuple[int, ...], Any]] = {
+    "triangle": (np.dtype(np.int32), (), -1),
+    "color": (np.dtype(np.uint8), (4,), 0),
+    "normal": (np.dtype(np.float32), (3,), 0.0),
+    "material": (np.dtype(np.int32), (), -1),
+}
 
 
 def c_order(dense: np.ndarray) -> np.ndarray:
@@ -90,12 +107,19 @@ class VoxelGrid(Result):
         :meth:`dense`, that a method returns per voxel (e.g. ``'winding'``,
         the generalized winding number at the centers, of reference-gwn and
         gwn-solid); saved in npz as ``field_<name>``.
+    attributes : dict of str to ndarray
+        Per-voxel data taken from the mesh (``triangle``, ``color``,
+        ``normal``, ``material``; :data:`ATTRIBUTE_DTYPES`), one row per set
+        voxel in the order of :meth:`indices`; empty when none were asked
+        for.  Saved in npz as ``attr_<name>``; :meth:`attribute_grid` gives
+        the dense form.
     """
 
     def __init__(self, occupancy: np.ndarray | None = None, spec: GridSpec | None = None, *,
                  words: np.ndarray | None = None, run: Any = None,
                  extras: dict[str, "VoxelGrid"] | None = None, count: int | None = None,
-                 fields: dict[str, np.ndarray] | None = None):
+                 fields: dict[str, np.ndarray] | None = None,
+                 attributes: dict[str, np.ndarray] | None = None):
         if spec is None:
             raise GridError("a VoxelGrid needs its GridSpec")
         if (occupancy is None) == (words is None):
@@ -120,6 +144,7 @@ class VoxelGrid(Result):
         self._dense: np.ndarray | None = None
         self._words: np.ndarray | None = None
         self._count = None if count is None else int(count)
+        self._indices: np.ndarray | None = None
         if occupancy is not None:
             occ = np.asarray(occupancy)
             if occ.shape != spec.dims:
@@ -132,6 +157,25 @@ class VoxelGrid(Result):
             if w.size != spec.n_words:
                 raise GridError(f"expected {spec.n_words} packed words for dims {spec.dims}, got {w.size}")
             self._words = w.reshape(spec.dims[2], spec.dims[1], spec.words_per_row).astype("<u4", copy=False)
+        self.attributes: dict[str, np.ndarray] = {}
+        for name, arr in (attributes or {}).items():
+            self.attributes[name] = self._check_attribute(name, arr)
+
+    def set_attributes(self, attributes: dict[str, np.ndarray]) -> None:
+        """Add or replace attributes (checked like the constructor's)."""
+        for name, arr in attributes.items():
+            self.attributes[name] = self._check_attribute(name, arr)
+
+    def _check_attribute(self, name: str, arr) -> np.ndarray:
+        """``arr`` as attribute ``name``: a known name, its dtype, one row per set voxel."""
+        if name not in ATTRIBUTE_DTYPES:
+            raise GridError(f"unknown attribute {name!r}; known: {', '.join(ATTRIBUTE_DTYPES)}")
+        dtype, tail, _ = ATTRIBUTE_DTYPES[name]
+        a = np.asarray(arr)
+        if a.dtype != dtype or a.shape != (self.count, *tail):
+            raise GridError(f"attribute {name!r} must be {dtype} of shape {(self.count, *tail)} "
+                            f"(one row per set voxel), got {a.dtype} {a.shape}")
+        return a
 
     # -- data ---------------------------------------------------------------
     def dense(self) -> np.ndarray:
@@ -164,8 +208,33 @@ class VoxelGrid(Result):
         return self.count
 
     def indices(self) -> np.ndarray:
-        """(M, 3) int64 indices of the set voxels, sorted by i, then j, then k (as ``np.argwhere``)."""
-        return set_indices(self.words(), self.spec.dims)
+        """(M, 3) int64 indices of the set voxels, sorted by i, then j, then k (as ``np.argwhere``);
+        read-only view."""
+        idx = self._indices if self._indices is not None else set_indices(self.words(), self.spec.dims)
+        v = idx.view()
+        v.setflags(write=False)
+        return v
+
+    def cache_indices(self, indices: np.ndarray) -> None:
+        """Keep :meth:`indices` (the attribute pass has them at hand): (M, 3) int64, C order."""
+        idx = np.asarray(indices)
+        if idx.shape != (self.count, 3) or idx.dtype != np.int64:
+            raise GridError(f"indices must be int64 of shape {(self.count, 3)}, got {idx.dtype} {idx.shape}")
+        self._indices = idx
+
+    def attribute_grid(self, name: str) -> np.ndarray:
+        """The dense form of attribute ``name``: (nx, ny, nz, ...) of its dtype, indexed
+        [i, j, k] like :meth:`dense`; voxels without a value (unset ones included)
+        hold the attribute's empty value (-1, alpha 0 or zeros; :data:`ATTRIBUTE_DTYPES`)."""
+        if name not in self.attributes:
+            have = ", ".join(self.attributes) or "none"
+            raise GridError(f"this grid has no attribute {name!r} (it has: {have}); "
+                            "voxelize with attributes=[...] (--attributes)")
+        dtype, tail, empty = ATTRIBUTE_DTYPES[name]
+        out = np.full((*self.spec.dims, *tail), empty, dtype=dtype)
+        idx = self.indices()
+        out[idx[:, 0], idx[:, 1], idx[:, 2]] = self.attributes[name]
+        return out
 
     def points(self) -> np.ndarray:
         """(M, 3) float64 world centers of the set voxels."""
@@ -189,7 +258,8 @@ class VoxelGrid(Result):
     def npz_arrays(self) -> dict[str, np.ndarray]:
         return {"occupancy": np.asarray(self.dense(), dtype=bool),
                 **{f"extra_{k}": np.asarray(g.dense(), dtype=bool) for k, g in self.extras.items()},
-                **{f"field_{k}": np.ascontiguousarray(a) for k, a in self.fields.items()}}
+                **{f"field_{k}": np.ascontiguousarray(a) for k, a in self.fields.items()},
+                **{f"attr_{k}": np.ascontiguousarray(a) for k, a in self.attributes.items()}}
 
     @classmethod
     def from_npz(cls, z, path: Path) -> "VoxelGrid":
@@ -209,7 +279,11 @@ class VoxelGrid(Result):
                     extras[key[len("extra_"):]] = cls(e.astype(bool), spec)
                 else:
                     fields[key[len("field_"):]] = e.astype(np.float32)
-        return cls(occ.astype(bool), spec, extras=extras, fields=fields)
+        attributes = {key[len("attr_"):]: np.asarray(z[key]) for key in z.files if key.startswith("attr_")}
+        try:
+            return cls(occ.astype(bool), spec, extras=extras, fields=fields, attributes=attributes)
+        except GridError as exc:
+            raise FormatError(f"{path}: {exc}") from None
 
     # -- comparison ---------------------------------------------------------
     def _check_same(self, other: "VoxelGrid") -> None:

@@ -6,13 +6,18 @@
 //                 1: specialized (1D/2D/3D cases, dominant-axis columns)
 //                 2: one bounding-box type SS_BBOX_TYPE of the sorted list
 // The 6-separating criterion always uses the dominant-axis columns (Sec. 3.4).
+//   SS_ATTR_PASS  (defined) the attribute passes' hook instead of the writes
 // Invocation (t, chunk): t from x (plus u_tri_offset), chunk = y + z * max groups.
 #include "common/bits.glsl"
 #include "common/voxel_space.glsl"
 #include "common/edge.glsl"
 #include "ss/setup.glsl"
 #include "ss/work.glsl"
+#ifdef SS_ATTR_PASS
+#include "attributes/pair.glsl"
+#else
 #include "ss/write.glsl"
+#endif
 
 layout(local_size_x = 64) in;
 #if SS_VARIANT == 2
@@ -107,6 +112,9 @@ void main() {
 #endif
     Tri T = setup_triangle(t);
     if (outside_grid(T)) return;
+#ifdef SS_ATTR_PASS
+    attr_begin(t, T);  // the attribute passes revisit these pairs (attributes/pair.glsl)
+#endif
 #if SS_VARIANT == 2
     int type = SS_BBOX_TYPE;
 #else
