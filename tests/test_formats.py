@@ -566,12 +566,12 @@ def test_convert_validates_before_reading(tmp_path, capsys, monkeypatch, args, m
 
 
 def test_voxelize_checks_the_output_format_before_loading_the_mesh(tmp_path, capsys, monkeypatch):
-    import glvox.cli
+    import glvox.commands
 
     def never(*a, **k):
         raise AssertionError("the mesh was loaded before the output was checked")
 
-    monkeypatch.setattr(glvox.cli, "load_mesh", never)
+    monkeypatch.setattr(glvox.commands, "load_mesh", never)
     rc, _, err = run_cli(capsys, "voxelize", "gen:torus", "-r", "8", "-m", "reference-ldi",
                          "-o", tmp_path / "x.nrrd")
     assert rc == 1 and "an LDI is saved as .npz" in err

@@ -20,7 +20,7 @@ ROOT = Path(__file__).resolve().parents[1] / "glvox"
 #: The README's Layout order, lowest first.
 LAYERS = ["_version", "errors", "tolerances", "progress", "grid", "meshfiles", "mesh", "visuals", "datasets", "results",
           "formats", "io", "gl", "gpu", "reference", "methods", "inspect", "metrics", "batch", "study", "testing",
-          "preflight", "cli", "__main__"]
+          "preflight", "commands", "cli", "__main__"]
 
 
 def _layer(module: str) -> str:

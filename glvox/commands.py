@@ -1,0 +1,297 @@
+"""What each ``glvox`` command does, once :mod:`glvox.cli` has parsed and
+checked its arguments (:mod:`glvox.preflight`): one ``cmd_<command>(args)``
+per command, returning the exit status.  Errors glvox raises on purpose
+propagate as :class:`~glvox.errors.GlvoxError`; :func:`glvox.cli.main` prints
+them as one line.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import sys
+import threading
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from . import datasets, io, preflight
+from ._version import __version__
+from .batch import BatchSettings, run_batch
+from .errors import GlvoxError
+from .gl.context import get_context
+from .grid import grid_for
+from .inspect import inspect_mesh
+from .mesh import load_mesh
+from .methods import get_method, method_infos, run_method
+from .methods.attribute_pass import parse_attributes
+from .methods.leung_wang import overlap_bounds, overlap_grid, run_intersection
+from .progress import Stages
+from .visuals import load_visual_mesh
+from .results import LDI, SparseOctree
+
+
+def cmd_info(args) -> int:
+    d = get_context(args.backend).describe()
+    if args.json:
+        print(json.dumps(d, indent=2))
+        return 0
+    print(f"glvox {__version__}")
+    for key in ("backend", "device", "vendor", "renderer", "version"):
+        print(f"{key + ':':<10} {d[key]}")
+    print("limits:")
+    for k, v in d["limits"].items():
+        print(f"  {k:<40} {v}")
+    return 0
+
+
+def cmd_methods(args) -> int:
+    infos = method_infos(args.kind, args.family)
+    if args.json:
+        print(json.dumps([i.to_dict() for i in infos], indent=2))
+        return 0
+    w = max((len(i.name) for i in infos), default=4)
+    print(f"{'name':<{w}}  {'kind':<8} {'family':<8} summary")
+    for i in infos:
+        print(f"{i.name:<{w}}  {i.kind:<8} {i.family:<8} {i.summary}")
+        print(f"{'':<{w}}  {'':<8} {'':<8} paper: {i.paper}")
+        for name, o in i.options.items():
+            choices = f" {list(o.choices)}" if o.choices else ""
+            print(f"{'':<{w}}  {'':<8} {'':<8} -O {name}={o.default}{choices}: {o.help}")
+    return 0
+
+
+def _spec(args, mesh, bounds=None):
+    """The grid of ``mesh`` from the checked grid options."""
+    return grid_for(mesh, args.resolution if args.dims is None and args.voxel_size is None else None,
+                    dims=args.dims, voxel_size=args.voxel_size, bounds=bounds, padding=args.padding,
+                    tight=args.tight)
+
+
+def _summary(result) -> str:
+    """What a result holds, in a few words: voxels set, or an LDI's layers, samples and volume."""
+    if isinstance(result, LDI):
+        return f"n_max {result.n_max}, {result.samples} samples, volume {result.volume:.9g}"
+    voxels = result.run.stats.get("voxels")
+    return f"{voxels if voxels is not None else result.count} voxels set"
+
+
+def cmd_voxelize(args) -> int:
+    say = Stages(args.quiet or args.json)
+    out = Path(args.output) if args.output else None
+    method = get_method(args.method)
+    options = preflight.parse_options(args.option, args.extra)
+    mesh_path = datasets.resolve_mesh(args.mesh, quiet=args.quiet or args.json)
+    say(f"loading {args.mesh}")
+    names = parse_attributes(args.attributes)
+    mesh = load_visual_mesh(mesh_path) if names else load_mesh(mesh_path)
+    say(f"{mesh.n_triangles} triangles ({mesh.n_degenerate} zero-area dropped), "
+        f"{'watertight' if mesh.watertight else 'NOT watertight'}")
+    bounds = np.array(args.bounds, dtype=np.float64).reshape(2, 3) if args.bounds is not None else None
+    spec = _spec(args, mesh, bounds)
+    if out is not None:
+        preflight.format_fits(out, method.info, spec)  # the dims of --tight / --voxel-size are known now
+    say(f"grid {spec}")
+    say(f"voxelizing with {method.info.name} ({method.info.family}, {method.info.kind})")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = run_method(args.method, mesh, spec, backend=args.backend, allow_open=args.allow_open,
+                            attributes=names, normals=args.normals, fill_attributes=args.fill_attributes,
+                            **options)
+    for w in caught:
+        print(f"glvox: warning: {w.message}", file=sys.stderr)
+    run = result.run
+    say(f"{_summary(result)}; {run.timings.summary()}")
+    if out is not None:
+        _save(result, out)
+        say(f"wrote {out}")
+    if args.json:
+        d = run.to_dict()
+        d["mesh"] = {"name": mesh.name, "triangles": mesh.n_triangles,
+                     "degenerate_dropped": mesh.n_degenerate, "watertight": mesh.watertight}
+        d["output"] = str(out) if out else None
+        print(json.dumps(d, indent=2))
+    elif args.quiet is False and out is None:
+        print(_summary(result))
+    return 0
+
+
+def _save(result, out: Path, **options) -> None:
+    """``io.save``, its FormatWarnings (what a format drops) printed as ``glvox: warning:`` lines."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        io.save(result, out, **options)
+    for w in caught:
+        print(f"glvox: warning: {w.message}", file=sys.stderr)
+
+
+def cmd_convert(args) -> int:
+    """``glvox convert IN OUT``: read a voxel file and write it in the format of OUT's suffix."""
+    src, dst = Path(args.input), Path(args.output)
+    say = Stages(args.quiet)
+    result = io.load(src, convention=args.convention)
+    kind = "ldi" if isinstance(result, LDI) else "sparse" if isinstance(result, SparseOctree) else None
+    io.check_writable(dst, kind=kind, dims=result.dims)
+    say(f"read {src}: {result!r}")
+    options = {"coverage": False} if args.no_coverage else {}
+    _save(result, dst, convention=args.convention, **options)
+    say(f"wrote {dst} ({dst.stat().st_size} bytes)")
+    return 0
+
+
+def cmd_render(args) -> int:
+    """``glvox render RESULT -o PICTURE.png``: the voxels as lit cubes in their own colours."""
+    # imported here for start-up time, as in cmd_compare: the renderer needs moderngl and matplotlib
+    from .study.render import render_voxels, save_png
+
+    say = Stages(args.quiet)
+    result = io.load(args.input)
+    if isinstance(result, LDI):
+        raise GlvoxError(f"glvox render draws voxel grids; {args.input} holds an LDI (depths per ray)")
+    grid = result.to_grid() if isinstance(result, SparseOctree) else result
+    say(f"read {args.input}: {grid!r}")
+    img = render_voxels(get_context(args.backend), grid, size=tuple(args.size), direction=tuple(args.direction),
+                        up=tuple(args.up), own_colors=not args.single_color, flat=args.flat)
+    save_png(img, Path(args.output))
+    say(f"wrote {args.output} ({args.size[0]} x {args.size[1]})")
+    return 0
+
+
+def cmd_batch(args) -> int:
+    """``glvox batch``: exit 0 when every mesh is done or skipped, 3 when some failed."""
+    options = preflight.parse_options(args.option)
+    settings = BatchSettings(
+        method=args.method, resolution=args.resolution,
+        dims=tuple(args.dims) if args.dims is not None else None, voxel_size=args.voxel_size,
+        padding=args.padding, tight=args.tight, options=tuple(sorted(options.items())),
+        allow_open=args.allow_open, backend=args.backend, fmt=args.format, inspect=args.inspect,
+        attributes=parse_attributes(args.attributes), normals=args.normals, fill_attributes=args.fill_attributes)
+
+    def on_term(signum, frame):  # batch schedulers stop jobs with SIGTERM: keep the manifest
+        raise KeyboardInterrupt
+
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, on_term) if main_thread else None
+    try:
+        summary = run_batch(args.input, args.output, settings,
+                            workers=1 if args.workers is None else args.workers,
+                            scheduler=args.scheduler, overwrite=args.overwrite, manifest=args.manifest,
+                            suffixes=args.suffix or None, quiet=args.quiet or args.json)
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGTERM, previous)
+    if args.json:
+        print(json.dumps(summary.to_dict(), indent=2))
+    elif not args.quiet:
+        print(summary.format())
+    return 3 if summary.failed else 0
+
+
+def cmd_ldi(args) -> int:
+    """``glvox ldi``: a layered depth image (default leung-wang-ldi) into an npz."""
+    say = Stages(args.quiet or args.json)
+    out = Path(args.output) if args.output else None
+    info = get_method(args.method).info
+    options = preflight.ldi_options(args, info)
+    mesh_path = datasets.resolve_mesh(args.mesh, quiet=args.quiet or args.json)
+    say(f"loading {args.mesh}")
+    mesh = load_mesh(mesh_path)
+    say(f"{mesh.n_triangles} triangles, {'watertight' if mesh.watertight else 'NOT watertight'}")
+    spec = _spec(args, mesh)
+    say(f"grid {spec}; sampling with {info.name}")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = run_method(args.method, mesh, spec, backend=args.backend, allow_open=args.allow_open,
+                            **options)
+    for w in caught:
+        print(f"glvox: warning: {w.message}", file=sys.stderr)
+    run = result.run
+    say(f"{_summary(result)}; {run.timings.summary()}")
+    if out is not None:
+        result.save(out)
+        say(f"wrote {out}")
+    if args.json:
+        d = run.to_dict()
+        d.update({"n_max": result.n_max, "samples": result.samples, "volume": result.volume,
+                  "output": str(out) if out else None})
+        print(json.dumps(d, indent=2))
+    elif out is None:
+        print(_summary(result))
+    return 0
+
+
+def cmd_volume(args) -> int:
+    """``glvox volume A B``: the intersecting volume of two closed meshes (Leung & Wang Sec. V-A)."""
+    say = Stages(args.quiet or args.json)
+    quiet = args.quiet or args.json
+    a = load_mesh(datasets.resolve_mesh(args.mesh_a, quiet=quiet))
+    b = load_mesh(datasets.resolve_mesh(args.mesh_b, quiet=quiet))
+    say(f"{a.name}: {a.n_triangles} triangles; {b.name}: {b.n_triangles} triangles")
+    if overlap_bounds(a, b) is None:
+        volume, d = 0.0, {"volume": 0.0, "note": "the bounding boxes do not overlap"}
+    else:
+        spec = overlap_grid(a, b, args.resolution if args.dims is None and args.voxel_size is None else None,
+                            dims=args.dims, voxel_size=args.voxel_size)
+        res = run_intersection(a, b, spec, lod_c=args.lod_c, axis=args.axis, allow_open=args.allow_open,
+                               backend=args.backend)
+        volume = res.volume
+        say(f"grid {res.spec}; n_max {res.n_max}; {res.run.timings.summary()}")
+        d = res.run.to_dict()
+        d.update({"volume": volume, "n_max": res.n_max, "samples": res.samples})
+        if args.output:
+            res.save(args.output)
+            say(f"wrote {args.output}")
+    if args.json:
+        print(json.dumps(d, indent=2))
+    else:
+        print(f"{volume:.9g}")
+    return 0
+
+
+def cmd_inspect(args) -> int:
+    """``glvox inspect``: the defects of a mesh (glvox.inspect.MeshReport)."""
+    report = inspect_mesh(args.mesh, args.resolution, backend=args.backend)
+    print(json.dumps(report.to_dict(), indent=2) if args.json else report.format())
+    return 0
+
+
+def cmd_compare(args) -> int:
+    # imported here for start-up time: the study's runner, tables and plots are
+    # needed by this command alone (its options come from the light study.options)
+    from .study.compare import main as compare_main
+
+    return compare_main(args)
+
+
+def cmd_bench(args) -> int:
+    """``glvox bench``: exit 0, or 3 when ``--check`` finds a regression."""
+    from .study.bench import main as bench_main  # for start-up time, as in cmd_compare
+
+    return bench_main(args)
+
+
+def cmd_data(args) -> int:
+    """``glvox data list | fetch NAME... | path [NAME]``: the meshes glvox knows by name."""
+    if args.action == "list":
+        for name in datasets.mesh_names():
+            src, where = datasets.source(name), datasets.find(name)
+            print(f"{name:<36} {src.size / 1e6:6.2f} MB  {where.parent if where else 'not on this machine'}")
+            print(f"    licence: {src.licence}")
+            print(f"    credit:  {src.credit}")
+            print(f"    source:  {src.repo} {src.path} @ {src.commit[:10]}"
+                  + (f" (with {', '.join(src.companions)})" if src.companions else ""))
+        print(f"searched: {', '.join(str(d) for d in datasets.search_dirs())}; downloads go to "
+              f"{datasets.data_dir()} (GLVOX_MESHES; GLVOX_DATA_MIRROR replaces the download site)")
+    elif args.action == "fetch":
+        for name in args.names or datasets.mesh_names():
+            print(datasets.fetch(name, quiet=args.quiet))
+    elif not args.names:
+        print(datasets.data_dir())
+    else:
+        where = datasets.find(args.names[0])
+        if where is None:
+            raise GlvoxError(f"{args.names[0]} is not on this machine: `glvox data fetch {args.names[0]}` "
+                             f"downloads it into {datasets.data_dir()}")
+        print(where)
+    return 0
