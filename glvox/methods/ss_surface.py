@@ -34,6 +34,7 @@ from ..gpu.sort import sort_pairs
 from ..gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set_uniforms
 from ..gpu.transform import transform_vertices
 from ..results.voxels import VoxelGrid
+from ..tolerances import SLIVER_EPS
 from .base import Method, MethodInfo, Option, Requirements, register
 
 _PAPER = "Schwarz & Seidel 2010"
@@ -98,7 +99,8 @@ class _SSSurface(Method):
         stats = pool.get("stats", 8 * 4)
         per_tri = pool.get("per_triangle", n * 4, what="per-triangle work", clear=False)
         args = pool.get("args", 9 * 4, clear=False)
-        defines = {"SS_CRITERION": self.criterion, "SS_VARIANT": _VARIANTS[variant], "SS_CHUNK": CHUNK}
+        defines = {"SS_CRITERION": self.criterion, "SS_VARIANT": _VARIANTS[variant], "SS_CHUNK": CHUNK,
+                   "SS_SLIVER_EPS": SLIVER_EPS}
         common = {**grid_uniforms(spec, bufs.anchor), "u_triangles": n, "u_tri_offset": 0,
                   "u_local_size": _LOCAL, "u_max_groups": max_groups}
         vox.bind_to_storage_buffer(1)
