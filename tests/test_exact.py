@@ -44,8 +44,6 @@ import warnings
 import numpy as np
 import pytest
 from conftest import SLOW
-from hypothesis import HealthCheck, example, given, settings
-from hypothesis import strategies as st
 
 import glvox
 from glvox.grid import GridSpec
