@@ -64,8 +64,8 @@ REALIZATIONS = ("variant", "masks", "coverage")
 
 def registered_runs(kinds) -> list[tuple[str, dict]]:
     """(method, options) of every registered method of these kinds: its defaults, each other
-    choice of a :data:`REALIZATIONS` option, and for solids each other render/ray ``axis`` and
-    each single axis of an ``axes`` option."""
+    choice of a :data:`REALIZATIONS` option, and for parity solids each other render/ray ``axis``
+    and each single axis of an ``axes`` option (each has its own rule set, :func:`fill_rule`)."""
     out = []
     for name in method_names():
         info = get_method(name).info
@@ -73,9 +73,10 @@ def registered_runs(kinds) -> list[tuple[str, dict]]:
             continue
         out.append((name, {}))
         for key, opt in info.options.items():
-            if opt.choices and (key in REALIZATIONS or (key == "axis" and info.kind != "surface")):
+            parity = info.kind != "surface" and info.reference == "reference-solid"  # rule sets per axis
+            if opt.choices and (key in REALIZATIONS or (key == "axis" and parity)):
                 out += [(name, {key: c}) for c in opt.choices if c != opt.default and c != "auto"]
-            elif key == "axes" and info.kind != "surface":  # depth layers along one axis alone
+            elif key == "axes" and parity:  # depth layers along one axis alone
                 out += [(name, {key: c}) for c in opt.choices if len(c) == 1]
     return out
 
