@@ -358,12 +358,15 @@ def test_gpu_rlv_and_slv_on_every_shared_mesh_at_48(name, gl_context, shared_mes
     mesh = load_mesh(shared_mesh(name))
     spec = glvox.grid_for(mesh, 48)
     ref = run_method("reference-conservative", mesh, spec)
-    check_float_path("slv", mesh, spec, ref)
+    ties = tie_set("reference-conservative", mesh, spec)
+    slv = check_against_reference(run_method("scanline-slv", mesh, spec), mesh, reference_grid=ref, ties=ties)
+    assert slv.ok, slv.describe()
     tris = mesh.triangles_voxel(spec)
     got = run_method("scanline-rlv", mesh, spec).dense()
     singular = ref.dense() & ~conservative_surface(tris, spec.dims, 0.5 - TIE_EPS)
-    allowed = singular | tie_set("reference-conservative", mesh, spec) | float_variant_ties(tris, spec.dims, "rlv", 26)
-    bad = (got ^ ref.dense()) & ~allowed
+    bad = (got ^ ref.dense()) & ~singular & ~ties
+    if bad.any():  # its own float ties, only where needed (they cost a pass over the triangles)
+        bad &= ~float_variant_ties(tris, spec.dims, "rlv", 26)
     assert not bad.any(), np.argwhere(bad)[:5].tolist()
 
 
