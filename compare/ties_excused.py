@@ -32,7 +32,10 @@ import numpy as np
 import glvox
 from glvox.methods import get_method, method_names, run_method
 from glvox.metrics import tie_set
-from glvox.datasets import SHARED_MESHES, mesh_dir
+try:
+    from glvox.datasets import SHARED_MESHES, mesh_dir
+except ImportError:  # revisions before glvox.datasets: the script measures older revisions too
+    from glvox.study.meshes import SHARED_MESHES, mesh_dir
 
 
 def _dense(result) -> np.ndarray:

@@ -70,6 +70,17 @@ JFA_SLACK = 0.5
 #: edge can change, which is what it is for.
 SNAP_EPS = 2.0 ** -11
 
+#: (voxels) ss-conservative and ss-6sep treat a triangle as a sliver (no plane test,
+#: projection tests over its bounding box: ``shaders/ss/setup.glsl``) when every
+#: projection's signed area is within what moving its vertices by this much can change.
+#: Half of TIE_EPS: every such triangle is then one whose projections' orientations are
+#: all ambiguous under TIE_EPS (``glvox.reference.ties.orientation_ambiguous``), whose tie
+#: set holds what the projections alone allow; and a triangle whose plane is trusted has
+#: an area at least ~1e-4 of its edges', far above float32's rounding of it.  Found by the
+#: fuzz tests (issue 20): needles whose float32 normal is rounding set voxels 0.01 voxel
+#: and more away from them through the dominant-axis columns.
+SLIVER_EPS = TIE_EPS / 2
+
 #: (multiples of :func:`glvox.reference.ties.float32_motion`) A projected edge
 #: shorter than this many times the float32 motion of its end points can turn
 #: by more than ~0.02 rad under rounding; the projection test it belongs to is

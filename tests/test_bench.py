@@ -23,6 +23,7 @@ from glvox.errors import GlvoxError
 from glvox.grid import GridSpec, pack_bits
 from glvox.methods import run_method
 from glvox.metrics import agreement, popcount, tie_set
+from glvox.reference import conservative_surface
 from glvox.study import ab, bench, bench_report, coldstart, regression
 from glvox.study.options import BENCH_PRESETS, CHECKOUT_BASELINE, PEER_NAMES
 from glvox.study.peers import PEERS, _from_indices, get_peer
@@ -155,9 +156,16 @@ def test_open3d_drops_voxels_past_the_grid():
     spec = glvox.grid_for(mesh, 8)
     pg = _peer_on("open3d", mesh, spec)
     assert pg.outside > 0
-    # the box's faces lie on voxel planes: Open3D's float64 test decides the
-    # touching voxels there its own way, and every such mismatch is a proven tie
-    assert _check(pg.grid, mesh, "reference-conservative")["not_ties"] == 0
+    # the box's faces lie on voxel planes: Open3D's float64 test decides the voxels they
+    # only touch its own way (measured: it drops 8 of them at the far x face).  glvox's
+    # tie sets no longer excuse snapped on-plane geometry (issue 24), so the bound is
+    # stated here instead: every mismatch is a voxel the faces only touch (it leaves the
+    # conservative set when the box half-size shrinks by 1e-4 voxel), and none is extra.
+    tris = mesh.triangles_voxel(spec)
+    touch_only = conservative_surface(tris, spec.dims) & ~conservative_surface(tris, spec.dims, 0.5 - 1e-4)
+    got, ref = pg.grid.dense(), run_method("reference-conservative", mesh, spec).dense()
+    assert not (got & ~ref).any() and not ((got ^ ref) & ~touch_only).any()
+    assert 0 < (ref & ~got).sum() <= touch_only.sum()
 
 
 def test_indices_outside_the_grid_are_dropped_and_counted():

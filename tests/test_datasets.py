@@ -311,18 +311,26 @@ def test_needs_the_bunny(glvox_mesh):
 '''
 
 
-@pytest.mark.parametrize("require", ["", "1"])
-def test_plugin_skips_with_one_line_or_fails_when_required(tmp_path, require):
+@pytest.mark.parametrize("require, ci", [("", ""), ("1", ""), ("", "true"), ("0", "true")])
+def test_plugin_skips_with_one_line_or_fails_when_required(tmp_path, require, ci):
+    """Locally a missing mesh skips with one line naming it and where it was looked for; with
+    GLVOX_REQUIRE_MESHES=1 or CI=true (issue 20: CI must not pass by skipping) it fails with it."""
     (tmp_path / "test_x.py").write_text(TEST_FILE)
     env = {**os.environ, "GLVOX_MESHES": str(tmp_path / "empty"),
-           "GLVOX_DATA_MIRROR": f"http://127.0.0.1:{_closed_port()}", "GLVOX_REQUIRE_MESHES": require}
+           "GLVOX_DATA_MIRROR": f"http://127.0.0.1:{_closed_port()}", "GLVOX_REQUIRE_MESHES": require, "CI": ci}
     p = subprocess.run([sys.executable, "-m", "pytest", "-q", "-rs", "-p", "no:cacheprovider", "test_x.py"],
                        capture_output=True, text=True, cwd=tmp_path, env=env, timeout=300)
     why = "mesh stanford_bunny_bun_zipper.ply is not on this machine and cannot be downloaded"
-    if require:
-        assert p.returncode == 1 and "1 failed" in p.stdout and f"GLVOX_REQUIRE_MESHES is set and {why}" in p.stdout
+    where = f"(looked in {tmp_path / 'empty'})"
+    lines = [ln for ln in p.stdout.splitlines() if why in ln]
+    assert len(lines) == 1 and where in lines[0], p.stdout
+    if require == "1":
+        assert p.returncode == 1 and "1 failed" in p.stdout and f"GLVOX_REQUIRE_MESHES is set and {why}" in lines[0]
+    elif ci and require == "":
+        assert p.returncode == 1 and "1 failed" in p.stdout and f"CI is set (GLVOX_REQUIRE_MESHES=0 skips instead) " \
+            f"and {why}" in lines[0]
     else:
-        assert p.returncode == 0 and "1 skipped" in p.stdout and why in p.stdout, p.stdout
+        assert p.returncode == 0 and "1 skipped" in p.stdout, p.stdout
 
 
 def test_a_folder_that_takes_no_files_is_one_line(fake, server, monkeypatch):

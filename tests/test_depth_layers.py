@@ -383,21 +383,26 @@ def _check_models(mesh, spec, ties):
     assert ok, f"passalis-stencil differs from Sec. 3.2 at {bad[:5].tolist()}"
     assert np.array_equal(stencil.extras["unclassifiable"].dense(), unclass)
     assert stencil.run.stats["unclassifiable"] == int(unclass.sum())
-    return kara, stencil
+    return kara, stencil, karabassi_model(crossings, spec.dims), expected
 
 
 @pytest.mark.parametrize("shape", sorted(GENERATED))
 def test_karabassi_and_stencil_follow_the_paper_on_generated_solids(gl_context, shape):
     mesh = GENERATED[shape]()
     spec = glvox.grid_for(mesh, 48)
-    _check_models(mesh, spec, tie_set("reference-solid", mesh, spec))
+    _check_models(mesh, spec, tie_set("reference-solid", mesh, spec))  # the GPU equals the paper's models
 
 
-#: Measured on the shared meshes at 128^3 (llvmpipe): voxels karabassi adds and
-#: passalis-stencil loses against reference-solid (none of them a tie), and the voxels
-#: passalis-stencil marks unclassifiable.  karabassi only adds voxels (it fills
-#: concavities hidden from the six views), passalis-stencil only loses them, all inside
-#: its unclassifiable mask (inner layers of columns with more than four crossings).
+#: Measured on the shared meshes at 128^3: voxels karabassi adds and passalis-stencil
+#: loses against reference-solid (none of them a tie), and the voxels passalis-stencil
+#: marks unclassifiable.  karabassi only adds voxels (it fills concavities hidden from
+#: the six views), passalis-stencil only loses them, all inside its unclassifiable mask
+#: (inner layers of columns with more than four crossings).  Why a pinned figure is the
+#: right guard here (issue 20): these errors are the papers' approximations, not
+#: tolerances, and the test derives the same counts from the CPU models of Sec. 3.1 and
+#: 3.2 (karabassi_model, stencil_model: column crossings in float64, independent of the
+#: GPU code), so the figures are the models' answer on these meshes; the GPU must equal
+#: the models up to ties, and a change of either (or of the reference) moves a figure.
 MEASURED_128 = {
     # name: (karabassi extra, stencil missing, stencil unclassifiable)
     "cad_fandisk.off": (0, 0, 0),
@@ -417,14 +422,14 @@ def test_karabassi_and_stencil_error_on_shared_meshes(gl_context, shared_mesh, n
     spec = glvox.grid_for(mesh, 128)
     ref = run_method("reference-solid", mesh, spec).dense()
     ties = tie_set("reference-solid", mesh, spec)
-    kara, stencil = _check_models(mesh, spec, ties)
+    kara, stencil, kara_model, stencil_model_set = _check_models(mesh, spec, ties)
     extra, missing, unclass = MEASURED_128[name]
     k, s = kara.dense(), stencil.dense()
     assert not (ref & ~k & ~ties).any()
-    assert int((k & ~ref & ~ties).sum()) == extra
+    assert int((k & ~ref & ~ties).sum()) == int((kara_model & ~ref & ~ties).sum()) == extra
     assert not (s & ~ref & ~ties).any()
     lost = ref & ~s & ~ties
-    assert int(lost.sum()) == missing
+    assert int(lost.sum()) == int((ref & ~stencil_model_set & ~ties).sum()) == missing
     mask = stencil.extras["unclassifiable"].dense()
     assert int(mask.sum()) == unclass
     assert not (lost & ~mask).any()  # every voxel it gets wrong is marked unclassifiable

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 import textwrap
@@ -18,7 +19,7 @@ import numpy as np
 import pytest
 import trimesh
 from conftest import SLOW
-from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 
 import glvox
@@ -27,9 +28,13 @@ from glvox.gl.context import create_context
 from glvox.grid import GridSpec
 from glvox.mesh import load_mesh
 from glvox.methods import get_method, method_infos, method_names, run_method
+from glvox.methods.scanline import gpu_voxel_coords
 from glvox.metrics import check_against_reference, tie_set
+from glvox.reference import TIE_EPS, conservative_surface, orientation_ambiguous
+from glvox.reference.scanline import float_variant_ties, scanline_surface
 from glvox.results.voxels import VoxelGrid
 from glvox.testing.leaks import live_gl_objects, rss_bytes
+from glvox.testing.rational import conservative_surface_rational
 
 ALL = method_names()
 GL = [i.name for i in method_infos() if i.uses_gl]
@@ -184,6 +189,12 @@ def test_bit_identical_across_runs_and_processes(gl_context, shared_mesh, mesh_n
 
 
 # -- fuzzed input ----------------------------------------------------------------
+#
+# Hypothesis keeps every failing example in its local database (.hypothesis/,
+# gitignored) and replays it first on the next run; on CI (CI=true) its "ci"
+# profile derandomizes and keeps no database, so a CI run is reproducible.
+# Every failure ever seen is pinned below with @example, so it runs everywhere,
+# always.  GLVOX_SLOW=1 runs many more examples on larger grids.
 
 #: Errors a method may raise on valid input instead of a result, each
 #: documented: limits of the GL implementation or of a method's encoding, and
@@ -191,6 +202,66 @@ def test_bit_identical_across_runs_and_processes(gl_context, shared_mesh, mesh_n
 DOCUMENTED = (LimitError, MeshError)
 
 coords = st.floats(-1.0, 1.0, allow_nan=False, width=32)
+
+#: Found by the fuzz tests (commit 699acc6, "a collinear triangle at a 1e6 offset";
+#: not reproduced then, found again by compare-style hunting for issue 20): a needle
+#: whose float32 copy is collinear, far from the origin, with its flipped duplicate.
+#: ss-6sep decides it on a dominant axis that rounding picks; every voxel it touches
+#: is a tie (glvox.reference.ties, the 6-separating sliver clause).
+COLLINEAR_AT_AN_OFFSET = (np.array(
+    [[[-350000.0, -350000.0, -350000.0], [-350000.2937718332, -350000.0, -350000.0],
+      [-350000.24963627, -349999.999994235, -349999.999994235]],
+     [[-350000.24963627, -349999.999994235, -349999.999994235], [-350000.2937718332, -350000.0, -350000.0],
+      [-350000.0, -350000.0, -350000.0]],
+     [[-350000.0, -350000.0, -349999.96029576287], [-349999.9410452321, -350000.8827856779, -349999.8844454512],
+      [-349999.99057452125, -350000.14236488414, -349999.9481470489]],
+     [[-350000.0, -350000.0, -349999.96029576287], [-349999.9410452321, -350000.8827856779, -349999.8844454512],
+      [-349999.99057452125, -350000.14236488414, -349999.9481470489]],
+     [[-350017.9922938347, -350007.2368144989, -350025.0], [-350001.59168001264, -350048.4905362129, -350048.6909747124],
+      [-350031.50267004967, -350021.1845010519, -350000.0]]]), (34, 34, 25))
+
+#: Found by the fuzz tests while working on issue 20 (present on main c477184 too):
+#: needles at a 1e6 offset and among other slivers where ss-6sep and reference-6sep
+#: disagree outside the tie set (6 and 1 voxels).  Open: see test_open_6sep_needles.
+NEEDLE_AT_1E6 = (np.array(
+    [[[999999.2353368402, 1000000.00001, 999999.99999], [999999.9550924078, 1000000.0, 1000000.0],
+      [999999.7034080614, 999999.9999256068, 999999.9999186153]]]), (21, 20, 41))
+#: The same class, found again with GLVOX_SLOW=1: a needle of width 1e-4 beside three
+#: zero-area triangles (dropped); ss-6sep sets voxel (2, 4, 4), which neither reference has.
+NEEDLE_1E4 = (np.array([[[0.0, 1.0, -1.0], [1.0, 0.5, 0.5], [1.0001, 0.5001, 0.5001]]] + [[[0.0] * 3] * 3] * 3),
+              (4, 10, 6))
+NEEDLES_NEAR_THE_ORIGIN = (np.array(
+    [[[-1.0, 0.029170537367463112, 0.0], [0.0, 9.999999717180685e-10, 1.0],
+      [-0.544001479161141, 0.015799657022265875, 0.45599852083885895]],
+     [[-0.9142071008682251, 0.4630252420902252, -1.1754943508222875e-38], [0.6593770980834961, 0.0, 0.7471993565559387],
+      [-0.10538019819050445, 0.22507420563367267, 0.3840810457537264]],
+     [[-0.9142071008682251, 0.4630252420902252, -1.1754943508222875e-38], [0.6593770980834961, 0.0, 0.7471993565559387],
+      [-0.10538019819050445, 0.22507420563367267, 0.3840810457537264]],
+     [[0.8726770281791687, 0.741146981716156, -0.6177423000335693], [0.8726762283568531, 0.7411471056827307, -0.6177412239872218],
+      [0.8726768062458634, 0.7411462405691743, -0.6177416822912694]],
+     [[0.0, 0.875, -0.125], [0.0, 0.0, -0.375], [0.625, -0.125, -0.75]],
+     [[0.625, -0.125, -0.75], [0.0, 0.0, -0.375], [0.0, 0.875, -0.125]]]), (21, 29, 36))
+
+
+#: Found by the fuzz tests (GLVOX_SLOW=1) while working on issue 20 (c477184 too): a needle
+#: at a 1e6 offset in the plane y + z = 5 (voxel space) whose normal is rounding in float32
+#: and float64 alike.  The specialized and sorted variants took a column's one-voxel plane
+#: range as overlapped and set voxel (0, 2, 3), 0.01 voxel and more from it; reference-
+#: conservative's own garbage plane dropped voxel (1, 1, 2), which the needle touches
+#: (exact rational arithmetic: glvox.testing.rational).  Fixed: such slivers get the
+#: projection tests alone on the GPU (SLIVER_EPS), and their ties are taken at 0.5 + eps.
+NEEDLE_IN_A_DIAGONAL_PLANE = (np.array(
+    [[[1000000.0, 1000000.0, 1000000.75], [1000000.8125, 1000000.75, 1000000.0],
+      [1000000.55859375, 1000000.515625, 1000000.234375]]]), (2, 3, 7))
+#: The same, shrunk further by Hypothesis: here reference-conservative's float64 normal is
+#: (0, 0, 4e-16) and sets 1 voxel where the needle touches 7 (rational); the GPU sets the 7.
+#: Open: the tie set does not excuse the reference's 6 missing voxels (test_open_reference_needle).
+NEEDLE_REFERENCE_PLANE_ROUNDING = (np.array(
+    [[[1000000.0, 1000000.0, 1000000.75], [1000000.828125, 1000000.75, 1000000.0],
+      [1000000.5628662109375, 1000000.509765625, 1000000.240234375]]]), (2, 3, 7))
+NEEDLE_IN_A_DIAGONAL_PLANE_2 = (np.array(
+    [[[1000000.0, 1000000.0, 1000000.75], [1000000.8125, 1000000.75, 1000000.0],
+      [1000000.55224609375, 1000000.509765625, 1000000.240234375]]]), (2, 3, 7))
 
 
 @st.composite
@@ -235,13 +306,63 @@ def closed_solids(draw):
     return hull.vertices + offset, hull.faces
 
 
+#: Voxels in a fuzzed grid at most (2^15 by default, 2^18 with GLVOX_SLOW=1).
+FUZZ_VOXELS = 1 << (18 if SLOW else 15)
+
+
 @st.composite
 def grid_dims(draw):
-    """1 to 512 voxels per axis, non-cubic, at most 2^15 voxels in all."""
+    """1 to 512 voxels per axis, non-cubic, at most FUZZ_VOXELS in all."""
     d = [draw(st.integers(1, 512)) for _ in range(3)]
-    while d[0] * d[1] * d[2] > 1 << 15:
+    while d[0] * d[1] * d[2] > FUZZ_VOXELS:
         d[int(np.argmax(d))] //= 2
     return tuple(d)
+
+
+#: What a documented error's one line must say: the limit and a number, or the mesh and why.
+DOCUMENTED_MESSAGE = {LimitError: r"\d", MeshError: r"^(soup|hull): .*(zero area|no triangles)"}
+
+
+def assert_documented_message(exc: Exception) -> None:
+    """A documented error is one line that says what was refused (issue 20: not thrown away)."""
+    msg = str(exc)
+    assert msg and "\n" not in msg, f"{type(exc).__name__} is not one line: {msg!r}"
+    for cls, pattern in DOCUMENTED_MESSAGE.items():
+        if isinstance(exc, cls):
+            assert re.search(pattern, msg), f"{type(exc).__name__} does not say what was refused: {msg!r}"
+
+
+def check_approximate(name, grid, mesh, spec) -> None:
+    """Approximate-by-design methods against the bounds of their definitions (up to the
+    reference's ties): what tests/test_exact.py states for exact geometry, here on any."""
+    info = get_method(name).info
+    words = grid.dense()
+    if info.kind == "surface":
+        cons = run_method("reference-conservative", mesh, spec, allow_open=True).dense()
+        ties = tie_set("reference-conservative", mesh, spec)
+        if name == "scanline-ilv":  # integer lines on its own lattice: its CPU mirror voxel for voxel
+            cpu = scanline_surface(gpu_voxel_coords(mesh, spec), spec.dims, "ilv")
+            assert np.array_equal(words, cpu), f"{name}: {int((words ^ cpu).sum())} voxels off its CPU mirror"
+            return
+        tris = mesh.triangles_voxel(spec)
+        if name in ("scanline-slv", "scanline-rlv"):  # between cons(0.5 - eps) and cons(0.5), up to the
+            # ties of their own float decisions (a needle's dominant axis, say)
+            ties = ties | float_variant_ties(tris, spec.dims, name[-3:], 26)
+            miss = conservative_surface(tris, spec.dims, 0.5 - TIE_EPS) & ~words & ~ties
+            assert not miss.any(), f"{name}: {int(miss.sum())} voxels overlapped by more than TIE_EPS missing"
+        out = words & ~cons & ~ties
+        assert not out.any(), f"{name}: {int(out.sum())} voxels outside the conservative set and its ties"
+        return
+    ref = run_method("reference-solid", mesh, spec, allow_open=True).dense()
+    if name == "leung-wang-ldi":  # conservative: samples rounded outwards by at most one LOD-C cell
+        cell = spec.dims[get_method(name).info.options["axis"].default] / 1024
+        near = tie_set("reference-solid", mesh, spec, eps=max(cell, TIE_EPS) + TIE_EPS)
+        assert not (ref & ~words & ~tie_set("reference-solid", mesh, spec)).any(), f"{name}: inside centers lost"
+        assert not (words & ~ref & ~near).any(), f"{name}: centers farther than a LOD-C cell outside added"
+        return
+    # karabassi, passalis-stencil: exact on convex hulls (no hidden concavity, two crossings a column)
+    c = check_against_reference(grid, mesh, "reference-solid")
+    assert c.ok, f"{name} on a convex hull: {c.describe()}"
 
 
 def _check_or_documented(name, mesh, spec):
@@ -249,6 +370,7 @@ def _check_or_documented(name, mesh, spec):
     try:
         result = run_method(name, mesh, spec, allow_open=True)
     except DOCUMENTED as exc:
+        assert_documented_message(exc)
         return f"{type(exc).__name__}: {exc}"
     except GlvoxError as exc:
         raise AssertionError(f"{name} raised an undocumented {type(exc).__name__}: {exc}") from exc
@@ -262,25 +384,99 @@ def _check_or_documented(name, mesh, spec):
     if info.exact and info.reference:
         c = check_against_reference(grid, mesh, info.reference)
         assert c.ok, f"{name} on {spec.dims}: {c.describe()}"
+    elif info.reference:
+        check_approximate(name, grid, mesh, spec)
     return None
 
 
-FUZZ = settings(max_examples=20 if not SLOW else 200, deadline=None, derandomize=True,
+FUZZ = settings(max_examples=20 if not SLOW else 300, deadline=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+
+
+def soup_mesh(tris):
+    v = tris.reshape(-1, 3)
+    return load_mesh((v, np.arange(len(v)).reshape(-1, 3)), name="soup")
 
 
 @FUZZ
 @given(tris=triangle_soups(), dims=grid_dims())
+@example(tris=COLLINEAR_AT_AN_OFFSET[0], dims=COLLINEAR_AT_AN_OFFSET[1])
+@example(tris=NEEDLE_IN_A_DIAGONAL_PLANE[0], dims=NEEDLE_IN_A_DIAGONAL_PLANE[1])
+@example(tris=NEEDLE_IN_A_DIAGONAL_PLANE_2[0], dims=NEEDLE_IN_A_DIAGONAL_PLANE_2[1])
 def test_fuzzed_soups_on_every_surface_method(gl_context, tris, dims):
-    v = tris.reshape(-1, 3)
-    f = np.arange(len(v)).reshape(-1, 3)
     try:
-        mesh = load_mesh((v, f), name="soup")
-    except MeshError:
-        return  # every triangle had zero area: the documented EmptyMeshError
+        mesh = soup_mesh(tris)
+    except MeshError as exc:  # every triangle had zero area: the documented EmptyMeshError
+        assert_documented_message(exc)
+        return
     spec = glvox.grid_for(mesh, dims=dims)
     for name in (i.name for i in method_infos(kind="surface")):
         _check_or_documented(name, mesh, spec)
+
+
+@pytest.mark.xfail(strict=True, raises=AssertionError, reason="open (issue 20): on these needles ss-6sep "
+                   "differs from reference-6sep and from the rational 6-separating set outside the tie set "
+                   "(6 extra, 1 missing voxels); not slivers by the orientation bound; strict: passes once fixed")
+@pytest.mark.parametrize("case", [NEEDLE_AT_1E6, NEEDLES_NEAR_THE_ORIGIN, NEEDLE_1E4], ids=["1e6", "origin", "1e-4"])
+def test_open_6sep_needles(gl_context, case):
+    """The fuzz failures that are not fixed yet, pinned so they run on every run."""
+    mesh = soup_mesh(case[0])
+    spec = glvox.grid_for(mesh, dims=case[1])
+    c = check_against_reference(run_method("ss-6sep", mesh, spec, allow_open=True), mesh)
+    assert c.ok, c.describe()
+
+
+@pytest.mark.xfail(strict=True, raises=AssertionError, reason="open (issue 20): reference-conservative's "
+                   "float64 plane of this needle is rounding (1 voxel of the exact 7) and its tie set does not "
+                   "excuse the 6 it drops; strict: passes once fixed")
+def test_open_reference_needle(gl_context):
+    mesh = soup_mesh(NEEDLE_REFERENCE_PLANE_ROUNDING[0])
+    spec = glvox.grid_for(mesh, dims=NEEDLE_REFERENCE_PLANE_ROUNDING[1])
+    c = check_against_reference(run_method("ss-conservative", mesh, spec, allow_open=True), mesh)
+    assert c.ok, c.describe()
+
+
+@pytest.mark.parametrize("variant", ["simple", "specialized", "sorted"])
+def test_gpu_needle_is_the_exact_set(gl_context, variant):
+    """Where the float64 reference fails (above), the GPU's sliver path gives the exact
+    (rational) set of the needle: the 7 voxels it touches."""
+    mesh = soup_mesh(NEEDLE_REFERENCE_PLANE_ROUNDING[0])
+    spec = glvox.grid_for(mesh, dims=NEEDLE_REFERENCE_PLANE_ROUNDING[1])
+    exact = conservative_surface_rational(mesh.triangles_voxel(spec), spec.dims)
+    got = run_method("ss-conservative", mesh, spec, allow_open=True, variant=variant).dense()
+    assert exact.sum() == 7 and np.array_equal(got, exact)
+
+
+@pytest.mark.parametrize("case", [NEEDLE_IN_A_DIAGONAL_PLANE, NEEDLE_IN_A_DIAGONAL_PLANE_2], ids=["1", "2"])
+def test_needle_in_a_diagonal_plane(gl_context, case):
+    """The pinned needles: every conservative variant and the float paths of the scanline
+    agree with reference-conservative up to ties, and the touched voxels that the float64
+    reference decides by its rounded plane are ties: the exact (rational) set is within them."""
+    mesh = soup_mesh(case[0])
+    spec = glvox.grid_for(mesh, dims=case[1])
+    ties = tie_set("reference-conservative", mesh, spec)
+    ref = run_method("reference-conservative", mesh, spec, allow_open=True).dense()
+    exact = conservative_surface_rational(mesh.triangles_voxel(spec), spec.dims)
+    assert not ((exact ^ ref) & ~ties).any()
+    for variant in ("simple", "specialized", "sorted"):
+        got = run_method("ss-conservative", mesh, spec, allow_open=True, variant=variant).dense()
+        assert not ((got ^ ref) & ~ties).any(), variant
+        assert not ((got ^ exact) & ~ties).any(), variant
+
+
+def test_the_collinear_case_needs_the_sliver_clause(gl_context):
+    """The pinned collinear needle: ss-6sep differs from reference-6sep there, and only the
+    6-separating sliver clause of the tie set excuses it (so the pin guards that clause)."""
+    mesh = soup_mesh(COLLINEAR_AT_AN_OFFSET[0])
+    spec = glvox.grid_for(mesh, dims=COLLINEAR_AT_AN_OFFSET[1])
+    got = run_method("ss-6sep", mesh, spec, allow_open=True).dense()
+    ref = run_method("reference-6sep", mesh, spec, allow_open=True).dense()
+    tris = mesh.triangles_voxel(spec)
+    free = orientation_ambiguous(tris).all(axis=1)
+    clause = conservative_surface(tris[free], spec.dims, 0.5 + TIE_EPS)
+    diff = got ^ ref
+    assert diff.any() and free.any() and not (diff & ~tie_set("reference-6sep", mesh, spec)).any()
+    assert (diff & clause).any()
 
 
 @FUZZ
@@ -289,7 +485,7 @@ def test_fuzzed_closed_solids_on_every_solid_method(gl_context, solid, dims):
     mesh = load_mesh(solid, name="hull")
     spec = glvox.grid_for(mesh, dims=dims)
     for info in method_infos():
-        if info.kind in ("solid", "sparse"):
+        if info.kind in ("solid", "sparse", "ldi"):
             _check_or_documented(info.name, mesh, spec)
 
 

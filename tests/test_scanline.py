@@ -45,7 +45,7 @@ from glvox.grid import GridSpec
 from glvox.mesh import load_mesh
 from glvox.methods import get_method, run_method, validate_options
 from glvox.methods.scanline import gpu_voxel_coords
-from glvox.metrics import check_against_reference, separation_leaks
+from glvox.metrics import check_against_reference, separation_leaks, tie_set
 from glvox.reference import TIE_EPS, conservative_surface, solid, surface_ties
 from glvox.reference.scanline import (OpCounts, float_variant_ties, ilv_line, lattice_points, rlv_line,
                                       scanline_surface, slv_line)
@@ -345,6 +345,29 @@ def check_float_path(mode, mesh, spec, ref=None):
 def test_gpu_rlv_and_slv_against_reference_conservative(mode, name, gl_context, shared_mesh):
     mesh = load_mesh(shared_mesh(name))
     check_float_path(mode, mesh, glvox.grid_for(mesh, 96))
+
+
+@pytest.mark.parametrize("name", SHARED_MESHES)
+def test_gpu_rlv_and_slv_on_every_shared_mesh_at_48(name, gl_context, shared_mesh):
+    """The float paths against the exact reference on every shared mesh in the default run
+    (issue 20: one real mesh was not enough), at 48^3; 256^3 with GLVOX_SLOW=1 (below).  SLV:
+    the conservative set up to ties.  RLV: less voxels touched only at singular points, and
+    beyond them it may differ only on the ties of its own float decisions (float_variant_ties:
+    on the happy Buddha a voxel overlapped by ~5e-3 voxel, set by the float64 mirror of RLV,
+    is dropped by the GPU's float32 one)."""
+    mesh = load_mesh(shared_mesh(name))
+    spec = glvox.grid_for(mesh, 48)
+    ref = run_method("reference-conservative", mesh, spec)
+    ties = tie_set("reference-conservative", mesh, spec)
+    slv = check_against_reference(run_method("scanline-slv", mesh, spec), mesh, reference_grid=ref, ties=ties)
+    assert slv.ok, slv.describe()
+    tris = mesh.triangles_voxel(spec)
+    got = run_method("scanline-rlv", mesh, spec).dense()
+    singular = ref.dense() & ~conservative_surface(tris, spec.dims, 0.5 - TIE_EPS)
+    bad = (got ^ ref.dense()) & ~singular & ~ties
+    if bad.any():  # its own float ties, only where needed (they cost a pass over the triangles)
+        bad &= ~float_variant_ties(tris, spec.dims, "rlv", 26)
+    assert not bad.any(), np.argwhere(bad)[:5].tolist()
 
 
 def test_large_triangles_go_through_the_overflow_passes(gl_context):

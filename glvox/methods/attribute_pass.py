@@ -43,7 +43,7 @@ from ..gpu.sort import exclusive_scan
 from ..gpu.transform import transform_vertices
 from ..results.voxels import ATTRIBUTE_DTYPES
 from ..visuals import COLOR_TEXTURE
-from .ss_surface import CHUNK, LOCAL_SIZE, VARIANTS, auto_variant, sort_by_case, voxelize_sorted, voxelize_unsorted
+from .ss_surface import LOCAL_SIZE, auto_variant, sort_by_case, surface_defines, voxelize_sorted, voxelize_unsorted
 
 #: The attributes a result can carry (``--attributes``).
 ATTRIBUTE_NAMES = tuple(ATTRIBUTE_DTYPES)
@@ -183,7 +183,7 @@ def _pairs(ctx, mesh, spec, grid, offsets, count, pool, timer):
     per_tri = pool.get("per_triangle", n * 4, what="per-triangle work", clear=False)
     args = pool.get("args", 9 * 4, clear=False)
     keys = pool.get("keys", n * 4, what="sort keys", clear=False)
-    defines = {"SS_CRITERION": 0, "SS_VARIANT": VARIANTS[variant], "SS_CHUNK": CHUNK}
+    defines = surface_defines(0, variant)
     common = {**grid_uniforms(spec, bufs.anchor), "u_triangles": n, "u_tri_offset": 0,
               "u_local_size": LOCAL_SIZE, "u_max_groups": max_groups}
     own = ((9, offsets), (10, best_dist), (11, best_tri), (12, slot_voxel))

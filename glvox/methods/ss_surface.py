@@ -34,6 +34,7 @@ from ..gpu.sort import sort_pairs
 from ..gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set_uniforms
 from ..gpu.transform import transform_vertices
 from ..results.voxels import VoxelGrid
+from ..tolerances import SLIVER_EPS
 from .base import Method, MethodInfo, Option, Requirements, register
 
 _PAPER = "Schwarz & Seidel 2010"
@@ -79,6 +80,13 @@ def auto_variant(n_triangles: int, dims, max_groups: int) -> str:
     return AUTO_FALLBACK if variant == "sorted" and n_triangles > max_groups * LOCAL_SIZE else variant
 
 
+def surface_defines(criterion: int, variant: str) -> dict:
+    """The defines of ``ss/classify.comp`` and ``ss/surface.comp``: the criterion, the
+    variant, the chunk and the sliver bound (:data:`~glvox.tolerances.SLIVER_EPS`)."""
+    return {"SS_CRITERION": criterion, "SS_VARIANT": VARIANTS[variant], "SS_CHUNK": CHUNK,
+            "SS_SLIVER_EPS": SLIVER_EPS}
+
+
 def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int = 0):
     """The S&S surface of ``mesh`` on ``spec`` in a GPU buffer, nothing read back.
 
@@ -122,7 +130,7 @@ def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int
     stats = pool.get("stats", 8 * 4)
     per_tri = pool.get("per_triangle", n * 4, what="per-triangle work", clear=False)
     args = pool.get("args", 9 * 4, clear=False)
-    defines = {"SS_CRITERION": criterion, "SS_VARIANT": VARIANTS[variant], "SS_CHUNK": CHUNK}
+    defines = surface_defines(criterion, variant)
     common = {**grid_uniforms(spec, bufs.anchor), "u_triangles": n, "u_tri_offset": 0,
               "u_local_size": LOCAL_SIZE, "u_max_groups": max_groups}
     vox.bind_to_storage_buffer(1)

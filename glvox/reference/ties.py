@@ -227,7 +227,7 @@ def _add_orientation_ties(ties: np.ndarray, f, tris: np.ndarray, dims, criterion
         no_plane = np.ones(len(sliver), dtype=bool)
         for bits in range(8):
             flip = np.array([(bits >> p) & 1 for p in range(3)], dtype=bool)[None, :].repeat(len(sliver), 0)
-            ties |= f(sliver, dims, 0.5, flip=flip, no_plane=no_plane)
+            ties |= f(sliver, dims, 0.5 + eps, flip=flip, no_plane=no_plane)
         if criterion == "6sep":
             # the 6-separating criterion of a segment-like triangle depends on
             # a dominant axis that rounding picks: any voxel the sliver touches

@@ -80,24 +80,40 @@ def _glvox_requires_gl(request):
     yield
 
 
-def _require_meshes() -> bool:
-    return os.environ.get("GLVOX_REQUIRE_MESHES", "") not in ("", "0")
+def _require_meshes() -> str | None:
+    """Why a mesh that is not available fails the test instead of skipping it, or None:
+    ``GLVOX_REQUIRE_MESHES=1``, or ``CI=true`` (a CI run must not pass by skipping its mesh
+    tests; ``GLVOX_REQUIRE_MESHES=0`` lets one skip them anyway)."""
+    req = os.environ.get("GLVOX_REQUIRE_MESHES", "")
+    if req not in ("", "0"):
+        return "GLVOX_REQUIRE_MESHES is set"
+    if req == "" and os.environ.get("CI", "").strip().lower() in ("true", "1", "yes"):
+        return "CI is set (GLVOX_REQUIRE_MESHES=0 skips instead)"
+    return None
+
+
+def _looked_in() -> str:
+    from glvox.datasets import search_dirs
+
+    return f"looked in {', '.join(str(d) for d in search_dirs())}"
 
 
 def mesh_or_skip(name: str) -> Path:
     """The path of mesh ``name`` (:func:`glvox.datasets.fetch`: GLVOX_MESHES, else ../shared/meshes
     beside the checkout, else the user cache, else a download); when it is not available, skip
-    the calling test with one line naming it and saying how to get it, or fail it when
-    ``GLVOX_REQUIRE_MESHES=1`` (for sites that must not pass by skipping)."""
+    the calling test with one line naming it, where it was looked for and how to get it, or fail
+    it when ``GLVOX_REQUIRE_MESHES=1`` or ``CI=true`` (sites that must not pass by skipping)."""
     from glvox.datasets import fetch
     from glvox.errors import DatasetError
 
     try:
         return fetch(name, quiet=True)
     except DatasetError as exc:
-        if _require_meshes():
-            pytest.fail(f"GLVOX_REQUIRE_MESHES is set and {exc}", pytrace=False)
-        pytest.skip(str(exc))
+        msg = f"{exc} ({_looked_in()})"
+    why = _require_meshes()  # outside the except: one line, not a chained traceback
+    if why:
+        pytest.fail(f"{why} and {msg}", pytrace=False)
+    pytest.skip(msg)
 
 
 @pytest.fixture(scope="session")
@@ -114,8 +130,9 @@ def glvox_mesh_dir() -> Path:
 
     path = mesh_dir()
     if not path.is_dir():
-        msg = f"no meshes folder at {path}: `glvox data fetch --all`, or set GLVOX_MESHES"
-        if _require_meshes():
-            pytest.fail(f"GLVOX_REQUIRE_MESHES is set and {msg}", pytrace=False)
+        msg = f"no meshes folder at {path} ({_looked_in()}): `glvox data fetch --all`, or set GLVOX_MESHES"
+        why = _require_meshes()
+        if why:
+            pytest.fail(f"{why} and {msg}", pytrace=False)
         pytest.skip(msg)
     return path

@@ -15,6 +15,7 @@ struct Tri {
     vec3 n;        // cross(v1 - v0, v2 - v0), not normalized
     ivec3 lo, hi;  // touched voxels (closed boxes, Fig. 5a), clipped; lo > hi: outside the grid
     ivec3 ext;     // unclipped touched extent per axis, in voxels
+    bool no_plane; // a sliver: its plane is rounding, only the projections decide
 };
 
 vec3 vox_vertex(uint i) { return vec3(vox[3u * i], vox[3u * i + 1u], vox[3u * i + 2u]); }
@@ -32,6 +33,20 @@ Tri setup_triangle(uint t) {
     T.v1 = a1 - b;
     T.v2 = a2 - b;
     T.n = cross(T.v1 - T.v0, T.v2 - T.v0);
+    // A sliver: in each of the three projections the signed area n_c is within what
+    // moving the vertices by SS_SLIVER_EPS voxel can change (the bound of
+    // glvox.reference.ties.orientation_ambiguous, with half the tie epsilon, so that
+    // every sliver here is a "free" sliver there, whose tie set holds every voxel its
+    // projections allow).  Its normal is then mostly the float32 rounding of the
+    // vertices, so S&S's plane test (Eq. 1) and the dominant axis of the columns are
+    // rounding too; such a triangle gets the projection tests alone over its bounding
+    // box, as a zero-area one does.  A triangle in a coordinate plane is no sliver
+    // (its normal is exact), as in the reference.
+    vec3 e0 = T.v1 - T.v0, e1 = T.v2 - T.v0;
+    vec3 bound = 2.0 * SS_SLIVER_EPS * (abs(e0.yzx) + abs(e0.zxy) + abs(e1.yzx) + abs(e1.zxy))
+               + 8.0 * SS_SLIVER_EPS * SS_SLIVER_EPS;
+    bvec3 in_plane = bvec3(ivec3(equal(T.v0, T.v1)) * ivec3(equal(T.v1, T.v2)));
+    T.no_plane = all(lessThanEqual(abs(T.n), bound)) && !any(in_plane);
     vec3 mn = clamp(min(min(a0, a1), a2), vec3(-2.0), lim);
     vec3 mx = clamp(max(max(a0, a1), a2), vec3(-2.0), lim);
     // voxel i touches [mn, mx] iff i <= mx and i + 1 >= mn
@@ -96,6 +111,7 @@ bool proj_test(Proj P, ivec2 q) {
 // Plane overlap (Eq. 1, or Sec. 3.4's 6-separating offsets) for the box with
 // minimum corner p (absolute voxel indices).
 bool plane_test(Tri T, ivec3 voxel) {
+    if (T.no_plane) return true;
     vec3 p = vec3(voxel - T.base);
 #if SS_CRITERION == 1
     float s = dot(T.n, p + 0.5 - T.v0);

@@ -13,8 +13,9 @@ int case_axis(Tri T, int type) {
     return T.ext.x == 1 ? 0 : (T.ext.y == 1 ? 1 : 2);
 }
 
-// Zero area in float32: no dominant axis, so the voxels of the box get the full test.
-bool degenerate(Tri T) { return all(equal(T.n, vec3(0.0))); }
+// Zero area in float32, or a sliver (setup.glsl): no dominant axis to trust, so the
+// voxels of the box get the full test (without the plane test for a sliver).
+bool degenerate(Tri T) { return all(equal(T.n, vec3(0.0))) || T.no_plane; }
 
 uint work_units(Tri T, int type) {
     ivec3 s = bbox_size(T);

@@ -1,0 +1,297 @@
+"""Mutation testing: does the default suite notice when the code it guards is broken?
+
+Each mutant is a small text patch (one or more exact replacements) of a GLSL
+shader or a Python module, meant to be *meaningful*: a box test shrunk by less
+than the tie epsilon, a fill rule's strict comparison made non-strict, a prefix
+fill started one voxel late, and so on (:data:`MUTANTS`).  For each mutant the
+script
+
+1. copies the checkout (``git ls-files``: tracked and untracked, not ignored
+   files) into a scratch folder, once;
+2. applies the patch there (every ``old`` text must occur exactly once, so a
+   refactor that moves the code makes the mutant fail loudly, not pass
+   silently), runs the mutant's tests (``python -m pytest -x`` on the files
+   and ``-k`` selection listed with it) against the scratch copy
+   (``PYTHONPATH`` and ``GLVOX_SHADER_PATH`` point there, and the run checks
+   that glvox is imported from there), and restores the file in a
+   ``finally``;
+3. reports the mutant *killed* when pytest fails a test (exit status 1) with
+   an assertion, *survived* when the tests pass, and *error* for anything else
+   (a collection error, a shader that no longer compiles: such a mutant tests
+   nothing and must be rewritten).
+
+The checkout itself is never touched.  Before the mutants, the same tests run
+unmutated in the scratch copy and must pass.  Exit status 0 iff every mutant
+is killed.
+
+Usage::
+
+    python compare/mutants.py                 # every mutant, a table at the end
+    python compare/mutants.py --list          # the mutants and their tests
+    python compare/mutants.py -m ss-box-shrink-simple fill-rule-non-strict
+    python compare/mutants.py --json mutants.json
+
+Keep the list growing as methods land: a mutant is (id, why, file, [(old, new)],
+tests), the tests being the few default-suite tests that should catch it (by
+file and ``-k``), so each run stays short.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@dataclass(frozen=True)
+class Mutant:
+    id: str
+    why: str
+    file: str
+    patches: tuple[tuple[str, str], ...]
+    tests: tuple[str, ...]  # pytest arguments: files / node ids, and -k expressions
+    extra: tuple[str, ...] = field(default=())
+
+
+_SHRINK = (  # S&S's box test on the box [p + 5e-5, p + 1 - 5e-5]: 1e-4 voxel smaller, < the tie epsilon
+    ("    ivec3 first = ivec3(ceil(mn)) - 1;\n    ivec3 last = ivec3(floor(mx));",
+     "    ivec3 first = ivec3(ceil(mn + 5e-5)) - 1;\n    ivec3 last = ivec3(floor(mx - 5e-5));"),
+    ("return edge_box_term_6sep(n, vec2(1.0));", "return edge_box_term_6sep(n, vec2(1.0 - 1e-4));"),
+    ("return edge_box_term_conservative(n, vec2(1.0));", "return edge_box_term_conservative(n, vec2(1.0 - 1e-4));"),
+    ("    vec2 r = vec2(q - P.base);", "    vec2 r = vec2(q - P.base) + 5e-5;"),
+    ("    return abs(s) <= 0.5 * max(a.x, max(a.y, a.z));", "    return abs(s) <= (0.5 - 5e-5) * max(a.x, max(a.y, a.z));"),
+    ("    float s = dot(T.n, p - T.v0);", "    float s = dot(T.n, p + 5e-5 - T.v0);"),
+    ("    return s + (pos.x + pos.y + pos.z) >= 0.0 && s + (neg.x + neg.y + neg.z) <= 0.0;",
+     "    return s + (1.0 - 1e-4) * (pos.x + pos.y + pos.z) >= 0.0 && s + (1.0 - 1e-4) * (neg.x + neg.y + neg.z) <= 0.0;"),
+)
+
+
+def _grow(patches):
+    """The same patches with the box grown by as much."""
+    swap = {"+ 5e-5": "- 5e-5", "- 5e-5": "+ 5e-5", "1.0 - 1e-4": "1.0 + 1e-4", "0.5 - 5e-5": "0.5 + 5e-5"}
+    out = []
+    for old, new in patches:
+        for a, b in swap.items():
+            new = new.replace(a, "\0" + b)
+        out.append((old, new.replace("\0", "")))
+    return tuple(out)
+
+
+EXACT = "tests/test_exact.py"
+
+MUTANTS: list[Mutant] = [
+    *[Mutant(f"ss-box-shrink-{v}", f"the issue's mutation: S&S box test shrunk by 5e-5 voxel ({v})", "shaders/ss/setup.glsl",
+             _SHRINK, (EXACT, "-k", k))
+      for v, k in (("simple", "variant-simple"), ("specialized", "variant-specialized"),
+                   ("sorted", "variant-sorted"), ("6sep", "ss-6sep"))],
+    *[Mutant(f"ss-box-grow-{v}", f"S&S box test grown by 5e-5 voxel ({v})", "shaders/ss/setup.glsl",
+             _grow(_SHRINK), (EXACT, "-k", k))
+      for v, k in (("simple", "variant-simple"), ("specialized", "variant-specialized"),
+                   ("sorted", "variant-sorted"), ("6sep", "ss-6sep"))],
+    Mutant("ss-column-range-rounded", "the column range of the specialized variant from a rounded quotient again "
+           "(the bug this issue's exact tests found)", "shaders/ss/surface.comp",
+           (("    if (float(m - 1) * b >= a) return m - 1;\n    return float(m) * b < a ? m + 1 : m;",
+             "    return m;"),
+            ("    if (float(m + 1) * b <= a) return m + 1;\n    return float(m) * b > a ? m - 1 : m;",
+             "    return m;"),
+            ("    int m = int(ceil(a / b));", "    int m = int(ceil(a * (1.0 / b)));"),
+            ("    int m = int(floor(a / b));", "    int m = int(floor(a * (1.0 / b)));")),
+           (EXACT, "-k", "variant-specialized")),
+    Mutant("sliver-plane-trusted", "ss surface: a sliver's rounded plane trusted again (the fuzz-found bug)",
+           "shaders/ss/setup.glsl", (("    if (T.no_plane) return true;\n", ""),
+                                     ("    T.no_plane = all(lessThanEqual(abs(T.n), bound)) && !any(in_plane);",
+                                      "    T.no_plane = false;")),
+           ("tests/test_reliability.py", "-k", "needle")),
+    Mutant("sliver-ties-at-half", "reference ties: free slivers' projections at exactly 0.5 again",
+           "glvox/reference/ties.py",
+           (("            ties |= f(sliver, dims, 0.5 + eps, flip=flip, no_plane=no_plane)",
+             "            ties |= f(sliver, dims, 0.5, flip=flip, no_plane=no_plane)"),),
+           ("tests/test_reliability.py", "-k", "needle_in_a_diagonal_plane")),
+    Mutant("reference-solid-one-late", "reference-solid: every crossing flips from one voxel later",
+           "glvox/reference/solid.py", (("        qbar = np.floor(q + 0.5)", "        qbar = np.floor(q + 0.5) + 1"),),
+           (EXACT, "-k", "libigl")),
+    Mutant("fill-rule-non-strict", "S&S solid: the top-left rule's strict comparison made non-strict "
+           "(centers on an edge count for both triangles)", "shaders/ss/solid.glsl",
+           (("if (!(f > 0.0lf || (f == 0.0lf && t.tl[i]))) return false;",
+             "if (!(f >= 0.0lf || (f == 0.0lf && t.tl[i]))) return false;"),),
+           (EXACT, "-k", "solid_methods and ss-solid")),
+    Mutant("half-open-rule-swapped", "S&S solid: a center exactly on the crossing flips (>= instead of >)",
+           "shaders/ss/solid.glsl",
+           (("return int(clamp(floor(q + 0.5lf), -1.0lf, 1073741824.0lf));",
+             "return int(clamp(ceil(q - 0.5lf), -1.0lf, 1073741824.0lf));"),),
+           (EXACT, "-k", "solid_methods and ss-solid")),
+    Mutant("eisemann-top-left-non-strict", "eisemann column test: centers on every projected edge covered "
+           "(the top-left rule's strict comparison made non-strict)", "shaders/eisemann/column.glsl",
+           (("        if (!(f > 0.0 || (f == 0.0 && top_left))) return false;",
+             "        if (!(f >= 0.0 || (f == 0.0 && top_left))) return false;"),),
+           (EXACT, "-k", "solid_methods and eisemann-solid")),
+    Mutant("depth-top-left-swapped", "depth layers' rasterization: the top-left rule's tie break inverted "
+           "(n_v > 0 owns horizontal edges)", "shaders/depth/raster.frag",
+           (("    bool top_left = neu > 0.0 || (neu == 0.0 && nev < 0.0);",
+             "    bool top_left = neu > 0.0 || (neu == 0.0 && nev > 0.0);"),),
+           (EXACT, "-k", "solid_methods and passalis-peel")),
+    Mutant("prefix-fill-one-late", "ss-solid: the prefix XOR along a row starts one voxel late",
+           "shaders/ss/solid_fill.comp",
+           (("            c ^= c << 1u;\n            c ^= c << 2u;",
+             "            c = c << 1u;\n            c ^= c << 1u;\n            c ^= c << 2u;"),),
+           (EXACT, "-k", "solid_methods and ss-solid")),
+    Mutant("depth-peel-skips-a-layer", "depth peeling: the layer behind layer 0 is peeled past unrecorded",
+           "glvox/methods/depth_raster.py",
+           (("    for index in range(1, known):\n        run.draw(target, cur, cls=cls, prev=prev)",
+             "    for index in range(1, known):\n        if index == 1:\n            run.draw(target, cur, cls=cls, prev=prev)\n"
+             "            cur, prev = prev, cur\n        run.draw(target, cur, cls=cls, prev=prev)"),),
+           (EXACT, "-k", "solid_methods and (peel-ldi or passalis-peel)")),
+    Mutant("xor-mask-off-by-one-slice", "eisemann: each fragment's suffix mask starts one slice late",
+           "shaders/eisemann/masks.glsl",
+           (("ivec4 lo = clamp(ivec4(first - 128 * t) - ivec4(0, 32, 64, 96), 0, 32);",
+             "ivec4 lo = clamp(ivec4(first + 1 - 128 * t) - ivec4(0, 32, 64, 96), 0, 32);"),),
+           (EXACT, "-k", "solid_methods and eisemann-solid")),
+    Mutant("eisemann-slice-rounded", "eisemann-surface: the crossing's slice rounded to the nearest, not floored",
+           "shaders/eisemann/column.glsl",
+           (("int eis_slice_of(double q, int n) { return q == double(n) ? n - 1 : eis_to_int(floor(q)); }",
+             "int eis_slice_of(double q, int n) { return q == double(n) ? n - 1 : eis_to_int(floor(q + 0.5)); }"),),
+           (EXACT, "-k", "surface_methods and eisemann-surface")),
+    Mutant("bit-packing-shift-glsl", "common/bits.glsl: a voxel's bit one position off",
+           "shaders/common/bits.glsl",
+           (("uint bit_of(uint i) { return 1u << (i & 31u); }", "uint bit_of(uint i) { return 1u << ((i + 1u) & 31u); }"),),
+           (EXACT, "-k", "surface_methods and ss-conservative")),
+    Mutant("bit-packing-shift-python", "glvox.grid.unpack_bits: big-endian bit order within a byte",
+           "glvox/grid.py",
+           (('    bits = np.unpackbits(w.view(np.uint8).reshape(nz, ny, wpr * 4), axis=2, bitorder="little")',
+             '    bits = np.unpackbits(w.view(np.uint8).reshape(nz, ny, wpr * 4), axis=2, bitorder="big")'),),
+           ("tests/test_grid.py",)),
+    Mutant("grid-origin-fraction", "glvox.grid.fit_grid: the origin moved by 1/100 voxel",
+           "glvox/grid.py",
+           (("    origin = center - 0.5 * np.asarray(d, dtype=np.float64) * h",
+             "    origin = center - 0.5 * np.asarray(d, dtype=np.float64) * h + 0.01 * h"),),
+           ("tests/test_grid.py",)),
+    Mutant("tie-eps-larger", "TIE_EPS 1e-4 -> 1.2e-4 (the design's tolerance changed)", "glvox/tolerances.py",
+           (("TIE_EPS = 1e-4\n", "TIE_EPS = 1.2e-4\n"),), (EXACT, "-k", "tie_sets")),
+    Mutant("tie-eps-smaller", "TIE_EPS 1e-4 -> 0.8e-4", "glvox/tolerances.py",
+           (("TIE_EPS = 1e-4\n", "TIE_EPS = 0.8e-4\n"),), (EXACT, "-k", "tie_sets")),
+    Mutant("reference-conservative-strict", "reference-conservative: the plane test's comparisons made strict "
+           "(touching boxes dropped)", "glvox/reference/surface.py",
+           (("        ok = np.minimum(lo, hi) <= 0.0\n        ok &= np.maximum(lo, hi) >= 0.0",
+             "        ok = np.minimum(lo, hi) < 0.0\n        ok &= np.maximum(lo, hi) > 0.0"),),
+           (EXACT, "-k", "reference-conservative")),
+    Mutant("reference-6sep-edge-offset", "reference-6sep: the edge offsets from the smaller normal component",
+           "glvox/reference/surface.py",
+           (("        h = np.where(ane[:, p, :, 0] >= ane[:, p, :, 1], halves[:, a, None], halves[:, b, None])\n"
+             "        oe[:, p] = h * ane[:, p].max(axis=-1)",
+             "        h = np.where(ane[:, p, :, 0] >= ane[:, p, :, 1], halves[:, a, None], halves[:, b, None])\n"
+             "        oe[:, p] = h * ane[:, p].min(axis=-1)"),),
+           (EXACT, "-k", "reference-6sep")),
+    Mutant("reference-solid-half-open", "reference-solid: centers on the crossing flip (>= instead of >)",
+           "glvox/reference/solid.py", (("        qbar = np.floor(q + 0.5)", "        qbar = np.ceil(q - 0.5)"),),
+           (EXACT, "-k", "rules_on_the_surface")),
+]
+
+
+def scratch_copy(dest: Path) -> None:
+    files = subprocess.run(["git", "ls-files", "-co", "--exclude-standard", "-z"], cwd=ROOT, check=True,
+                           capture_output=True).stdout.decode().split("\0")
+    for f in filter(None, files):
+        src = ROOT / f
+        if src.is_file():
+            (dest / f).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src, dest / f)
+
+
+def env_for(scratch: Path) -> dict:
+    from glvox.datasets import mesh_dir  # the meshes the checkout would use, by absolute path
+
+    env = dict(os.environ)
+    env["PYTHONPATH"] = str(scratch) + os.pathsep + env.get("PYTHONPATH", "")
+    env["GLVOX_SHADER_PATH"] = str(scratch / "shaders")
+    env.setdefault("GLVOX_MESHES", str(mesh_dir().resolve()))
+    return env
+
+
+def run_tests(scratch: Path, tests, env) -> tuple[int, str, float]:
+    t0 = time.perf_counter()
+    p = subprocess.run([sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", "-p", "no:randomly",
+                        *tests], cwd=scratch, env=env, capture_output=True, text=True)
+    return p.returncode, p.stdout + p.stderr, time.perf_counter() - t0
+
+
+def first_failure(out: str) -> str:
+    for line in out.splitlines():
+        if line.startswith(("FAILED", "ERROR")):
+            return line.split(" - ")[0].replace("FAILED ", "").replace("ERROR ", "ERROR ")
+    return ""
+
+
+def apply(scratch: Path, m: Mutant) -> str:
+    """Patch the scratch file; returns its original text (restored by the caller)."""
+    path = scratch / m.file
+    text = path.read_text()
+    new = text
+    for old, rep in m.patches:
+        if new.count(old) != 1:
+            raise SystemExit(f"mutant {m.id}: {old!r} occurs {new.count(old)} times in {m.file}, not once")
+        new = new.replace(old, rep)
+    path.write_text(new)
+    return text
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("-m", "--mutants", nargs="*", help="ids to run (default: all)")
+    ap.add_argument("--list", action="store_true", help="list the mutants and their tests")
+    ap.add_argument("--json", type=Path, help="write the results here")
+    a = ap.parse_args(argv)
+    chosen = [m for m in MUTANTS if not a.mutants or m.id in a.mutants]
+    if a.list:
+        for m in chosen:
+            print(f"{m.id:32s} {m.file}: {m.why}\n{'':32s} tests: {' '.join(m.tests)}")
+        return 0
+    t_all = time.perf_counter()
+    results = []
+    with tempfile.TemporaryDirectory(prefix="glvox-mutants-") as tmp:
+        scratch = Path(tmp)
+        scratch_copy(scratch)
+        env = env_for(scratch)
+        where = subprocess.run([sys.executable, "-c", "import glvox, glvox.gl.shaders as s; "
+                                "print(glvox.__file__); print(s._search_dirs()[0])"],
+                               cwd=scratch, env=env, capture_output=True, text=True, check=True).stdout.split("\n")
+        if not all(w.startswith(str(scratch)) for w in where[:2]):
+            raise SystemExit(f"the scratch copy is not what runs: {where}")
+        union = sorted({t for m in chosen for t in m.tests if t.startswith("tests/")})
+        rc, out, dt = run_tests(scratch, union, env)
+        print(f"unmutated: {' '.join(union)}: exit {rc} in {dt:.0f} s", flush=True)
+        if rc != 0:
+            print(out[-3000:])
+            raise SystemExit("the tests fail unmutated: fix that first")
+        for m in chosen:
+            original = apply(scratch, m)
+            try:
+                rc, out, dt = run_tests(scratch, m.tests, env)
+            finally:
+                (scratch / m.file).write_text(original)
+            failed = first_failure(out)
+            compile_error = "ShaderError" in out or "compile" in out.lower() and "error" in out.lower() and rc != 1
+            status = "killed" if rc == 1 and failed and not compile_error else ("survived" if rc == 0 else "error")
+            results.append({"id": m.id, "file": m.file, "why": m.why, "status": status, "killed_by": failed,
+                            "seconds": round(dt, 1), "tests": list(m.tests)})
+            print(f"{m.id:32s} {status:8s} {dt:6.1f} s  {failed}", flush=True)
+            if status == "error":
+                print(out[-2000:])
+    total = time.perf_counter() - t_all
+    killed = sum(r["status"] == "killed" for r in results)
+    print(f"\n{killed} of {len(results)} mutants killed in {total:.0f} s")
+    if a.json:
+        a.json.write_text(json.dumps({"total_seconds": round(total, 1), "mutants": results}, indent=1))
+    return 0 if killed == len(results) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
