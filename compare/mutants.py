@@ -190,6 +190,29 @@ MUTANTS: list[Mutant] = [
              "        h = np.where(ane[:, p, :, 0] >= ane[:, p, :, 1], halves[:, a, None], halves[:, b, None])\n"
              "        oe[:, p] = h * ane[:, p].min(axis=-1)"),),
            (EXACT, "-k", "reference-6sep")),
+    # robust solids (issue 19) and attributes (issue 21)
+    Mutant("vote-or-instead-of-majority", "vote-solid: any parity's inside wins instead of two of three",
+           "shaders/vote/vote.comp", (("    WORDS v = (x & y) | (grid_z[idx] & (x | y));",
+                                       "    WORDS v = x | y | grid_z[idx];"),),
+           ("tests/test_vote.py", "-k", "outvoted")),
+    # (the same comparison in gwn/segment.glsl is left out: it decides w there only where w is
+    # farther from the threshold than the error bound, or refined in float32 from an open
+    # mesh's strips, where w equal to the threshold never came up: an equivalent mutant in practice)
+    Mutant("gwn-rows-threshold-strict", "gwn-solid's closed rows: inside when C > threshold",
+           "shaders/gwn/rows.comp", (("        uvec4 in4 = uvec4(greaterThanEqual(w, vec4(u_threshold)))",
+                                      "        uvec4 in4 = uvec4(greaterThan(w, vec4(u_threshold)))"),),
+           ("tests/test_gwn.py", "-k", "overlapping_spheres")),
+    Mutant("carve-runs-not-joined", "carve-solid: a free run no longer carries into the next word of its row",
+           "shaders/carve/sweep.comp", (("            if (carry != 0u) AT(g, c) |= (~fc & (fc + 1u)) - 1u;\n", ""),),
+           ("tests/test_carve.py", "-k", "corridor or random_blockers")),
+    Mutant("attr-distance-to-a-vertex", "attributes: the source triangle by the distance to its first vertex, "
+           "not to its closest point", "shaders/attributes/pair.glsl",
+           (("    dvec3 q = closest_bary(p, attr_a, attr_b, attr_c);", "    dvec3 q = dvec3(1.0lf, 0.0lf, 0.0lf);"),),
+           ("tests/test_attributes.py", "-k", "cube or real_meshes")),
+    Mutant("attr-reference-ties-to-highest", "attribute reference: ties go to the highest triangle index",
+           "glvox/reference/attributes.py", (("        first = np.lexsort((tri, d, slot))",
+                                              "        first = np.lexsort((-tri, d, slot))"),),
+           ("tests/test_attributes.py", "-k", "cube or shared_edge")),
     Mutant("reference-solid-half-open", "reference-solid: centers on the crossing flip (>= instead of >)",
            "glvox/reference/solid.py", (("        qbar = np.floor(q + 0.5)", "        qbar = np.ceil(q - 0.5)"),),
            (EXACT, "-k", "rules_on_the_surface")),

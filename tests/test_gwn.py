@@ -366,6 +366,12 @@ def test_overlapping_spheres_give_their_union_and_two_inside_both(gl_context):
     inside_both = sa & sb & ~ties
     assert inside_both.sum() > 1000
     assert (g.fields["winding"][inside_both] == 2.0).all()  # F = 0: w = C exactly
+    # the threshold is inclusive (w >= threshold), seen where w is an exact integer:
+    # threshold 2 keeps the voxels inside both spheres, threshold 1 their union
+    two = run_method("gwn-solid", both, spec, threshold=2.0).dense()
+    assert not ((two != (sa & sb)) & ~ties).any() and two[inside_both].all()
+    one = run_method("gwn-solid", both, spec, threshold=1.0).dense()
+    assert not ((one != (sa | sb)) & ~ties).any()
 
 
 def test_inside_out_mesh_is_empty_with_w_minus_one(gl_context):
