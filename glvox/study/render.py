@@ -114,6 +114,21 @@ def pooled_colors(indices: np.ndarray, colors: np.ndarray, level: int, dims, cel
     return (means[rows] / total[rows, None] / 255.0).astype("f4")
 
 
+def pooled_exposed(occ: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """The exposed voxels of ``occ``, pooled by 2 per axis (a cell set when any of its
+    voxels is) until at most :data:`MAX_CUBES` are left: ``(pooled occ, (K, 3) indices
+    of its exposed cells, pooling level)``; cell size ``2 ** level`` voxels."""
+    level = 0
+    while True:
+        vox = np.argwhere(exposed(occ))
+        if len(vox) <= MAX_CUBES:
+            return occ, vox, level
+        pad = [(0, s % 2) for s in occ.shape]
+        occ = np.pad(occ, pad).reshape(occ.shape[0] // 2 + pad[0][1], 2, occ.shape[1] // 2 + pad[1][1], 2,
+                                       occ.shape[2] // 2 + pad[2][1], 2).any(axis=(1, 3, 5))
+        level += 1
+
+
 def render_voxels(ctx, grid: VoxelGrid, size: tuple[int, int] = (960, 720), mesh=None,
                   color=(0.55, 0.68, 0.86), background=(1.0, 1.0, 1.0), direction=(0.9, 0.65, 1.25),
                   up=(0.0, 1.0, 0.0), own_colors: bool = True, flat: bool = False) -> np.ndarray:
@@ -146,16 +161,8 @@ def render_voxels(ctx, grid: VoxelGrid, size: tuple[int, int] = (960, 720), mesh
     occ = np.asarray(grid.dense())
     h, origin = grid.voxel_size, np.asarray(grid.origin, float)
     indices, colors = voxel_colors(grid, "render") if own_colors and has_colors(grid) else (None, None)
-    level = 0
-    while True:
-        vox = np.argwhere(exposed(occ))
-        if len(vox) <= MAX_CUBES:
-            break
-        pad = [(0, s % 2) for s in occ.shape]
-        occ = np.pad(occ, pad).reshape(occ.shape[0] // 2 + pad[0][1], 2, occ.shape[1] // 2 + pad[1][1], 2,
-                                       occ.shape[2] // 2 + pad[2][1], 2).any(axis=(1, 3, 5))
-        h *= 2.0
-        level += 1
+    occ, vox, level = pooled_exposed(occ)
+    h *= 2.0 ** level
     if colors is not None:
         vox_rgb = pooled_colors(indices, colors, level, occ.shape, vox)
     else:
