@@ -30,7 +30,7 @@ import numpy as np
 
 from ..grid import ldi_axes
 from ._candidates import check_axis, check_dims, check_tris, expand, index_range, normals
-from .solid import _edge_function
+from .solid import column_crossings
 from .ties import TIE_EPS
 
 
@@ -99,32 +99,16 @@ def crossings(tris: np.ndarray, dims: Sequence[int], axis: int = 2) -> RayCrossi
     tris = check_tris(tris)
     dims = check_dims(dims)
     axis = check_axis(axis)
-    u, v = (axis + 1) % 3, (axis + 2) % 3
     p_ax, q_ax = ldi_axes(axis)
     n_pix = dims[p_ax] * dims[q_ax]
     n = normals(tris)
     keep = n[:, axis] != 0.0
     tris, n = tris[keep], n[keep]
     slope_t = np.linalg.norm(n, axis=1) / np.abs(n[:, axis]) if len(tris) else np.zeros(0)
-    sgn = np.where(n[:, axis] > 0.0, 1.0, -1.0)
-    lo_a, hi_a = tris[:, :, axis].min(axis=1), tris[:, :, axis].max(axis=1)
-    e = np.roll(tris, -1, axis=1) - tris
-    neu = -e[:, :, v] * sgn[:, None]
-    nev = e[:, :, u] * sgn[:, None]
-    top_left = (neu > 0.0) | ((neu == 0.0) & (nev < 0.0))
-    uv = tris[:, :, [u, v]]
 
     pix_parts, q_parts, s_parts = [], [], []
-    for tri, ju, jv in _column_pairs(tris, dims, axis, 0.0):
-        pu, pv = ju + 0.5, jv + 0.5
-        inside = np.ones(len(tri), dtype=bool)
-        for i in range(3):
-            f = _edge_function(pu, pv, uv[tri, i], uv[tri, (i + 1) % 3]) * sgn[tri]
-            inside &= (f > 0.0) | ((f == 0.0) & top_left[tri, i])
-        tri, ju, jv, pu, pv = tri[inside], ju[inside], jv[inside], pu[inside], pv[inside]
-        nt, v0 = n[tri], tris[tri, 0]
-        q = v0[:, axis] + (nt[:, u] * (v0[:, u] - pu) + nt[:, v] * (v0[:, v] - pv)) / nt[:, axis]
-        q = np.clip(np.clip(q, lo_a[tri], hi_a[tri]), 0.0, float(dims[axis]))
+    for tri, ju, jv, q in column_crossings(tris, n, dims, axis):
+        q = np.clip(q, 0.0, float(dims[axis]))
         pix_parts.append(_pixel_index(ju, jv, dims, axis))
         q_parts.append(q)
         s_parts.append(slope_t[tri])

@@ -89,6 +89,62 @@ def solid(tris: np.ndarray, dims: Sequence[int], axis: int = 0) -> np.ndarray:
     return parity.astype(bool)
 
 
+def column_crossings(tris: np.ndarray, n: np.ndarray, dims: tuple[int, int, int], axis: int):
+    """Every crossing of a column center line along ``axis`` with the triangles, by
+    the top-left rule: a center on an edge shared by two triangles is covered by
+    exactly one (S&S Sec. 4.1), in chunks.
+
+    The one crossing computation of the CPU references that cast rays along the
+    columns (:func:`first_flips` for ``reference-solid``,
+    :func:`glvox.reference.ldi.crossings`, and the test formulation of
+    ``eisemann-surface``).
+
+    Parameters
+    ----------
+    tris : (T, 3, 3) float64
+        Voxel-space triangles not parallel to ``axis``.
+    n : (T, 3) float64
+        Their normals.
+    dims : (3,) int
+    axis : {0, 1, 2}
+
+    Yields
+    ------
+    tri : (M,) int64
+        Index into ``tris`` of each crossing's triangle.
+    ju, jv : (M,) int64
+        Its column, along ``u = (axis + 1) % 3`` and ``v = (axis + 2) % 3``.
+    q : (M,) float64
+        The crossing's ``axis`` coordinate, clipped to the triangle's extent
+        (the exact crossing lies within it; clipping only removes rounding on
+        nearly edge-on triangles), not to the grid.
+    """
+    u = (axis + 1) % 3
+    v = (axis + 2) % 3
+    sgn = np.where(n[:, axis] > 0.0, 1.0, -1.0)
+    lo_a = tris[:, :, axis].min(axis=1)
+    hi_a = tris[:, :, axis].max(axis=1)
+    e = np.roll(tris, -1, axis=1) - tris
+    # Inward edge normals n_e = (-e_v, e_u) * sign(n_axis); only their signs
+    # matter, for the fill rule.
+    neu = -e[:, :, v] * sgn[:, None]
+    nev = e[:, :, u] * sgn[:, None]
+    top_left = (neu > 0.0) | ((neu == 0.0) & (nev < 0.0))
+    uv = tris[:, :, [u, v]]
+    for tri, ju, jv in column_candidates(tris, dims, axis):
+        pu = ju + 0.5
+        pv = jv + 0.5
+        inside = np.ones(len(tri), dtype=bool)
+        for i in range(3):
+            f = _edge_function(pu, pv, uv[tri, i], uv[tri, (i + 1) % 3]) * sgn[tri]
+            inside &= (f > 0.0) | ((f == 0.0) & top_left[tri, i])
+        tri, ju, jv, pu, pv = tri[inside], ju[inside], jv[inside], pu[inside], pv[inside]
+        nt = n[tri]
+        v0 = tris[tri, 0]
+        q = v0[:, axis] + (nt[:, u] * (v0[:, u] - pu) + nt[:, v] * (v0[:, v] - pv)) / nt[:, axis]
+        yield tri, ju, jv, np.clip(q, lo_a[tri], hi_a[tri])
+
+
 def first_flips(tris: np.ndarray, n: np.ndarray, dims: tuple[int, int, int],
                 axis: int) -> tuple[np.ndarray, np.ndarray]:
     """The first flipped voxel of every crossing (:func:`solid`'s fill rule),
@@ -112,32 +168,8 @@ def first_flips(tris: np.ndarray, n: np.ndarray, dims: tuple[int, int, int],
     """
     u = (axis + 1) % 3
     v = (axis + 2) % 3
-    sgn = np.where(n[:, axis] > 0.0, 1.0, -1.0)
-    lo_a = tris[:, :, axis].min(axis=1)
-    hi_a = tris[:, :, axis].max(axis=1)
-    e = np.roll(tris, -1, axis=1) - tris
-    # Inward edge normals n_e = (-e_v, e_u) * sign(n_axis); only their signs
-    # matter, for the fill rule.
-    neu = -e[:, :, v] * sgn[:, None]
-    nev = e[:, :, u] * sgn[:, None]
-    top_left = (neu > 0.0) | ((neu == 0.0) & (nev < 0.0))
-    uv = tris[:, :, [u, v]]
-
     hits, owners = [], []
-    for tri, ju, jv in column_candidates(tris, dims, axis):
-        pu = ju + 0.5
-        pv = jv + 0.5
-        inside = np.ones(len(tri), dtype=bool)
-        for i in range(3):
-            f = _edge_function(pu, pv, uv[tri, i], uv[tri, (i + 1) % 3]) * sgn[tri]
-            inside &= (f > 0.0) | ((f == 0.0) & top_left[tri, i])
-        tri, ju, jv, pu, pv = tri[inside], ju[inside], jv[inside], pu[inside], pv[inside]
-        nt = n[tri]
-        v0 = tris[tri, 0]
-        q = v0[:, axis] + (nt[:, u] * (v0[:, u] - pu) + nt[:, v] * (v0[:, v] - pv)) / nt[:, axis]
-        # The exact crossing lies within the triangle's extent; clipping only
-        # removes rounding on nearly edge-on triangles.
-        q = np.clip(q, lo_a[tri], hi_a[tri])
+    for tri, ju, jv, q in column_crossings(tris, n, dims, axis):
         qbar = np.floor(q + 0.5)
         ok = qbar < dims[axis]
         idx = np.zeros((3, int(ok.sum())), dtype=np.int64)

@@ -21,8 +21,8 @@ from typing import Sequence
 
 import numpy as np
 
-from glvox.reference._candidates import check_axis, check_dims, check_tris, column_candidates, normals
-from glvox.reference.solid import _edge_function
+from glvox.reference._candidates import check_axis, check_dims, check_tris, normals
+from glvox.reference.solid import column_crossings
 
 
 def eisemann_slices(tris: np.ndarray, dims: Sequence[int], axis: int = 2) -> np.ndarray:
@@ -45,22 +45,8 @@ def eisemann_slices(tris: np.ndarray, dims: Sequence[int], axis: int = 2) -> np.
     keep = n[:, axis] != 0.0
     tris, n = tris[keep], n[keep]
     out = np.zeros(dims, dtype=bool)
-    sgn = np.where(n[:, axis] > 0.0, 1.0, -1.0)
-    e = np.roll(tris, -1, axis=1) - tris
-    neu, nev = -e[:, :, v] * sgn[:, None], e[:, :, u] * sgn[:, None]
-    top_left = (neu > 0.0) | ((neu == 0.0) & (nev < 0.0))
-    uv = tris[:, :, [u, v]]
-    lo_a, hi_a = tris[:, :, axis].min(axis=1), tris[:, :, axis].max(axis=1)
-    for tri, ju, jv in column_candidates(tris, dims, axis):
-        pu, pv = ju + 0.5, jv + 0.5
-        inside = np.ones(len(tri), dtype=bool)
-        for i in range(3):
-            f = _edge_function(pu, pv, uv[tri, i], uv[tri, (i + 1) % 3]) * sgn[tri]
-            inside &= (f > 0.0) | ((f == 0.0) & top_left[tri, i])
-        tri, ju, jv, pu, pv = tri[inside], ju[inside], jv[inside], pu[inside], pv[inside]
-        nt, v0 = n[tri], tris[tri, 0]
-        q = v0[:, axis] + (nt[:, u] * (v0[:, u] - pu) + nt[:, v] * (v0[:, v] - pv)) / nt[:, axis]
-        q = np.clip(q, lo_a[tri], hi_a[tri])
+    # the crossings of reference-solid and reference-ldi: the top-left rule at the column centers
+    for tri, ju, jv, q in column_crossings(tris, n, dims, axis):
         s = np.where(q == dims[axis], dims[axis] - 1, np.floor(q))
         ok = (s >= 0) & (s < dims[axis])
         idx = [None] * 3
