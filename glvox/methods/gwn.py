@@ -51,7 +51,7 @@ from ..results.voxels import VoxelGrid
 from ..tolerances import WINDING_TIE
 from .base import Method, MethodInfo, Option, Requirements, register
 from .gwn_tree import ClusterTree, boundary_loops, build_tree
-from .ss_solid import COLUMN_CHUNK, mesh_rows
+from .ss_solid import COLUMN_CHUNK, crossing_passes, mesh_rows
 from .ss_surface import SSConservative
 
 _LOCAL = 64  # local_size_x of the gwn shaders
@@ -262,20 +262,8 @@ class _Run:
                        for f in (1, 0))
         for prog in (first, rest):
             set_uniforms(prog, {**common, "u_triangles": n})
-        big_args = compute_program(ctx, "ss/solid_big_args.comp")
-        set_uniforms(big_args, {"u_local_size": _LOCAL, "u_max_groups": self.max_groups})
         with self.timer.stage("crossings"):
-            self.vox.bind_to_storage_buffer(1)
-            self.bufs.faces.bind_to_storage_buffer(2)
-            cells.bind_to_storage_buffer(3)
-            big.bind_to_storage_buffer(4)
-            dispatch_1d(ctx, first, n, _LOCAL)
-            barrier(ctx)
-            args.bind_to_storage_buffer(8)
-            big_args.run(1, 1, 1)
-            barrier(ctx)
-            rest.run_indirect(args)
-            barrier(ctx)
+            crossing_passes(ctx, (first, rest), n, self.max_groups, (self.vox, self.bufs.faces, cells, big, args))
 
     def _field(self, cells, common, s0, s1, rows):
         ctx, spec, pool, t = self.ctx, self.spec, self.pool, self.gpu_tree

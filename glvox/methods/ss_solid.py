@@ -264,6 +264,32 @@ AXIS_SEGMENT = 16384
 assert AXIS_SEGMENT < LOOP_BUDGET
 
 
+def crossing_passes(ctx, progs, n: int, max_groups: int, buffers) -> None:
+    """The two passes of a per-triangle crossing kernel (``ss/solid.comp``,
+    ``gwn/events.comp``): ``first`` runs every triangle's first chunk of columns
+    and lists the triangles with more in ``big``; ``ss/solid_big_args.comp``
+    sizes the indirect dispatch of ``rest``, which runs their remaining chunks.
+
+    ``buffers``: (voxel-space vertices, faces, target, big, args), bound at 1, 2,
+    3, 4 and 8; both kernels have ``local_size_x`` = :data:`_LOCAL`.
+    """
+    first, rest = progs
+    vox, faces, target, big, args = buffers
+    big_args = compute_program(ctx, "ss/solid_big_args.comp")
+    set_uniforms(big_args, {"u_local_size": _LOCAL, "u_max_groups": max_groups})
+    vox.bind_to_storage_buffer(1)
+    faces.bind_to_storage_buffer(2)
+    target.bind_to_storage_buffer(3)
+    big.bind_to_storage_buffer(4)
+    dispatch_1d(ctx, first, n, _LOCAL)
+    barrier(ctx)
+    args.bind_to_storage_buffer(8)
+    big_args.run(1, 1, 1)
+    barrier(ctx)
+    rest.run_indirect(args)
+    barrier(ctx)
+
+
 def parity_on_gpu(ctx, mesh, spec, timer, pool, *, axis: int = 0, tag: str = "") -> Parity:
     """ss-solid's parity of crossings along grid axis ``axis`` in GPU buffers, nothing
     read back: stages ``transform``, ``voxelize``, ``fill`` (each name + ``tag``).
@@ -310,22 +336,10 @@ def parity_on_gpu(ctx, mesh, spec, timer, pool, *, axis: int = 0, tag: str = "")
                                                           "FLIP_AXIS": axis}) for f in (1, 0))
     for prog in (first, rest):
         set_uniforms(prog, {**uniforms, "u_triangles": n})
-    big_args = compute_program(ctx, "ss/solid_big_args.comp")
-    set_uniforms(big_args, {"u_local_size": _LOCAL, "u_max_groups": max_groups})
     count = pool.get("count" + tag, 4)
     args = pool.get("args" + tag, 3 * 4, clear=False)
     with timer.stage("voxelize" + tag):
-        vox.bind_to_storage_buffer(1)
-        bufs.faces.bind_to_storage_buffer(2)
-        grid.bind_to_storage_buffer(3)
-        big.bind_to_storage_buffer(4)
-        dispatch_1d(ctx, first, n, _LOCAL)
-        barrier(ctx)
-        args.bind_to_storage_buffer(8)
-        big_args.run(1, 1, 1)
-        barrier(ctx)
-        rest.run_indirect(args)
-        barrier(ctx)
+        crossing_passes(ctx, (first, rest), n, max_groups, (vox, bufs.faces, grid, big, args))
     rows = mesh_rows(spec, bufs, 0)
     with timer.stage("fill" + tag):
         _fill(ctx, spec, grid, count, rows, axis)
