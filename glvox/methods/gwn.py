@@ -182,7 +182,8 @@ class GwnSolid(Method):
                          fields={"winding": field} if winding else None)
         if shell:
             with timer.stage("shell", gpu=False):
-                surface = SSConservative()._run(ctx, mesh, spec, StageTimer(ctx), "specialized")
+                # ss-conservative's own passes, timed apart (one "shell" stage here)
+                surface = SSConservative().run(mesh, spec, ctx=ctx, timer=StageTimer(ctx), variant="specialized")
                 grid = VoxelGrid(words=grid.words() | surface.words(), spec=spec, fields=grid.fields)
         return grid
 
