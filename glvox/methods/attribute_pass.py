@@ -41,6 +41,7 @@ from ..gpu.buffers import buffer_pool, check_buffer_size, object_cache
 from ..gpu.dispatch import barrier, dispatch_1d, grid_uniforms, set_uniforms
 from ..gpu.sort import exclusive_scan
 from ..gpu.transform import transform_vertices
+from ..reference.attributes import index_attribute
 from ..results.voxels import ATTRIBUTE_DTYPES
 from ..visuals import COLOR_TEXTURE
 from .ss_surface import LOCAL_SIZE, auto_variant, sort_by_case, surface_defines, voxelize_sorted, voxelize_unsorted
@@ -343,16 +344,10 @@ def gpu_attributes(ctx, mesh, result, timer, names, normals: str = "face", fill:
         take = rows[perm]
         tri = np.frombuffer(best_tri.read(size=count * 4), dtype="<u4")[take].astype(np.int64)
         tri[tri == _NONE] = -1
-        has = tri >= 0
-        ts = np.where(has, tri, 0)
         out: dict[str, np.ndarray] = {}
         for name in names:
-            if name == "triangle":
-                src = mesh.source_faces[ts] if mesh.source_faces is not None else ts
-                out[name] = np.where(has, src, -1).astype(np.int32)
-            elif name == "material":
-                mat = mesh.visuals.material[ts] if mesh.visuals is not None else np.zeros(count, np.int32)
-                out[name] = np.where(has, mat, -1).astype(np.int32)
+            if name in ("triangle", "material"):
+                out[name] = index_attribute(mesh, name, tri)
             elif name == "color":
                 out[name] = np.frombuffer(color.read(size=count * 4), np.uint8).reshape(count, 4)[take]
             elif name == "normal":

@@ -180,6 +180,21 @@ def sample_texture(tex: Texture, uv: np.ndarray) -> np.ndarray:
     return (top * (1 - ay) + bottom * ay) * tex.factor
 
 
+def index_attribute(mesh, name: str, tri: np.ndarray) -> np.ndarray:
+    """``triangle`` (the input's face index) or ``material`` (the part) of voxels whose
+    source triangle (an index into ``mesh.faces``) is ``tri``, -1 where ``tri`` < 0; int32.
+    The one mapping of the GPU pass (:mod:`glvox.methods.attribute_pass`) and of this reference."""
+    has = tri >= 0
+    ts = np.where(has, tri, 0)
+    if name == "triangle":
+        values = mesh.source_faces[ts] if mesh.source_faces is not None else ts
+    elif name == "material":
+        values = mesh.visuals.material[ts] if mesh.visuals is not None else np.zeros(len(tri), np.int32)
+    else:
+        raise ValueError(f"{name!r} is not an index attribute")
+    return np.where(has, values, -1).astype(np.int32)
+
+
 def evaluate(mesh, sources: Sources, names, normals: str = "face") -> dict[str, np.ndarray]:
     """The attributes ``names`` of voxels from their ``sources`` (triangles = ``mesh.faces``).
 
@@ -203,12 +218,8 @@ def evaluate(mesh, sources: Sources, names, normals: str = "face") -> dict[str, 
     vis = mesh.visuals
     out: dict[str, np.ndarray] = {}
     for name in names:
-        if name == "triangle":
-            src = mesh.source_faces[ts] if mesh.source_faces is not None else ts
-            out[name] = np.where(has, src, -1).astype(np.int32)
-        elif name == "material":
-            mat = vis.material[ts] if vis is not None else np.zeros(len(t), np.int32)
-            out[name] = np.where(has, mat, -1).astype(np.int32)
+        if name in ("triangle", "material"):
+            out[name] = index_attribute(mesh, name, t)
         elif name == "normal":
             out[name] = _normals(mesh, ts, sources.bary, normals) * has[:, None]
             out[name] = out[name].astype(np.float32)
