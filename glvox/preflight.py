@@ -341,7 +341,8 @@ def validate_study(args, presets: dict, name: str) -> None:
     for n in args.sizes or []:
         positive(f"{name} grid sizes", n)
     positive("--repeat", args.repeat)
-    positive("--check-max", args.check_max)
+    if args.check_max is not None and args.check_max < 0:
+        raise GlvoxError(f"--check-max must be 0 (no reference checks) or a positive integer, got {args.check_max}")
 
 
 def validate_compare(args) -> None:

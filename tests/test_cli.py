@@ -12,6 +12,8 @@ import pytest
 import trimesh
 
 from glvox import io
+from glvox.cli import build_parser
+from glvox.study.compare import plan_from
 from glvox.methods import method_names
 
 
@@ -109,6 +111,8 @@ def test_voxelize_grid_options(tmp_path):
     (["batch", ".", "-o", "out", "-r", "8", "--tight", "--format", "binvox"], "binvox stores cubic grids only"),
     (["compare", "--meshes", "gen:torus", "-r", "0"], "compare grid sizes must be a positive integer, got 0"),
     (["compare", "--meshes", "no_such_mesh.obj", "-r", "8"], "mesh file not found: no_such_mesh.obj"),
+    (["bench", "--meshes", "gen:torus", "-r", "8", "--check-max", "-1"],
+     "--check-max must be 0 (no reference checks) or a positive integer, got -1"),
     (["bench", "--preset", "quick", "--check", "no_baseline.json"], "no benchmark baseline at no_baseline.json"),
     (["data", "fetch", "no_such_mesh.obj"], "unknown mesh name 'no_such_mesh.obj'; `glvox data list` shows"),
     (["voxelize", "gen:torus", "-r", "8", "-m", "reference-solid", "--axis"], "method option --axis needs a value"),
@@ -209,3 +213,11 @@ def test_open_mesh_with_solid_method(tmp_path, shared_mesh):
     assert "for the solid method 'reference-solid'" in p.stderr
     p = glvox("voxelize", shared_mesh("stanford_bunny_bun_zipper.ply"), "-r", 16, "-m", "reference-ldi")
     assert p.returncode == 1 and "for the LDI method 'reference-ldi'" in p.stderr
+
+
+@pytest.mark.parametrize("given, checked", [(None, [32, 64, 128]), ("0", []), ("64", [32, 64])])
+def test_compare_check_max_zero_means_no_reference_checks(given, checked):
+    """``--check-max 0`` checks nothing (the README's bench commands use it); unset: the default."""
+    argv = ["compare", "--meshes", "gen:torus", "-r", "32", "64", "128"] + (["--check-max", given] if given else [])
+    plan = plan_from(build_parser().parse_args(argv))
+    assert [n for n in plan.sizes if plan.checks(n)] == checked

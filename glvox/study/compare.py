@@ -85,7 +85,7 @@ def plan_from(args) -> Plan:
         raise GlvoxError(f"give --preset {'|'.join(sorted(COMPARE_PRESETS))}, or --meshes and -r/--sizes")
     return compare_plan(methods, [resolve_mesh(m) for m in meshes], sizes,
                         repeat=args.repeat or preset.get("repeat", 5),
-                        check_max=args.check_max or preset.get("check_max", CHECK_MAX),
+                        check_max=preset.get("check_max", CHECK_MAX) if args.check_max is None else args.check_max,
                         cpu_max=preset.get("cpu_max"), reference=preset.get("reference"),
                         open_solids=preset.get("open_solids", False))
 

@@ -55,7 +55,7 @@ def add_compare_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("-r", "--sizes", nargs="+", type=int, default=None, help="grid resolutions N (N^3)")
     p.add_argument("--repeat", type=int, default=None, help="timed warm runs per cell (median reported)")
     p.add_argument("--check-max", type=int, default=None,
-                   help=f"largest N checked against the CPU references (default {CHECK_MAX})")
+                   help=f"largest N checked against the CPU references (default {CHECK_MAX}; 0: none)")
     p.add_argument("-o", "--out", default="results", help="output folder (resumed if it has results)")
     p.add_argument("--force", action="store_true", help="recompute every cell, ignoring earlier results")
     p.add_argument("--no-pictures", action="store_true", help="skip the renders and slice images")
@@ -112,7 +112,7 @@ def add_bench_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--budget", type=float, default=None,
                    help="seconds of warm runs after which a contender stops repeating in a cell")
     p.add_argument("--check-max", type=int, default=None,
-                   help="largest N compared with the CPU references (default: every size)")
+                   help="largest N compared with the CPU references (default: every size; 0: none)")
     p.add_argument("--peer-max", action="append", default=[], metavar="PEER=N",
                    help="run a peer up to N^3 instead of its default limit (PEER=none: no limit)")
     p.add_argument("-o", "--out", default=None, help="folder for bench.md and results.json")
