@@ -45,7 +45,9 @@ class Mesh:
         Zero-area triangles dropped from the input.
     watertight : bool
         Every edge shared by exactly two triangles (after merging duplicate
-        vertex positions), as trimesh judges it.
+        vertex positions), as trimesh judges it: decided on first read (by a
+        solid method, the batch manifest, ``inspect``...), once, so loading a
+        mesh for a surface does not pay for it.
     name : str
         File name or a short description.
     source_faces : (F,) int64 or None
@@ -58,7 +60,6 @@ class Mesh:
     vertices: np.ndarray
     faces: np.ndarray
     n_degenerate: int = 0
-    watertight: bool = False
     name: str = "<arrays>"
     source_faces: np.ndarray | None = None
     visuals: Any = None
@@ -66,6 +67,11 @@ class Mesh:
     @property
     def n_triangles(self) -> int:
         return int(len(self.faces))
+
+    @cached_property
+    def watertight(self) -> bool:
+        """Every edge shared by exactly two triangles (:func:`is_watertight`; computed once)."""
+        return is_watertight(self.vertices, self.faces)
 
     @cached_property
     def bounds(self) -> np.ndarray:
@@ -293,8 +299,7 @@ def _validate(vertices: Any, faces: Any, name: str) -> Mesh:
     keep = f[~degenerate] if degenerate.any() else f
     if len(keep) == 0:
         raise EmptyMeshError(f"{name}: all {len(f)} triangles have zero area")
-    return Mesh(vertices=v, faces=keep, n_degenerate=int(degenerate.sum()),
-                watertight=is_watertight(v, keep), name=name,
+    return Mesh(vertices=v, faces=keep, n_degenerate=int(degenerate.sum()), name=name,
                 source_faces=np.flatnonzero(~degenerate) if degenerate.any() else None)
 
 

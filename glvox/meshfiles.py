@@ -21,6 +21,7 @@ Measured against trimesh's reader and Open3D's on the shared meshes:
 
 from __future__ import annotations
 
+import io
 import re
 import warnings
 from typing import Optional
@@ -64,13 +65,29 @@ def read_fast(suffix: str, data: bytes) -> Optional[Arrays]:
             # np.fromstring warns (and stops) at text it cannot parse: not our layout
             warnings.simplefilter("error")
             return reader(data)
-    except (ValueError, TypeError, IndexError, UnicodeDecodeError, DeprecationWarning, RuntimeWarning):
+    except (ValueError, TypeError, IndexError, UnicodeDecodeError, Warning):
         return None
 
 
 def _numbers(text: bytes) -> np.ndarray:
     """Every whitespace-separated number of ``text`` as float64 (ValueError at anything else)."""
     return np.fromstring(text, dtype=np.float64, sep=" ")
+
+
+def _table(lines, n_rows: int, n_cols: int) -> np.ndarray:
+    """(n_rows, n_cols) float64 from text lines (a file-like object or a list of bytes).
+
+    numpy's C table reader: 30-40% faster than :func:`_numbers` on the ASCII
+    PLY and STL bodies (``python compare/bench_load.py``), correctly rounded
+    like it; ValueError unless the lines are exactly that table (blank lines
+    are skipped, so they make a table too short).
+    """
+    if n_rows == 0:
+        return np.empty((0, n_cols))
+    table = np.loadtxt(lines, dtype=np.float64, comments=None, ndmin=2)
+    if table.shape != (n_rows, n_cols):
+        raise ValueError(f"expected a {n_rows} x {n_cols} table, got {table.shape}")
+    return table
 
 
 def _triangles(counts: np.ndarray, idx: np.ndarray, n_vertices: int) -> Optional[np.ndarray]:
@@ -147,12 +164,11 @@ def _ply_ascii(body: bytes, nv, vprops, nf, fprops) -> Optional[Arrays]:
     if len(newlines) < nv:
         return None
     split = int(newlines[nv - 1]) + 1 if nv else 0
-    k = len(vprops)
-    verts = _numbers(body[:split])
+    verts = _table(io.BytesIO(body[:split]), nv, len(vprops))
     fdata = np.fromstring(body[split:], dtype=np.int64, sep=" ")
-    if verts.size != nv * k or fdata.size != 4 * nf:
+    if fdata.size != 4 * nf:
         return None  # not all triangles, blank lines, or more text than the header declares
-    verts, fdata = verts.reshape(nv, k), fdata.reshape(nf, 4)
+    fdata = fdata.reshape(nf, 4)
     idx = fdata[:, 1:]
     if np.any(idx != idx.astype(fprops[0][1][2])):
         return None
@@ -209,10 +225,7 @@ def _stl_ascii(data: bytes) -> Optional[Arrays]:
     rows = _STL_VERTEX.findall(text, start, end)
     if len(rows) < 3 or len(rows) % 3:
         return None
-    v = _numbers(b" ".join(rows))
-    if v.size != 3 * len(rows):
-        return None
-    return v.reshape(-1, 3), np.arange(len(rows), dtype=np.int64).reshape(-1, 3)
+    return _table(rows, len(rows), 3), np.arange(len(rows), dtype=np.int64).reshape(-1, 3)
 
 
 _STL_VERTEX = re.compile(rb"vertex([^\n]*)")

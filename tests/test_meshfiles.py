@@ -119,9 +119,29 @@ def test_obj_keeps_only_referenced_vertices_in_file_order_like_trimesh():
     ("ply", b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
             b"element face 1\nproperty list uchar int vertex_indices\nend_header\n"
             b"0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 1 2\n"),                              # more than declared
+
+    ("ply", b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+            b"element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+            b"0 0 0\n\n1 0 0\n0 1 0\n3 0 1 2\n"),                                   # a blank vertex line
+    ("ply", b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+            b"element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+            b"0 0 0\n1 0\n0 1 0 0\n3 0 1 2\n"),                                      # ragged vertex rows
+    ("stl", b"solid a\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0 1\nvertex 1 0 0 1\nvertex 0 1 0 1\n"
+            b"endloop\nendfacet\nendsolid a\n"),                                       # 4 numbers a vertex
+    ("stl", b"solid a\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 x\n"
+            b"endloop\nendfacet\nendsolid a\n"),                                       # not a number
+    ("stl", b"solid a\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex\nvertex 0 1 0\n"
+            b"endloop\nendfacet\nendsolid a\n"),                                       # an empty vertex line
 ])
 def test_layouts_outside_the_fast_path_are_left_to_trimesh(suffix, data):
     assert read_fast(suffix, data) is None
+
+
+def test_watertight_is_decided_on_first_read_only(shared_mesh):
+    """Loading for a surface does not pay for the closedness verdict; reading it decides it once."""
+    m = load_mesh(shared_mesh("stanford_bunny_bun_zipper.ply"))
+    assert "watertight" not in vars(m)
+    assert m.watertight is False and vars(m)["watertight"] is False
 
 
 def test_a_file_outside_the_fast_path_still_loads_through_trimesh(tmp_path):
