@@ -1,14 +1,15 @@
-"""Meshes per second of ``glvox batch`` on a generated dataset, by worker count.
+"""Meshes per second of ``glvox batch`` on a generated dataset (or any folder: ``--keep``), by worker count.
 
 Each configuration is a fresh ``glvox batch ... --json`` process (cold Python,
-cold GL context and shader cache, a new Dask cluster), writing into an empty
-output folder, as a user would run it.  Reported per configuration (median of
-``--repeat`` runs):
+cold GL context and shader cache, new worker processes), writing into an empty
+output folder, as a user would run it; the configurations take turns run by
+run.  Reported per configuration (median of ``--repeat`` runs):
 
-* ``wall``: the command's wall time (imports, cluster start, all meshes, shutdown);
+* ``wall``: the command's wall time (imports, worker start, all meshes, shutdown);
 * ``mesh/s``: meshes processed (voxelized or failed) per second of the batch's own
-  elapsed time, cluster start-up included (``processed_per_s`` of the summary);
-* ``start-up``: cluster start (0 in-process);
+  elapsed time, worker start-up included (``processed_per_s`` of the summary);
+  ``best``: the best run's;
+* ``start-up``: starting the workers (0 in-process);
 * ``per mesh``: mean seconds a worker spent on one mesh (manifest ``total_s``:
   load, voxelize, save), and its voxelize part.
 
@@ -17,6 +18,7 @@ Usage::
     python compare/bench_batch.py                       # 200 meshes, -r 32, ss-conservative
     python compare/bench_batch.py -n 400 -r 64 -m ss-solid --workers 0 1 2 --repeat 3
     python compare/bench_batch.py --lp-threads 1        # llvmpipe with one thread per context
+    python compare/bench_batch.py --keep "$GLVOX_MESHES" -r 64 --workers 0 2   # the shared meshes
 """
 
 from __future__ import annotations
@@ -76,21 +78,25 @@ def main() -> None:
             files = synthetic_dataset(data, args.n)
         else:
             files = None
-        print(f"dataset: {data} ({args.n} meshes + broken files{'' if files else ', reused'}); "
+        what = f"{args.n} meshes + broken files" if files else f"{sum(1 for _ in data.iterdir())} files, reused"
+        print(f"dataset: {data} ({what}); "
               f"glvox batch -r {args.resolution} -m {args.method} --format {args.format}; "
               f"{os.cpu_count()} CPUs, LP_NUM_THREADS={env.get('LP_NUM_THREADS', 'default')}; "
               f"median of {args.repeat}")
-        print(f"{'workers':>14} {'wall s':>8} {'mesh/s':>8} {'start-up s':>10} {'per mesh ms':>12} "
+        print(f"{'workers':>14} {'wall s':>8} {'mesh/s':>8} {'best':>8} {'start-up s':>10} {'per mesh ms':>12} "
               f"{'voxelize ms':>12} {'mesh/s excl. start-up':>22}")
+        runs: dict[int, list[dict]] = {w: [] for w in args.workers}
+        for i in range(args.repeat):  # worker counts take turns, each first in turn: load drift lands on all
+            k = i % len(args.workers)
+            for w in args.workers[k:] + args.workers[:k]:
+                runs[w].append(run_once(data, Path(tmp) / f"out-{w}-{i}", args, w, env))
         for w in args.workers:
-            runs = []
-            for i in range(args.repeat):
-                runs.append(run_once(data, Path(tmp) / f"out-{w}-{i}", args, w, env))
-            med = {k: statistics.median(r[k] for r in runs) for k in runs[0]}
+            med = {k: statistics.median(r[k] for r in runs[w]) for k in runs[w][0]}
+            best = max(r["rate"] for r in runs[w])
             processed = med["done"] + med["failed"]
             steady = processed / max(med["elapsed"] - med["startup"], 1e-9)
             label = "0 (in-process)" if w == 0 else str(w)
-            print(f"{label:>14} {med['wall']:8.2f} {med['rate']:8.1f} {med['startup']:10.2f} "
+            print(f"{label:>14} {med['wall']:8.2f} {med['rate']:8.1f} {best:8.1f} {med['startup']:10.2f} "
                   f"{med['per_mesh'] * 1e3:12.1f} {med['voxelize'] * 1e3:12.1f} {steady:22.1f}", flush=True)
 
 
