@@ -19,6 +19,7 @@ Usage::
     python compare/bench_batch.py -n 400 -r 64 -m ss-solid --workers 0 1 2 --repeat 3
     python compare/bench_batch.py --lp-threads 1        # llvmpipe with one thread per context
     python compare/bench_batch.py --keep "$GLVOX_MESHES" -r 64 --workers 0 2   # the shared meshes
+    python compare/bench_batch.py --workers 0 2 --against 476e070   # side by side with a revision
 """
 
 from __future__ import annotations
@@ -34,14 +35,18 @@ import tempfile
 import time
 from pathlib import Path
 
+from glvox.datasets import checkout_root
+from glvox.study.ab import child_env, extract_revision
 from glvox.testing.datasets import synthetic_dataset
 
 
-def run_once(data: Path, out: Path, args, workers: int, env) -> dict:
-    cmd = [sys.executable, "-m", "glvox", "batch", str(data), "-o", str(out), "-r", str(args.resolution),
+def run_once(data: Path, out: Path, args, workers: int, env, cwd: Path) -> dict:
+    """One fresh ``glvox batch`` process; with ``-S`` the glvox of ``env``'s PYTHONPATH
+    (a revision's tree: :func:`glvox.study.ab.child_env`) is the one imported."""
+    cmd = [sys.executable, "-S", "-m", "glvox", "batch", str(data), "-o", str(out), "-r", str(args.resolution),
            "-m", args.method, "--format", args.format, "--workers", str(workers), "--json"]
     t0 = time.perf_counter()
-    p = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=3600)
+    p = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=3600, cwd=cwd)
     wall = time.perf_counter() - t0
     if p.returncode not in (0, 3):
         raise SystemExit(f"glvox batch failed ({p.returncode}): {p.stderr}")
@@ -67,13 +72,24 @@ def main() -> None:
     ap.add_argument("--lp-threads", type=int, default=None,
                     help="LP_NUM_THREADS for llvmpipe in every process (default: Mesa's, one per core)")
     ap.add_argument("--keep", type=Path, default=None, help="generate the dataset here and keep it")
+    ap.add_argument("--against", metavar="REV", default=None,
+                    help="also run glvox batch of this git revision (git archive), taking turns with this checkout")
     args = ap.parse_args()
 
-    env = dict(os.environ)
-    if args.lp_threads is not None:
-        env["LP_NUM_THREADS"] = str(args.lp_threads)
     with tempfile.TemporaryDirectory(prefix="glvox-bench-batch-") as tmp:
-        data = args.keep or Path(tmp) / "data"
+        trees = {"": checkout_root()}
+        if args.against:
+            trees[f"{args.against} "] = extract_revision(args.against, Path(tmp) / "before")
+        envs = {}
+        for label, src in trees.items():
+            envs[label] = child_env(src)
+            if args.lp_threads is not None:
+                envs[label]["LP_NUM_THREADS"] = str(args.lp_threads)
+            found = subprocess.run([sys.executable, "-S", "-c", "import glvox; print(glvox.__file__)"],
+                                   capture_output=True, text=True, env=envs[label], cwd=tmp).stdout.strip()
+            if Path(src).resolve() not in Path(found).resolve().parents:
+                raise SystemExit(f"a batch for {src} would import glvox from {found!r}")
+        data = (args.keep or Path(tmp) / "data").resolve()
         if not data.is_dir():
             files = synthetic_dataset(data, args.n)
         else:
@@ -81,22 +97,25 @@ def main() -> None:
         what = f"{args.n} meshes + broken files" if files else f"{sum(1 for _ in data.iterdir())} files, reused"
         print(f"dataset: {data} ({what}); "
               f"glvox batch -r {args.resolution} -m {args.method} --format {args.format}; "
-              f"{os.cpu_count()} CPUs, LP_NUM_THREADS={env.get('LP_NUM_THREADS', 'default')}; "
+              f"{os.cpu_count()} CPUs, LP_NUM_THREADS={args.lp_threads or 'default'}; "
               f"median of {args.repeat}")
-        print(f"{'workers':>14} {'wall s':>8} {'mesh/s':>8} {'best':>8} {'start-up s':>10} {'per mesh ms':>12} "
+        print(f"{'workers':>22} {'wall s':>8} {'mesh/s':>8} {'best':>8} {'start-up s':>10} {'per mesh ms':>12} "
               f"{'voxelize ms':>12} {'mesh/s excl. start-up':>22}")
-        runs: dict[int, list[dict]] = {w: [] for w in args.workers}
-        for i in range(args.repeat):  # worker counts take turns, each first in turn: load drift lands on all
-            k = i % len(args.workers)
-            for w in args.workers[k:] + args.workers[:k]:
-                runs[w].append(run_once(data, Path(tmp) / f"out-{w}-{i}", args, w, env))
-        for w in args.workers:
-            med = {k: statistics.median(r[k] for r in runs[w]) for k in runs[w][0]}
-            best = max(r["rate"] for r in runs[w])
+        configs = [(tree, w) for tree in trees for w in args.workers]
+        runs: dict[tuple, list[dict]] = {c: [] for c in configs}
+        for i in range(args.repeat):  # configurations take turns, each first in turn: load drift lands on all
+            k = i % len(configs)
+            for tree, w in configs[k:] + configs[:k]:
+                out = Path(tmp) / f"out-{len(tree)}-{w}-{i}"
+                runs[tree, w].append(run_once(data, out, args, w, envs[tree], Path(tmp)))
+        for tree, w in configs:
+            rs = runs[tree, w]
+            med = {k: statistics.median(r[k] for r in rs) for k in rs[0]}
+            best = max(r["rate"] for r in rs)
             processed = med["done"] + med["failed"]
             steady = processed / max(med["elapsed"] - med["startup"], 1e-9)
-            label = "0 (in-process)" if w == 0 else str(w)
-            print(f"{label:>14} {med['wall']:8.2f} {med['rate']:8.1f} {best:8.1f} {med['startup']:10.2f} "
+            label = tree + ("0 (in-process)" if w == 0 else str(w))
+            print(f"{label:>22} {med['wall']:8.2f} {med['rate']:8.1f} {best:8.1f} {med['startup']:10.2f} "
                   f"{med['per_mesh'] * 1e3:12.1f} {med['voxelize'] * 1e3:12.1f} {steady:22.1f}", flush=True)
 
 
