@@ -13,6 +13,8 @@ import sys
 import time
 import warnings
 
+import numpy as np
+
 import glvox
 from glvox.methods import run_method
 
@@ -42,6 +44,11 @@ for line in sys.stdin:
             out = {"run_s": wall, "readback_s": st.get("readback"), "dense_s": td, "points_s": tp,
                    "count": int(g.count)}
             del d, p, g
+        elif op == "floor":
+            # what any dense result pays: N^3 bytes written into fresh memory (no glvox)
+            a = np.ones(req["n"] ** 3, dtype=bool)
+            out = {"s": time.perf_counter() - t0}
+            del a
         else:
             out = {"error": f"unknown op {op}"}
     except Exception as exc:
