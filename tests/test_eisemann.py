@@ -354,7 +354,7 @@ def test_deep_grids_take_a_pass_per_1024_slices(gl_context):
 
 def test_fewer_targets_more_passes_same_words(gl_context):
     """render_slice_masks with 1 or 3 targets (128 or 384 slices per pass) packs
-    the same words as with 8, along every axis, for XOR and OR."""
+    the same words as with 8, along every axis, for XOR and OR, and counts them."""
     m = trimesh.creation.torus(1.0, 0.35)
     mesh = load_mesh((m.vertices, m.faces), name="torus")
     spec = glvox.grid_for(mesh, dims=(40, 36, 300))
@@ -364,8 +364,11 @@ def test_fewer_targets_more_passes_same_words(gl_context):
             for targets in (8, 3, 1):
                 timer = StageTimer(gl_context)
                 render = eisemann_passes.SliceRender(op, axis=axis, targets=targets)
-                buf = eisemann_passes.render_slice_masks(gl_context, mesh, spec, render, timer=timer)
+                buf, count = eisemann_passes.render_slice_masks(gl_context, mesh, spec, render, timer=timer)
                 words[targets] = np.frombuffer(buf.read(size=spec.n_words * 4), "<u4").copy()
+                # the pack passes' count is the words' over every pass
+                voxels = int(np.frombuffer(count.read(size=4), "<u4")[0])
+                assert voxels == int(np.bitwise_count(words[targets]).sum()), (op, axis, targets)
                 slices = 128 * targets
                 assert timer.stats["passes"] == -(-spec.dims[axis] // slices)
             assert words[8].any()

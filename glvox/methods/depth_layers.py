@@ -94,7 +94,7 @@ assert SCAN_SEGMENT + 64 < LOOP_BUDGET
 
 _AXES = ("xyz", "xy", "xz", "yz", "x", "y", "z")
 _AXIS_NAMES = "xyz"
-_REQUIRES = Requirements(gl_version=450, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 5})
+_REQUIRES = Requirements(gl_version=450, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 6})
 _OPTIONS = {
     "axes": Option("xyz", "directions of projection (the paper uses all three)", _AXES),
     "tile": Option(0, "largest render-target side in pixels; larger views are drawn in tiles "
@@ -109,13 +109,16 @@ class _Grids:
     ``flips``: the crossing marks of the current axis; ``acc``: the result
     (and for passalis-stencil the per-direction verdicts and the
     unclassifiable voxels); ``crowded``: per-column flags of Sec. 3.2;
-    ``stats``: the stencil maximum read back per tile.
+    ``stats``: the stencil maximum read back per tile; ``count``: the set
+    voxels of the result and (passalis-stencil) of the unclassifiable mask,
+    counted by the last pass that writes them.
     """
 
     flips: Any
     acc: list
     crowded: Any
     stats: Any
+    count: Any
 
 
 # ---------------------------------------------------------------------------
@@ -149,22 +152,24 @@ class _DepthLayers(Method):
                 tiles[name] = self._layers(run, spec, bounds, axis, side, timer)
                 passes[name], counts[name] = run.passes, run.counts
                 with timer.stage(f"classify_{name}"):
-                    self._classify(ctx, spec, axis, n_axis == 0, scan, combine, grids)
+                    self._classify(ctx, spec, axis, n_axis, len(axis_ids), scan, combine, grids)
             if self.algorithm == "stencil":
                 with timer.stage("finish"):
                     self._finish(ctx, spec, uniforms, grids)
         with timer.stage("readback", gpu=False):
             words = read_grid_words(grids.acc[0], spec)
+            voxels, unclassifiable = (int(c) for c in np.frombuffer(grids.count.read(size=8), dtype="<u4"))
             extras = {}
             if self.algorithm == "stencil":
-                extras["unclassifiable"] = VoxelGrid(words=read_grid_words(grids.acc[2], spec), spec=spec)
+                extras["unclassifiable"] = VoxelGrid(words=read_grid_words(grids.acc[2], spec), spec=spec,
+                                                     count=unclassifiable)
         timer.stats["passes"] = passes
         timer.stats["tiles"] = tiles
         if self.algorithm == "peel":
             timer.stats["max_crossings_per_class"] = counts
         if self.algorithm == "stencil":
             timer.stats["unclassifiable"] = extras["unclassifiable"].count
-        return VoxelGrid(words=words, spec=spec, extras=extras)
+        return VoxelGrid(words=words, spec=spec, extras=extras, count=voxels)
 
     def _grids(self, ctx, spec, axis_ids) -> _Grids:
         """The run's buffers; the grids first: a grid over the SSBO limit is refused
@@ -180,7 +185,7 @@ class _DepthLayers(Method):
         most_columns = max(spec.dims[(a + 1) % 3] * spec.dims[(a + 2) % 3] for a in axis_ids)
         crowded = pool.get("crowded", most_columns * 4 if self.algorithm == "stencil" else 4,
                            what="per-column crossing flags", clear=False)
-        return _Grids(flips, acc, crowded, pool.get("stats", 16))
+        return _Grids(flips, acc, crowded, pool.get("stats", 16), pool.get("count", 8))
 
     def _layers(self, run: "_Run", spec, bounds, axis: int, side: int, timer) -> int:
         """Stage ``layers_<axis>`` (step 1), tile by tile: the z-buffers of :meth:`_views`,
@@ -202,8 +207,10 @@ class _DepthLayers(Method):
     def _views(self, run: "_Run", target: DepthTarget, size) -> None:
         raise NotImplementedError
 
-    def _classify(self, ctx, spec, axis, first, scan, combine, grids: _Grids) -> None:
-        """Prefix XOR along ``axis`` (segments for y and z), then AND into the accumulators."""
+    def _classify(self, ctx, spec, axis, n_axis, n_axes, scan, combine, grids: _Grids) -> None:
+        """Prefix XOR along ``axis`` (segments for y and z), then AND into the accumulators;
+        the ``n_axis``-th of ``n_axes`` directions (the last one's combine counts the result,
+        but passalis-stencil's, which :meth:`_finish` finishes and counts)."""
         set_uniforms(scan, {"u_axis": axis})
         grids.flips.bind_to_storage_buffer(0)
         wpr = spec.words_per_row
@@ -220,7 +227,8 @@ class _DepthLayers(Method):
                 dispatch_1d(ctx, scan, lines, 64)
                 barrier(ctx)
         stencil = self.algorithm == "stencil"
-        set_uniforms(combine, {"u_axis": axis, "u_mode": (2 if stencil else 0) + (0 if first else 1)})
+        set_uniforms(combine, {"u_axis": axis, "u_mode": (2 if stencil else 0) + (0 if n_axis == 0 else 1),
+                               "u_last": not stencil and n_axis == n_axes - 1})
         acc = grids.acc
         for i, buf in enumerate(acc):
             buf.bind_to_storage_buffer(1 + i)
@@ -228,6 +236,7 @@ class _DepthLayers(Method):
         for i in range(len(acc), 3):
             acc[0].bind_to_storage_buffer(1 + i)
         grids.crowded.bind_to_storage_buffer(4)
+        grids.count.bind_to_storage_buffer(5)
         dispatch_1d(ctx, combine, spec.n_words, 256)
         barrier(ctx)
 
@@ -238,6 +247,7 @@ class _DepthLayers(Method):
         set_uniforms(prog, uniforms)
         for i, buf in enumerate(grids.acc):
             buf.bind_to_storage_buffer(1 + i)
+        grids.count.bind_to_storage_buffer(5)
         dispatch_1d(ctx, prog, spec.n_words, 256)
         barrier(ctx)
 

@@ -48,8 +48,8 @@ Pipeline: ``transform`` (vertices to voxel space, double), ``setup`` (per
 triangle: the column box, the slices it can reach, the corners to draw), then
 per tile and pass ``render`` (zero the targets, draw with the logic op) and
 ``pack`` (a compute pass turning the targets into glvox's packed grid: a copy
-when rendering along x, 32x32 bit transposes along y and z), ``readback``
-(the grid words only).
+when rendering along x, 32x32 bit transposes along y and z, counting the set
+bits of the words it stores), ``readback`` (the grid words and the count).
 :func:`~glvox.methods.eisemann_passes.render_slice_masks` is the reusable
 part (:mod:`glvox.methods.eisemann_passes`); Leung & Wang's T1 and T2 masks
 reuse its shaders.
@@ -63,6 +63,8 @@ must fit one shader storage buffer.
 """
 
 from __future__ import annotations
+
+import numpy as np
 
 from ..gpu.buffers import read_grid_words
 from ..results.voxels import VoxelGrid
@@ -82,10 +84,11 @@ class _Eisemann(Method):
 
     def run(self, mesh, spec, *, ctx, timer, axis, masks, coverage, tile):
         render = SliceRender(self.op, axis=axis, masks=masks, coverage=coverage, tile=tile)
-        grid = render_slice_masks(ctx, mesh, spec, render, timer=timer, owner=self.info.name)
+        grid, count = render_slice_masks(ctx, mesh, spec, render, timer=timer, owner=self.info.name)
         with timer.stage("readback", gpu=False):
             words = read_grid_words(grid, spec)
-        return VoxelGrid(words=words, spec=spec)
+            voxels = int(np.frombuffer(count.read(size=4), dtype="<u4")[0])
+        return VoxelGrid(words=words, spec=spec, count=voxels)
 
     def release(self, ctx) -> None:
         super().release(ctx)

@@ -341,12 +341,15 @@ def _draw_pass(ctx, render: SliceRender, pp: _PassPrograms, on_grid: _OnGrid, ti
         pp.vao.render(moderngl.TRIANGLES, vertices=3 * on_grid.n_triangles)
 
 
-def _pack_pass(ctx, render: SliceRender, pp: _PassPrograms, tg: _Targets, used: int, grid, tile: dict) -> None:
-    """The pass's targets into the packed grid: a copy along x, 32x32 bit transposes along y and z."""
+def _pack_pass(ctx, render: SliceRender, pp: _PassPrograms, tg: _Targets, used: int, grid, count,
+               tile: dict) -> None:
+    """The pass's targets into the packed grid: a copy along x, 32x32 bit transposes along y and z;
+    the set bits stored are added to ``count`` (binding 3, the setup's in the draws)."""
     tw, th = tile["u_tile_size"]
     for t in range(used):
         tg.textures[t].bind_to_image(t, read=True, write=False)
     grid.bind_to_storage_buffer(2)
+    count.bind_to_storage_buffer(3)
     if render.axis == 0:
         count = used * tw * th
         words_x = 0
@@ -379,10 +382,13 @@ def render_slice_masks(ctx, mesh, spec, render: SliceRender, *, timer, owner: st
 
     Returns
     -------
-    moderngl.Buffer
+    grid : moderngl.Buffer
         The pool's ``grid`` buffer holding ``spec.n_words`` uint32 words in
         the layout of ``common/voxel_space.glsl`` (zero bits past the grid);
         valid until the next call with the same ``owner``.
+    count : moderngl.Buffer
+        The pool's ``count`` buffer: one uint32, the set bits of ``grid``
+        (counted by the pack passes as they store each word once).
     """
     _check_stage_storage(ctx)
     side = tile_limit(ctx, render.tile)
@@ -394,6 +400,7 @@ def render_slice_masks(ctx, mesh, spec, render: SliceRender, *, timer, owner: st
     pool = buffer_pool(ctx, owner)
     # the grid first: a grid over the SSBO limit is refused before any other work
     grid = pool.get("grid", spec.n_words * 4, what=f"the {spec.dims} bit grid")
+    count = pool.get("count", 4)
     on_grid = _prepare(ctx, mesh, spec, render, pool, timer)
     per_pass = render.targets_per_pass(n_a)
     tg = _targets(ctx, max(per_pass), (tiles_u[0][1], tiles_v[0][1]))
@@ -409,7 +416,7 @@ def render_slice_masks(ctx, mesh, spec, render: SliceRender, *, timer, owner: st
                     with timer.stage("render"):
                         _draw_pass(ctx, render, programs[used], on_grid, tile)
                     with timer.stage("pack"):
-                        _pack_pass(ctx, render, programs[used], tg, used, grid, tile)
+                        _pack_pass(ctx, render, programs[used], tg, used, grid, count, tile)
     finally:
         for pp in programs.values():
             pp.release()
@@ -418,4 +425,4 @@ def render_slice_masks(ctx, mesh, spec, render: SliceRender, *, timer, owner: st
         "slices_per_pass": slices, "passes": passes, "tiles": [len(tiles_u), len(tiles_v)],
         "draws": passes * len(tiles_u) * len(tiles_v), "tile_limit": side,
     })
-    return grid
+    return grid, count

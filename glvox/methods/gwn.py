@@ -44,7 +44,7 @@ import numpy as np
 from ..errors import LimitError, MethodError
 from ..gl.shaders import compute_program
 from ..gl.timing import StageTimer
-from ..gpu.buffers import buffer_pool, read_grid_words
+from ..gpu.buffers import buffer_pool, mesh_buffers, read_grid_words
 from ..gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set_uniforms
 from ..gpu.transform import transform_vertices
 from ..results.voxels import VoxelGrid
@@ -52,7 +52,8 @@ from ..tolerances import WINDING_TIE
 from .base import Method, MethodInfo, Option, Requirements, register
 from .gwn_tree import ClusterTree, boundary_loops, build_tree
 from .ss_solid import COLUMN_CHUNK, crossing_passes, mesh_rows
-from .ss_surface import SSConservative
+from .carve import surface_slices
+from .ss_surface import surface_on_gpu
 
 _LOCAL = 64  # local_size_x of the gwn shaders
 _REQUIRES = Requirements(gl_version=430, extensions=("GL_ARB_gpu_shader_fp64",),
@@ -157,6 +158,7 @@ class GwnSolid(Method):
 
     def release(self, ctx) -> None:
         buffer_pool(ctx, self.info.name).release()
+        buffer_pool(ctx, self.info.name + ":shell").release()
 
     def run(self, mesh, spec, *, ctx, timer, threshold, accuracy, shell, winding):
         if not (math.isfinite(accuracy) and accuracy > 1.0):
@@ -174,18 +176,30 @@ class GwnSolid(Method):
                              f"({loops.n_edges} boundary edges) is {tree.depth} deep")
         run = _Run(ctx, spec, pool, bufs, vox, bits, tree, timer, float(threshold), float(accuracy), bool(winding))
         field = run.all_slabs(mesh.n_triangles)
+        if shell:
+            with timer.stage("shell", gpu=False):
+                self._add_shell(ctx, mesh, spec, bits, run.count)
         with timer.stage("readback", gpu=False):
             words = read_grid_words(bits, spec)
             voxels = int(np.frombuffer(run.count.read(size=4), dtype="<u4")[0])
         timer.stats.update(boundary_edges=loops.n_edges, loops=len(loops.loops), **run.stats)
-        grid = VoxelGrid(words=words, spec=spec, count=voxels,
-                         fields={"winding": field} if winding else None)
-        if shell:
-            with timer.stage("shell", gpu=False):
-                # ss-conservative's own passes, timed apart (one "shell" stage here)
-                surface = SSConservative().run(mesh, spec, ctx=ctx, timer=StageTimer(ctx), variant="specialized")
-                grid = VoxelGrid(words=grid.words() | surface.words(), spec=spec, fields=grid.fields)
-        return grid
+        return VoxelGrid(words=words, spec=spec, count=voxels, fields={"winding": field} if winding else None)
+
+    def _add_shell(self, ctx, mesh, spec, bits, count) -> None:
+        """OR the conservative surface into ``bits`` on the GPU, adding the voxels it
+        adds to ``count``: ss-conservative's passes (timed apart, one ``shell`` stage
+        here) into a pool of their own, then ``gwn/shell.comp`` over the surface's slices."""
+        pool = buffer_pool(ctx, self.info.name + ":shell")
+        surface, _ = surface_on_gpu(ctx, mesh, spec, StageTimer(ctx), pool, variant="specialized")
+        k0, nk = surface_slices(spec, mesh_buffers(ctx, mesh))
+        per_slice = spec.dims[1] * spec.words_per_row
+        prog = compute_program(ctx, "gwn/shell.comp")
+        set_uniforms(prog, {"u_first_word": k0 * per_slice, "u_words": nk * per_slice})
+        surface.bind_to_storage_buffer(0)
+        bits.bind_to_storage_buffer(7)
+        count.bind_to_storage_buffer(8)
+        dispatch_1d(ctx, prog, nk * per_slice, 64)
+        barrier(ctx)
 
 
 class _Run:

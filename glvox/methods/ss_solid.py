@@ -410,6 +410,7 @@ class SSSolidTiled(Method):
         max_groups = _check_triangles(ctx, n, "ss-solid-tiled")
         pool = buffer_pool(ctx, self.info.name)
         grid = pool.get("grid", spec.n_words * 4, what=f"the {spec.dims} bit grid")
+        count = pool.get("count", 4)
         bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool)
         tiles_y, tiles_z = -(-ny // TILE), -(-nz // TILE)
         key_bits = max(1, (tiles_y * tiles_z - 1).bit_length())
@@ -434,6 +435,7 @@ class SSSolidTiled(Method):
             bufs.faces.bind_to_storage_buffer(2)
             grid.bind_to_storage_buffer(3)
             tstats.bind_to_storage_buffer(4)
+            count.bind_to_storage_buffer(5)
             active.bind_to_storage_buffer(6)
             values.bind_to_storage_buffer(8)
             gx = min(active_tiles, max_groups)
@@ -443,9 +445,10 @@ class SSSolidTiled(Method):
                 barrier(ctx)
         with timer.stage("readback", gpu=False):
             words = read_grid_words(grid, spec)
+            voxels = int(np.frombuffer(count.read(size=4), dtype="<u4")[0])
         timer.stats.update({
             "pairs": n_pairs, "active_tiles": active_tiles,
             "triangles_per_active_tile": round(n_pairs / active_tiles, 2) if active_tiles else 0.0,
             "max_triangles_per_tile": most, "tile_passes": passes,
         })
-        return VoxelGrid(words=words, spec=spec)
+        return VoxelGrid(words=words, spec=spec, count=voxels)

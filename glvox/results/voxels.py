@@ -113,6 +113,11 @@ class VoxelGrid(Result):
         voxel in the order of :meth:`indices`; empty when none were asked
         for.  Saved in npz as ``attr_<name>``; :meth:`attribute_grid` gives
         the dense form.
+
+    The constructor's ``count`` is the number of set voxels as the GPU
+    method that wrote ``words`` counted them (fused into a pass it runs
+    anyway); without it :attr:`count` popcounts on the CPU when first asked.
+    :attr:`counted_on` says which.
     """
 
     def __init__(self, occupancy: np.ndarray | None = None, spec: GridSpec | None = None, *,
@@ -144,6 +149,7 @@ class VoxelGrid(Result):
         self._dense: np.ndarray | None = None
         self._words: np.ndarray | None = None
         self._count = None if count is None else int(count)
+        self._gpu_count = count is not None
         self._indices: np.ndarray | None = None
         if occupancy is not None:
             occ = np.asarray(occupancy)
@@ -203,6 +209,12 @@ class VoxelGrid(Result):
             else:
                 self._count = int(np.count_nonzero(self._dense))
         return self._count
+
+    @property
+    def counted_on(self) -> str:
+        """``'gpu'`` when the method that made the grid gave its count (counted on
+        the GPU), else ``'cpu'`` (:attr:`count` popcounts the bits when first asked)."""
+        return "gpu" if self._gpu_count else "cpu"
 
     def __len__(self) -> int:
         return self.count

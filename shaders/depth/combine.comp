@@ -1,7 +1,9 @@
 #version 450
 // Combine one direction's verdict (the parity words of depth/scan.comp) with the others
 // (Passalis et al. 2006, Sec. 2: a voxel is inside when every direction says so), and
-// clear the parity buffer for the next direction.
+// clear the parity buffer for the next direction.  u_last 1 (the last direction of
+// modes 0 / 1, whose acc0 is the result): the set bits of acc0 are added to voxel_count,
+// once per invocation (one word each).
 //   u_mode 0 / 1: acc0 = P (first direction) / acc0 &= P.
 //   u_mode 2 / 3 (Sec. 3.2, double-layer buffers): C = the voxels whose column along this
 //   direction held at most CLASSIFIABLE_COUNT crossings, so its verdict is complete;
@@ -14,11 +16,13 @@ layout(local_size_x = 256) in;
 #include "common/voxel_space.glsl"
 uniform int u_axis;
 uniform int u_mode;
+uniform int u_last;
 layout(std430, binding = 0) buffer Flips { uint flips[]; };
 layout(std430, binding = 1) buffer Acc0 { uint acc0[]; };
 layout(std430, binding = 2) buffer Acc1 { uint acc1[]; };
 layout(std430, binding = 3) buffer Acc2 { uint acc2[]; };
 layout(std430, binding = 4) readonly buffer Crowded { uint crowded[]; };
+layout(std430, binding = 5) buffer Count { uint voxel_count[]; };
 
 void main() {
     uint w = global_index_1d();
@@ -30,7 +34,10 @@ void main() {
     uint p = flips[w] & valid;
     flips[w] = 0u;
     if (u_mode < 2) {
-        acc0[w] = u_mode == 0 ? p : (acc0[w] & p);
+        uint a = u_mode == 0 ? p : (acc0[w] & p);
+        acc0[w] = a;
+        uint n = uint(bitCount(a));
+        if (u_last != 0 && n != 0u) atomicAdd(voxel_count[0], n);
         return;
     }
     uint c = 0u;

@@ -11,7 +11,9 @@
 // (one per channel), and transposes them into 4 x 32 grid words (128 rows,
 // one x word each).
 // Tiles start at multiples of 32 along x, so every grid word is written by
-// exactly one invocation of one (tile, pass), with plain stores.
+// exactly one invocation of one (tile, pass), with plain stores; each
+// invocation adds the set bits of the words it stored to voxel_count once,
+// so the count is the grid's.
 layout(local_size_x = 64) in;
 #include "common/dispatch.glsl"
 #include "common/bits.glsl"
@@ -41,6 +43,7 @@ layout(rgba32ui, binding = 7) readonly uniform uimage2D u_target7;
 #endif
 
 layout(std430, binding = 2) writeonly buffer Grid { uint grid[]; };
+layout(std430, binding = 3) buffer Count { uint voxel_count; };
 
 uniform ivec2 u_tile_lo;
 uniform ivec2 u_tile_size;
@@ -83,6 +86,7 @@ uint row_word(int j, int k, int xw) { return word_index(ivec3(32 * xw, j, k)); }
 void main() {
     uint g = global_index_1d();
     if (g >= u_invocations) return;
+    uint n_set = 0u;
 #if EIS_AXIS == 0
     // one invocation per pixel and target: four grid words of row (j, k) = (u, v)
     int t = int(g % uint(EIS_TARGETS));
@@ -96,6 +100,7 @@ void main() {
         uint value = words[c];
         if (x0 + 32 > u_slice_hi) value &= mask_upto(uint(u_slice_hi - 1 - x0));  // past the grid
         grid[row_word(u_tile_lo.x + p.x, u_tile_lo.y + p.y, xw)] = value;
+        n_set += uint(bitCount(value));
     }
 #else
     // one invocation per 32 pixels consecutive in x and one target: four 32 x 32
@@ -144,7 +149,9 @@ void main() {
 #else
             grid[row_word(s0 + c, k, x_word)] = a[c][ch];
 #endif
+            n_set += uint(bitCount(a[c][ch]));
         }
     }
 #endif
+    if (n_set != 0u) atomicAdd(voxel_count, n_set);
 }

@@ -6,7 +6,10 @@
 // the segments after it; a crossing outside the active segment first flushes
 // it.  At the end the active segment is flushed and the flagged segments are
 // flipped whole.  A row belongs to exactly one invocation, so every write is
-// a plain read-modify-write: no atomics.
+// a plain read-modify-write: no atomics.  The voxel count follows the writes:
+// each one changes its word's set bits by a known amount, and an invocation
+// adds its net change (mod 2^32) to voxel_count once, so after the last pass
+// voxel_count holds the grid's set bits (the grid starts empty).
 //
 // Departure: the paper sets up up to 14 triangles per warp in shared memory
 // and runs two triangles per warp (twin threads); here each invocation sets up
@@ -19,6 +22,7 @@
 layout(local_size_x = TILE, local_size_y = TILE) in;
 layout(std430, binding = 3) buffer Grid { uint grid[]; };
 layout(std430, binding = 4) readonly buffer Stats { uint stats[]; };
+layout(std430, binding = 5) buffer Count { uint voxel_count; };
 layout(std430, binding = 6) readonly buffer Active { uint tiles[]; };
 layout(std430, binding = 8) readonly buffer Values { uint values[]; };
 uniform uint u_pairs;
@@ -32,6 +36,16 @@ uvec4 segments_after(uint seg) {
         m[w] = lo <= 0 ? 0xFFFFFFFFu : mask_from(uint(lo));
     }
     return m;
+}
+
+uint g_delta = 0u;  // this invocation's net change of set bits, mod 2^32
+
+// grid[w] ^= bits, tracking the change of its set bits.
+void flip_word(uint w, uint bits) {
+    uint old = grid[w];
+    uint now = old ^ bits;
+    grid[w] = now;
+    g_delta += uint(bitCount(now)) - uint(bitCount(old));
 }
 
 void main() {
@@ -63,20 +77,21 @@ void main() {
         if (f >= u_dims.x) continue;
         uint b = uint(max(f, 0));
         if (int(b >> 5) != seg) {
-            if (seg >= 0) grid[row + uint(seg)] ^= value & (uint(seg) == wpr - 1u ? tail : 0xFFFFFFFFu);
+            if (seg >= 0) flip_word(row + uint(seg), value & (uint(seg) == wpr - 1u ? tail : 0xFFFFFFFFu));
             seg = int(b >> 5);
             value = 0u;
         }
         value ^= mask_from(b & 31u);
         flips ^= segments_after(b >> 5);
     }
-    if (seg >= 0) grid[row + uint(seg)] ^= value & (uint(seg) == wpr - 1u ? tail : 0xFFFFFFFFu);
+    if (seg >= 0) flip_word(row + uint(seg), value & (uint(seg) == wpr - 1u ? tail : 0xFFFFFFFFu));
     for (int w = 0; w < 4; ++w) {
         uint bits = flips[w];
         while (bits != 0u) {
             uint g = uint(32 * w + findLSB(bits));
             bits &= bits - 1u;
-            if (g < wpr) grid[row + g] ^= g == wpr - 1u ? tail : 0xFFFFFFFFu;
+            if (g < wpr) flip_word(row + g, g == wpr - 1u ? tail : 0xFFFFFFFFu);
         }
     }
+    if (g_delta != 0u) atomicAdd(voxel_count, g_delta);
 }
