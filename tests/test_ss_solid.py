@@ -18,6 +18,7 @@ from conftest import SHARED_MESHES
 import glvox
 from glvox.errors import LimitError, NotWatertightError, NotWatertightWarning
 from glvox.grid import GridSpec
+from glvox.gpu.dispatch import LOOP_BUDGET
 from glvox.mesh import load_mesh
 from glvox.methods import run_method, ss_solid
 from glvox.metrics import check_against_reference, tie_set
@@ -271,12 +272,23 @@ def test_stats_and_stages(gl_context):
     assert [s.name for s in g.run.timings.stages] == ["transform", "voxelize", "fill", "readback"]
 
 
-@pytest.mark.parametrize("nx", [20, 33, 64, 96, 100, 128, 160, 200])
-def test_row_fill_every_word_width(gl_context, nx):
-    """The fill pass moves 1, 2 or 4 words per load (by the words per row:
-    nx 20, 33, 96, 100, 160 and 200 cover 1, 2, 3, 4, 5 and 7 words).  A
-    single open triangle leaves the parity odd to the row's end, so the bits
-    past nx must be masked; a box checks the carry between words."""
+@pytest.mark.parametrize("int64", [True, False], ids=["int64", "int32"])
+@pytest.mark.parametrize("nx", [20, 33, 64, 96, 100, 127, 128, 160, 190, 200, 250])
+def test_row_fill_every_word_width(gl_context, monkeypatch, nx, int64):
+    """The fill pass moves 1, 2 or 4 words per load, 64-bit words where the
+    context has GL_ARB_gpu_shader_int64 and the row holds whole pairs, 32-bit
+    ones otherwise (forced here by hiding the extension): nx 20, 33, 96, 100,
+    160, 190, 200 and 250 cover 1, 2, 3, 4, 5, 6, 7 and 8 words per row (127:
+    a last 64-bit word one bit short of full).  A single open triangle leaves
+    the parity odd to the row's end, so the bits past nx must be masked; a box
+    checks the carry between words."""
+    if not int64:
+        monkeypatch.setattr(ss_solid, "INT64", "GL_glvox_hidden_extension")
+    elif ss_solid.INT64 not in gl_context.mgl.extensions:
+        pytest.skip(f"no {ss_solid.INT64} on {gl_context.renderer}")
+    wpr = -(-nx // 32)
+    defines = ss_solid.fill_defines(gl_context, wpr)
+    assert defines["WORD64"] == int(int64 and wpr % 2 == 0)
     spec = GridSpec((nx, 6, 7), (0.0, 0.0, 0.0), 1.0)
     tri = load_mesh((np.array([[nx * 0.37, 0.2, 0.1], [nx * 0.61, 5.9, 0.3], [nx * 0.5, 0.4, 6.8]]),
                      np.array([[0, 1, 2]])), name="one-triangle")
@@ -290,6 +302,15 @@ def test_row_fill_every_word_width(gl_context, nx):
             again = run_method("ss-solid", mesh, spec, allow_open=allow_open)
         assert ref.count > 0 and g.equal(ref) and again.equal(ref), f"{mesh.name} nx={nx}"
         assert g.count == int(np.bitwise_count(g.words()).sum())
+
+
+@pytest.mark.parametrize("words", [1, 2, 32, 4096, 1 << 16])
+def test_fill_rows_per_invocation_keep_the_loop_budget(gl_context, words):
+    """Rows of any length: an invocation's rows times their loads per row stay
+    within LOOP_BUDGET, and it does at least one row."""
+    d = ss_solid.fill_defines(gl_context, words)
+    loads = words // (2 if d["WORD64"] else 1) // d["VEC"]
+    assert 1 <= d["ROWS"] <= ss_solid.FILL_ROWS and d["ROWS"] * (loads + 1) < LOOP_BUDGET
 
 
 def run_bufs(ctx, mesh):
