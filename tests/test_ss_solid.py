@@ -20,7 +20,7 @@ from glvox.errors import LimitError, NotWatertightError, NotWatertightWarning
 from glvox.grid import GridSpec
 from glvox.gpu.dispatch import LOOP_BUDGET
 from glvox.mesh import load_mesh
-from glvox.methods import run_method, ss_solid
+from glvox.methods import run_method, ss_solid, ss_solid_tuning
 from glvox.metrics import check_against_reference, tie_set
 from glvox.reference._candidates import column_candidates, normals
 from glvox.reference.solid import _edge_function
@@ -283,11 +283,11 @@ def test_row_fill_every_word_width(gl_context, monkeypatch, nx, int64):
     the parity odd to the row's end, so the bits past nx must be masked; a box
     checks the carry between words."""
     if not int64:
-        monkeypatch.setattr(ss_solid, "INT64", "GL_glvox_hidden_extension")
-    elif ss_solid.INT64 not in gl_context.mgl.extensions:
-        pytest.skip(f"no {ss_solid.INT64} on {gl_context.renderer}")
+        monkeypatch.setattr(ss_solid_tuning, "INT64", "GL_glvox_hidden_extension")
+    elif ss_solid_tuning.INT64 not in gl_context.mgl.extensions:
+        pytest.skip(f"no {ss_solid_tuning.INT64} on {gl_context.renderer}")
     wpr = -(-nx // 32)
-    defines = ss_solid.fill_defines(gl_context, wpr)
+    defines = ss_solid_tuning.fill_defines(gl_context, wpr)
     assert defines["WORD64"] == int(int64 and wpr % 2 == 0)
     spec = GridSpec((nx, 6, 7), (0.0, 0.0, 0.0), 1.0)
     tri = load_mesh((np.array([[nx * 0.37, 0.2, 0.1], [nx * 0.61, 5.9, 0.3], [nx * 0.5, 0.4, 6.8]]),
@@ -308,9 +308,9 @@ def test_row_fill_every_word_width(gl_context, monkeypatch, nx, int64):
 def test_fill_rows_per_invocation_keep_the_loop_budget(gl_context, words):
     """Rows of any length: an invocation's rows times their loads per row stay
     within LOOP_BUDGET, and it does at least one row."""
-    d = ss_solid.fill_defines(gl_context, words)
+    d = ss_solid_tuning.fill_defines(gl_context, words)
     loads = words // (2 if d["WORD64"] else 1) // d["VEC"]
-    assert 1 <= d["ROWS"] <= ss_solid.FILL_ROWS and d["ROWS"] * (loads + 1) < LOOP_BUDGET
+    assert 1 <= d["ROWS"] <= ss_solid_tuning.FILL_ROWS and d["ROWS"] * (loads + 1) < LOOP_BUDGET
 
 
 @pytest.mark.parametrize("order_from", [0, None], ids=["row-order", "file-order"])
@@ -326,13 +326,14 @@ def test_row_order_gives_the_same_solid(gl_context, shared_mesh, monkeypatch, or
     else:
         m = GENERATED[src]()
         mesh = load_mesh((m.vertices, m.faces), name=src)
-    order = ss_solid.row_order(mesh)
+    order = ss_solid_tuning.row_order(mesh)
     assert np.array_equal(np.sort(order), np.arange(mesh.n_triangles))
     z = mesh.vertices[mesh.faces[order, 0], 2]
-    slab = np.minimum((z - z.min()) * ss_solid.ORDER_SLABS / np.ptp(z), ss_solid.ORDER_SLABS - 1).astype(int)
+    slabs = ss_solid_tuning.ORDER_SLABS
+    slab = np.minimum((z - z.min()) * slabs / np.ptp(z), slabs - 1).astype(int)
     assert np.all(np.diff(slab) >= 0)
     if order_from is not None:
-        monkeypatch.setattr(ss_solid, "ORDER_MIN_BYTES", order_from)
+        monkeypatch.setattr(ss_solid_tuning, "ORDER_MIN_BYTES", order_from)
     spec = glvox.grid_for(mesh, n)
     g = run_method("ss-solid", mesh, spec)
     ref = run_method("reference-solid", mesh, spec)

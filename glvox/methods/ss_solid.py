@@ -14,8 +14,10 @@ the bounds kept with the uploaded mesh: no readback), writes only the words
 that change, and counts the set voxels; only the z slices of those rows are
 read back.  The first voxelization pass sets each triangle up once and does
 its first chunk of columns; the rare triangles with more chunks are listed
-for a second, indirect pass.  One bit per crossing and the in-place fill
-over the mesh's rows each took less time than the paper's word-by-word flips
+for a second, indirect pass; on large grids the triangles go in
+:func:`~glvox.methods.ss_solid_tuning.row_order`, so that neighbouring
+invocations flip bits in nearby rows.  One bit per crossing and the in-place
+fill over the mesh's rows each took less time than the paper's word-by-word flips
 (measured with ``glvox bench`` on the bunny and the dragon; figures in
 compare/README.md).
 
@@ -61,6 +63,7 @@ from ..gpu.transform import transform_vertices
 from ..grid import GridSpec
 from ..results.voxels import VoxelGrid
 from .base import Method, MethodInfo, Requirements, register
+from .ss_solid_tuning import fill_defines, voxelize_faces
 
 _PAPER = "Schwarz & Seidel 2010"
 _LOCAL = 64  # local_size_x of ss/solid_classify.comp, ss/solid.comp, ss/tile_pairs.comp
@@ -92,72 +95,6 @@ assert 8 * TILE_CHUNK < LOOP_BUDGET
 #: tests and one atomic; the largest power of two keeping an invocation under
 #: half of LOOP_BUDGET.
 COLUMN_CHUNK = 1 << (((LOOP_BUDGET // 2) // 5).bit_length() - 1)
-
-
-#: Rows per invocation of ``ss/solid_fill.comp`` (fewer where rows are so long
-#: that LOOP_BUDGET would not hold them).  More rows per invocation took less
-#: time, to a plateau from 32-64 on: the fill of the bunny's and the
-#: armadillo's crossings at 1024^3 took 0.45 of the time with 64 rows than
-#: with 4, at 512^3 0.45 (``glvox bench --against``, README "Speed").
-FILL_ROWS = 64
-
-#: The extension that lets ``ss/solid_fill.comp`` load 64-bit words.
-INT64 = "GL_ARB_gpu_shader_int64"
-
-
-def fill_defines(ctx, words_per_row: int) -> dict[str, int]:
-    """The defines of ``ss/solid_fill.comp`` for rows of ``words_per_row`` 32-bit
-    words: 64-bit words (``WORD64``) where the context has :data:`INT64` and the
-    rows hold whole pairs, and the widest vector (``VEC`` 4, 2 or 1) that divides
-    the row.  llvmpipe loads and stores a buffer lane by lane and component by
-    component, so wider words mean fewer of those: the fill at 1024^3 took 0.8
-    of the 32-bit time (README "Speed").
-    """
-    w64 = words_per_row % 2 == 0 and INT64 in ctx.mgl.extensions
-    n = words_per_row // 2 if w64 else words_per_row
-    vec = 4 if n % 4 == 0 else 2 if n % 2 == 0 else 1
-    # an invocation loops over its rows and each row's n / vec loads
-    rows = max(1, min(FILL_ROWS, (LOOP_BUDGET // 2) // (n // vec + 1)))
-    return {"VEC": vec, "ROWS": rows, "WORD64": int(w64)}
-
-
-#: Slabs of the mesh's z extent that :func:`row_order` sorts triangles into.
-ORDER_SLABS = 64
-
-#: Bit grids of at least this many bytes get their crossings flipped in
-#: :func:`row_order` (see there; below it the grid stays in the CPU's caches
-#: and the order did not pay for its sort).
-ORDER_MIN_BYTES = 1 << 25
-
-
-def row_order(mesh) -> np.ndarray:
-    """The order in which ss-solid's voxelize pass takes the triangles of ``mesh``
-    on large grids: by slab of 1 / :data:`ORDER_SLABS` of the mesh's z extent,
-    then by y, each triangle at its first vertex; (F,) int64 triangle indices.
-
-    Consecutive invocations then flip bits in nearby rows, which stay in the
-    CPU's caches; in the mesh file's order they jump across the grid (at
-    1024^3 the voxelize pass took ~0.7 of its time on the bunny and the
-    armadillo, README "Speed").  Any order gives the same crossings, so the
-    same grid: XOR commutes.  The order depends on the mesh only, so it is
-    made once per mesh.
-    """
-    p = mesh.vertices[mesh.faces[:, 0]]
-    lo, hi = p.min(0), p.max(0)
-    ext = np.maximum(hi - lo, np.finfo(np.float64).tiny)
-    slab = np.minimum(((p[:, 2] - lo[2]) * (ORDER_SLABS / ext[2])).astype(np.int64), ORDER_SLABS - 1)
-    y = np.minimum(((p[:, 1] - lo[1]) * (2.0**31 / ext[1])).astype(np.int64), 2**31 - 1)
-    return np.argsort((slab << 31) | y, kind="stable")
-
-
-def row_ordered_faces(ctx, mesh, bufs):
-    """The faces of ``mesh`` in :func:`row_order`, uploaded once and kept with
-    its buffers ``bufs`` (a :class:`~glvox.gpu.buffers.MeshBuffers`)."""
-    buf = bufs.derived.get("faces_in_row_order")
-    if buf is None:
-        faces = mesh.faces.astype(np.uint32)[row_order(mesh)]
-        buf = bufs.derived["faces_in_row_order"] = ctx.mgl.buffer(faces.tobytes())
-    return buf
 
 
 def rotation(axis: int) -> tuple[int, int, int]:
@@ -400,7 +337,7 @@ def parity_on_gpu(ctx, mesh, spec, timer, pool, *, axis: int = 0, tag: str = "")
         set_uniforms(prog, {**uniforms, "u_triangles": n})
     count = pool.get("count" + tag, 4)
     args = pool.get("args" + tag, 3 * 4, clear=False)
-    faces = row_ordered_faces(ctx, mesh, bufs) if spec.n_words * 4 >= ORDER_MIN_BYTES else bufs.faces
+    faces = voxelize_faces(ctx, mesh, spec, bufs)
     with timer.stage("voxelize" + tag):
         crossing_passes(ctx, (first, rest), n, max_groups, (vox, faces, grid, big, args))
     rows = mesh_rows(spec, bufs, 0)
