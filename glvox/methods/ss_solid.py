@@ -17,8 +17,8 @@ its first chunk of columns; the rare triangles with more chunks are listed
 for a second, indirect pass; on large grids the triangles go in
 :func:`~glvox.methods.ss_solid_tuning.row_order`, so that neighbouring
 invocations flip bits in nearby rows.  One bit per crossing and the in-place
-fill over the mesh's rows each took less time than the paper's word-by-word flips
-(measured with ``glvox bench`` on the bunny and the dragon; figures in
+fill over the mesh's rows each took less time than the paper's word-by-word
+flips (measured with ``glvox bench`` on the bunny and the dragon; figures in
 compare/README.md).
 
 ``ss-solid-tiled`` (Sec. 4.2) assigns triangles to tiles of 4 x 4 columns
