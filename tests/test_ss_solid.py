@@ -305,12 +305,17 @@ def test_row_fill_every_word_width(gl_context, monkeypatch, nx, int64):
 
 
 @pytest.mark.parametrize("words", [1, 2, 32, 4096, 1 << 16])
-def test_fill_rows_per_invocation_keep_the_loop_budget(gl_context, words):
+@pytest.mark.parametrize("n_rows", [1, 1000, 1 << 20])
+def test_fill_rows_per_invocation_keep_the_loop_budget(gl_context, words, n_rows):
     """Rows of any length: an invocation's rows times their loads per row stay
-    within LOOP_BUDGET, and it does at least one row."""
+    within LOOP_BUDGET, it does at least one row, and small grids keep
+    FILL_MIN_GROUPS work groups where they have the rows for them."""
     d = ss_solid_tuning.fill_defines(gl_context, words)
     loads = words // (2 if d["WORD64"] else 1) // d["VEC"]
-    assert 1 <= d["ROWS"] <= ss_solid_tuning.FILL_ROWS and d["ROWS"] * (loads + 1) < LOOP_BUDGET
+    per = ss_solid_tuning.fill_rows(d, words, n_rows, 64)
+    assert 1 <= per <= ss_solid_tuning.FILL_ROWS and per * (loads + 1) < LOOP_BUDGET
+    if per > 1:
+        assert -(-n_rows // per) >= ss_solid_tuning.FILL_MIN_GROUPS * 64
 
 
 @pytest.mark.parametrize("order_from", [0, None], ids=["row-order", "file-order"])

@@ -63,7 +63,7 @@ from ..gpu.transform import transform_vertices
 from ..grid import GridSpec
 from ..results.voxels import VoxelGrid
 from .base import Method, MethodInfo, Requirements, register
-from .ss_solid_tuning import fill_defines, voxelize_faces
+from .ss_solid_tuning import fill_defines, fill_rows, voxelize_faces
 
 _PAPER = "Schwarz & Seidel 2010"
 _LOCAL = 64  # local_size_x of ss/solid_classify.comp, ss/solid.comp, ss/tile_pairs.comp
@@ -354,10 +354,11 @@ def _fill(ctx, spec, grid, count, rows, axis: int) -> None:
     grid.bind_to_storage_buffer(3)
     if axis == 0:
         defines = fill_defines(ctx, wpr)
+        per = fill_rows(defines, wpr, rows[2] * rows[3], _LOCAL)
         fill = compute_program(ctx, "ss/solid_fill.comp", defines)
-        set_uniforms(fill, {**grid_uniforms(spec, np.zeros(3)), "u_rows": rows})
+        set_uniforms(fill, {**grid_uniforms(spec, np.zeros(3)), "u_rows": rows, "u_rows_per": per})
         count.bind_to_storage_buffer(5)
-        dispatch_1d(ctx, fill, -(-rows[2] * rows[3] // defines["ROWS"]), _LOCAL)
+        dispatch_1d(ctx, fill, -(-rows[2] * rows[3] // per), _LOCAL)
         barrier(ctx)
         return
     fill = compute_program(ctx, "ss/solid_fill_axis.comp", {"AXIS": axis, "VEC": vec, "SEGMENT": AXIS_SEGMENT})

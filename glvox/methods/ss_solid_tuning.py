@@ -1,7 +1,7 @@
 """The measured choices of how ``ss-solid`` lays out its work on llvmpipe.
 
-* :func:`fill_defines`: rows per invocation and word width of the fill pass
-  (``shaders/ss/solid_fill.comp``);
+* :func:`fill_defines`, :func:`fill_rows`: word width and rows per invocation
+  of the fill pass (``shaders/ss/solid_fill.comp``);
 * :func:`voxelize_faces`: the order in which the voxelize pass takes the
   triangles (:func:`row_order` on large grids).
 
@@ -16,12 +16,17 @@ import numpy as np
 
 from ..gpu.dispatch import LOOP_BUDGET
 
-#: Rows per invocation of ``ss/solid_fill.comp`` (fewer where rows are so long
-#: that LOOP_BUDGET would not hold them).  More rows per invocation took less
-#: time, to a plateau from 32-64 rows on: timing the pass alone on the
-#: bunny's and the armadillo's crossings at 512^3 and 1024^3, 64 rows took
-#: 0.4-0.5 of the time of 4 (end to end: README "Solid voxelization").
+#: Most rows per invocation of ``ss/solid_fill.comp`` (:func:`fill_rows`).
+#: More rows per invocation took less time, to a plateau from 32-64 rows on:
+#: timing the pass alone on the bunny's and the armadillo's crossings at
+#: 512^3 and 1024^3, 64 rows took 0.4-0.5 of the time of 4 (end to end:
+#: README "Solid voxelization").
 FILL_ROWS = 64
+
+#: Work groups (of 64 invocations) the fill keeps at least, where the rows
+#: allow, so that every llvmpipe thread gets some: at 64^3 a single group of
+#: 64 rows each ran on one thread and took 1.1x the time of 4 rows each.
+FILL_MIN_GROUPS = 16
 
 #: The extension that lets ``ss/solid_fill.comp`` load 64-bit words.
 INT64 = "GL_ARB_gpu_shader_int64"
@@ -38,9 +43,18 @@ def fill_defines(ctx, words_per_row: int) -> dict[str, int]:
     w64 = words_per_row % 2 == 0 and INT64 in ctx.mgl.extensions
     n = words_per_row // 2 if w64 else words_per_row
     vec = 4 if n % 4 == 0 else 2 if n % 2 == 0 else 1
-    # an invocation loops over its rows and each row's n / vec loads
-    rows = max(1, min(FILL_ROWS, (LOOP_BUDGET // 2) // (n // vec + 1)))
-    return {"VEC": vec, "ROWS": rows, "WORD64": int(w64)}
+    return {"VEC": vec, "WORD64": int(w64)}
+
+
+def fill_rows(defines: dict[str, int], words_per_row: int, n_rows: int, local_size: int) -> int:
+    """Rows per invocation of the fill (``u_rows_per``) over ``n_rows`` rows, with
+    :func:`fill_defines`'s ``defines``: :data:`FILL_ROWS`, fewer where that would
+    leave under :data:`FILL_MIN_GROUPS` work groups of ``local_size``, or where an
+    invocation's loop iterations (its rows and each row's loads) would pass half
+    of LOOP_BUDGET; at least one."""
+    loads = words_per_row // (2 if defines["WORD64"] else 1) // defines["VEC"]
+    spread = n_rows // (FILL_MIN_GROUPS * local_size)
+    return max(1, min(FILL_ROWS, spread, (LOOP_BUDGET // 2) // (loads + 1)))
 
 
 #: Slabs of the mesh's z extent that :func:`row_order` sorts triangles into.

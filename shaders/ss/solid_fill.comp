@@ -10,7 +10,8 @@
 // The grid was cleared before the voxelize pass, so the pass visits only the
 // rows of u_rows (the mesh's projected bounding box on the (y, z) plane: no
 // other row has a crossing) and writes only the words that change: words with
-// crossings or an odd carry.  Every invocation does ROWS rows; the set voxels
+// crossings or an odd carry.  Every invocation does u_rows_per rows (set by
+// glvox.methods.ss_solid_tuning.fill_rows within LOOP_BUDGET); the set voxels
 // are counted on the way (voxel_count), so no one counts the grid again on
 // the CPU.
 //
@@ -50,6 +51,7 @@ layout(std430, binding = 3) buffer Grid { WORDS grid[]; };
 layout(std430, binding = 5) buffer Count { uint voxel_count; };
 // the rows that may hold crossings: j0, k0, and their count along y and z
 uniform ivec4 u_rows;
+uniform uint u_rows_per;
 
 // 0 or ~0 for each component: the parity bit b (0 or 1) spread to all bits
 #define SPREAD(b) (WORDS(0u) - (b))
@@ -67,8 +69,8 @@ void main() {
     WORD last_mask = mask_upto(last_bit);
 #endif
     uint count = 0u;
-    for (uint i = 0u; i < uint(ROWS); ++i) {
-        uint r = global_index_1d() * uint(ROWS) + i;
+    for (uint i = 0u; i < u_rows_per; ++i) {
+        uint r = global_index_1d() * u_rows_per + i;
         if (r >= rows) break;
         uint row = (uint(u_rows.y) + r / nj) * uint(u_dims.y) + uint(u_rows.x) + r % nj;
         uint base = row * n;
