@@ -18,6 +18,7 @@ from conftest import SHARED_MESHES
 import glvox
 from glvox.errors import LimitError, NotWatertightError, NotWatertightWarning
 from glvox.grid import GridSpec
+from glvox.gpu.buffers import gpu_bytes
 from glvox.gpu.dispatch import LOOP_BUDGET
 from glvox.mesh import load_mesh
 from glvox.methods import run_method, ss_solid, ss_solid_tuning
@@ -352,6 +353,14 @@ def test_row_order_gives_the_same_solid(gl_context, shared_mesh, monkeypatch, or
     if derived is not None:
         kept = np.frombuffer(derived.read(), dtype="<u4").reshape(-1, 3)
         np.testing.assert_array_equal(kept, mesh.faces[order])
+        # and counted among the GPU bytes glvox keeps
+        bufs = run_bufs(gl_context, mesh)
+        with_it = gpu_bytes(gl_context)
+        bufs.derived.pop("faces_in_row_order")
+        try:
+            assert with_it - gpu_bytes(gl_context) == derived.size
+        finally:
+            bufs.derived["faces_in_row_order"] = derived
 
 
 def run_bufs(ctx, mesh):

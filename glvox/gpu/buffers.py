@@ -80,7 +80,8 @@ def gpu_bytes(ctx, owners=None) -> int:
     caches = ctx.caches.get("gpu")
     if not caches:
         return 0
-    total = sum(b.vertices.size + b.faces.size for b in caches["meshes"].values())
+    total = sum(b.vertices.size + b.faces.size + sum(d.size for d in b.derived.values())
+                for b in caches["meshes"].values())
     for owner, pool in caches["pools"].items():
         if owners is None or owner in owners:
             total += pool.nbytes
