@@ -18,8 +18,10 @@ from conftest import SHARED_MESHES
 import glvox
 from glvox.errors import LimitError, NotWatertightError, NotWatertightWarning
 from glvox.grid import GridSpec
+from glvox.gpu.buffers import gpu_bytes
+from glvox.gpu.dispatch import LOOP_BUDGET
 from glvox.mesh import load_mesh
-from glvox.methods import run_method, ss_solid
+from glvox.methods import run_method, ss_solid, ss_solid_tuning
 from glvox.metrics import check_against_reference, tie_set
 from glvox.reference._candidates import column_candidates, normals
 from glvox.reference.solid import _edge_function
@@ -271,12 +273,23 @@ def test_stats_and_stages(gl_context):
     assert [s.name for s in g.run.timings.stages] == ["transform", "voxelize", "fill", "readback"]
 
 
-@pytest.mark.parametrize("nx", [20, 33, 64, 96, 100, 128, 160, 200])
-def test_row_fill_every_word_width(gl_context, nx):
-    """The fill pass moves 1, 2 or 4 words per load (by the words per row:
-    nx 20, 33, 96, 100, 160 and 200 cover 1, 2, 3, 4, 5 and 7 words).  A
-    single open triangle leaves the parity odd to the row's end, so the bits
-    past nx must be masked; a box checks the carry between words."""
+@pytest.mark.parametrize("int64", [True, False], ids=["int64", "int32"])
+@pytest.mark.parametrize("nx", [20, 33, 64, 96, 100, 127, 128, 160, 190, 200, 250])
+def test_row_fill_every_word_width(gl_context, monkeypatch, nx, int64):
+    """The fill pass moves 1, 2 or 4 words per load, 64-bit words where the
+    context has GL_ARB_gpu_shader_int64 and the row holds whole pairs, 32-bit
+    ones otherwise (forced here by hiding the extension): nx 20, 33, 96, 100,
+    160, 190, 200 and 250 cover 1, 2, 3, 4, 5, 6, 7 and 8 words per row (127:
+    a last 64-bit word one bit short of full).  A single open triangle leaves
+    the parity odd to the row's end, so the bits past nx must be masked; a box
+    checks the carry between words."""
+    if not int64:
+        monkeypatch.setattr(ss_solid_tuning, "INT64", "GL_glvox_hidden_extension")
+    elif ss_solid_tuning.INT64 not in gl_context.mgl.extensions:
+        pytest.skip(f"no {ss_solid_tuning.INT64} on {gl_context.renderer}")
+    wpr = -(-nx // 32)
+    defines = ss_solid_tuning.fill_defines(gl_context, wpr)
+    assert defines["WORD64"] == int(int64 and wpr % 2 == 0)
     spec = GridSpec((nx, 6, 7), (0.0, 0.0, 0.0), 1.0)
     tri = load_mesh((np.array([[nx * 0.37, 0.2, 0.1], [nx * 0.61, 5.9, 0.3], [nx * 0.5, 0.4, 6.8]]),
                      np.array([[0, 1, 2]])), name="one-triangle")
@@ -290,6 +303,64 @@ def test_row_fill_every_word_width(gl_context, nx):
             again = run_method("ss-solid", mesh, spec, allow_open=allow_open)
         assert ref.count > 0 and g.equal(ref) and again.equal(ref), f"{mesh.name} nx={nx}"
         assert g.count == int(np.bitwise_count(g.words()).sum())
+
+
+@pytest.mark.parametrize("words", [1, 2, 32, 4096, 1 << 16])
+@pytest.mark.parametrize("n_rows", [1, 1000, 1 << 20])
+def test_fill_rows_per_invocation_keep_the_loop_budget(gl_context, words, n_rows):
+    """Rows of any length: an invocation's rows times their loads per row stay
+    within LOOP_BUDGET, it does at least one row, and small grids keep
+    FILL_MIN_GROUPS work groups where they have the rows for them."""
+    d = ss_solid_tuning.fill_defines(gl_context, words)
+    loads = words // (2 if d["WORD64"] else 1) // d["VEC"]
+    per = ss_solid_tuning.fill_rows(d, words, n_rows, 64)
+    assert 1 <= per <= ss_solid_tuning.FILL_ROWS and per * (loads + 1) < LOOP_BUDGET
+    if per > 1:
+        assert -(-n_rows // per) >= ss_solid_tuning.FILL_MIN_GROUPS * 64
+
+
+@pytest.mark.parametrize("order_from", [0, None], ids=["row-order", "file-order"])
+@pytest.mark.parametrize("src,n", [("nested-shells", 64), ("armadillo", 128)])
+def test_row_order_gives_the_same_solid(gl_context, shared_mesh, monkeypatch, order_from, src, n):
+    """On large grids ss-solid takes the triangles in row_order (slabs along z,
+    then y): a permutation of them, so the same crossings and the same grid as
+    the reference, forced here on small grids (ORDER_MIN_BYTES 0), and as the
+    file's order.  The shells' triangles each cross many columns, so losing
+    or doubling one shows."""
+    if src == "armadillo":
+        mesh = load_mesh(shared_mesh("stanford_armadillo_libigl_86k.obj"))
+    else:
+        m = GENERATED[src]()
+        mesh = load_mesh((m.vertices, m.faces), name=src)
+    order = ss_solid_tuning.row_order(mesh)
+    assert np.array_equal(np.sort(order), np.arange(mesh.n_triangles))
+    z = mesh.vertices[mesh.faces[order, 0], 2]
+    slabs = ss_solid_tuning.ORDER_SLABS
+    slab = np.minimum((z - z.min()) * slabs / np.ptp(z), slabs - 1).astype(int)
+    assert np.all(np.diff(slab) >= 0)
+    if order_from is not None:
+        monkeypatch.setattr(ss_solid_tuning, "ORDER_MIN_BYTES", order_from)
+    spec = glvox.grid_for(mesh, n)
+    g = run_method("ss-solid", mesh, spec)
+    ref = run_method("reference-solid", mesh, spec)
+    c = check_against_reference(g, mesh, "reference-solid", reference_grid=ref,
+                                ties=tie_set("reference-solid", mesh, spec))
+    assert c.ok, c.describe()
+    assert g.count == int(np.bitwise_count(g.words()).sum())
+    # the row-ordered faces were uploaded (and kept with the mesh) only where asked for
+    derived = run_bufs(gl_context, mesh).derived.get("faces_in_row_order")
+    assert (derived is not None) == (order_from is not None)
+    if derived is not None:
+        kept = np.frombuffer(derived.read(), dtype="<u4").reshape(-1, 3)
+        np.testing.assert_array_equal(kept, mesh.faces[order])
+        # and counted among the GPU bytes glvox keeps
+        bufs = run_bufs(gl_context, mesh)
+        with_it = gpu_bytes(gl_context)
+        bufs.derived.pop("faces_in_row_order")
+        try:
+            assert with_it - gpu_bytes(gl_context) == derived.size
+        finally:
+            bufs.derived["faces_in_row_order"] = derived
 
 
 def run_bufs(ctx, mesh):

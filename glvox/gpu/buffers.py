@@ -19,7 +19,7 @@ All of it lives in the context's declared ``caches`` dict
 from __future__ import annotations
 
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -45,6 +45,9 @@ class MeshBuffers:
         Min and max corner of the vertices that faces reference, relative to
         ``anchor`` (before the float32 cast: within its rounding of the
         uploaded ones), so passes can be sized to the mesh without a readback.
+    derived : dict of str to moderngl.Buffer
+        Buffers a method derives from the mesh once (a reordered copy of the
+        faces, say), kept and released with the mesh's own.
     """
 
     vertices: Any
@@ -53,10 +56,14 @@ class MeshBuffers:
     n_triangles: int
     n_vertices: int
     bounds: np.ndarray
+    derived: dict = field(default_factory=dict)
 
     def release(self) -> None:
         self.vertices.release()
         self.faces.release()
+        for buf in self.derived.values():
+            buf.release()
+        self.derived.clear()
 
 
 def _caches(ctx) -> dict:
@@ -73,7 +80,8 @@ def gpu_bytes(ctx, owners=None) -> int:
     caches = ctx.caches.get("gpu")
     if not caches:
         return 0
-    total = sum(b.vertices.size + b.faces.size for b in caches["meshes"].values())
+    total = sum(b.vertices.size + b.faces.size + sum(d.size for d in b.derived.values())
+                for b in caches["meshes"].values())
     for owner, pool in caches["pools"].items():
         if owners is None or owner in owners:
             total += pool.nbytes

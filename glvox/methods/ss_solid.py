@@ -14,9 +14,11 @@ the bounds kept with the uploaded mesh: no readback), writes only the words
 that change, and counts the set voxels; only the z slices of those rows are
 read back.  The first voxelization pass sets each triangle up once and does
 its first chunk of columns; the rare triangles with more chunks are listed
-for a second, indirect pass.  One bit per crossing and the in-place fill
-over the mesh's rows each took less time than the paper's word-by-word flips
-(measured with ``glvox bench`` on the bunny and the dragon; figures in
+for a second, indirect pass; on large grids the triangles go in
+:func:`~glvox.methods.ss_solid_tuning.row_order`, so that neighbouring
+invocations flip bits in nearby rows.  One bit per crossing and the in-place
+fill over the mesh's rows each took less time than the paper's word-by-word
+flips (measured with ``glvox bench`` on the bunny and the dragon; figures in
 compare/README.md).
 
 ``ss-solid-tiled`` (Sec. 4.2) assigns triangles to tiles of 4 x 4 columns
@@ -61,6 +63,7 @@ from ..gpu.transform import transform_vertices
 from ..grid import GridSpec
 from ..results.voxels import VoxelGrid
 from .base import Method, MethodInfo, Requirements, register
+from .ss_solid_tuning import fill_defines, fill_rows, voxelize_faces
 
 _PAPER = "Schwarz & Seidel 2010"
 _LOCAL = 64  # local_size_x of ss/solid_classify.comp, ss/solid.comp, ss/tile_pairs.comp
@@ -92,10 +95,6 @@ assert 8 * TILE_CHUNK < LOOP_BUDGET
 #: tests and one atomic; the largest power of two keeping an invocation under
 #: half of LOOP_BUDGET.
 COLUMN_CHUNK = 1 << (((LOOP_BUDGET // 2) // 5).bit_length() - 1)
-
-
-#: Rows per invocation of ``ss/solid_fill.comp``.
-FILL_ROWS = 4
 
 
 def rotation(axis: int) -> tuple[int, int, int]:
@@ -338,8 +337,9 @@ def parity_on_gpu(ctx, mesh, spec, timer, pool, *, axis: int = 0, tag: str = "")
         set_uniforms(prog, {**uniforms, "u_triangles": n})
     count = pool.get("count" + tag, 4)
     args = pool.get("args" + tag, 3 * 4, clear=False)
+    faces = voxelize_faces(ctx, mesh, spec, bufs)
     with timer.stage("voxelize" + tag):
-        crossing_passes(ctx, (first, rest), n, max_groups, (vox, bufs.faces, grid, big, args))
+        crossing_passes(ctx, (first, rest), n, max_groups, (vox, faces, grid, big, args))
     rows = mesh_rows(spec, bufs, 0)
     with timer.stage("fill" + tag):
         _fill(ctx, spec, grid, count, rows, axis)
@@ -353,10 +353,12 @@ def _fill(ctx, spec, grid, count, rows, axis: int) -> None:
     vec = 4 if wpr % 4 == 0 else 2 if wpr % 2 == 0 else 1
     grid.bind_to_storage_buffer(3)
     if axis == 0:
-        fill = compute_program(ctx, "ss/solid_fill.comp", {"VEC": vec, "ROWS": FILL_ROWS})
-        set_uniforms(fill, {**grid_uniforms(spec, np.zeros(3)), "u_rows": rows})
+        defines = fill_defines(ctx, wpr)
+        per = fill_rows(defines, wpr, rows[2] * rows[3], _LOCAL)
+        fill = compute_program(ctx, "ss/solid_fill.comp", defines)
+        set_uniforms(fill, {**grid_uniforms(spec, np.zeros(3)), "u_rows": rows, "u_rows_per": per})
         count.bind_to_storage_buffer(5)
-        dispatch_1d(ctx, fill, -(-rows[2] * rows[3] // FILL_ROWS), _LOCAL)
+        dispatch_1d(ctx, fill, -(-rows[2] * rows[3] // per), _LOCAL)
         barrier(ctx)
         return
     fill = compute_program(ctx, "ss/solid_fill_axis.comp", {"AXIS": axis, "VEC": vec, "SEGMENT": AXIS_SEGMENT})

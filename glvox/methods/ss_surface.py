@@ -46,6 +46,17 @@ LOCAL_SIZE = 64  # local_size_x of ss/surface.comp and ss/classify.comp
 CHUNK = 4096
 assert 6 * CHUNK < LOOP_BUDGET
 VARIANTS = {"simple": 0, "specialized": 1, "sorted": 2}
+
+#: Bits of a triangle's work in the sorted variant's keys (``ss/classify.comp``:
+#: type, axis, then the work clamped to these bits).  12 hold the work of
+#: nearly every triangle (more than 4095 units is a rare big one), and the
+#: 16-bit keys take two radix passes where the former 26 bits (30-bit keys)
+#: took four: the sorted variant's whole run took 0.87-0.98 of the time on
+#: the bunny and the armadillo at 256^3-1024^3 (``glvox bench -m
+#: ss-conservative --meshes stanford_bunny_bun_zipper.ply
+#: stanford_armadillo_libigl_86k.obj -r 256 512 1024 --check-max 0 --against
+#: b7fd10f --repeat 15``).
+WORK_BITS = 12
 _REQUIRES = Requirements(gl_version=430, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 7,
                                                  "GL_MAX_COMPUTE_WORK_GROUP_SIZE": 256})
 
@@ -84,7 +95,7 @@ def surface_defines(criterion: int, variant: str) -> dict:
     """The defines of ``ss/classify.comp`` and ``ss/surface.comp``: the criterion, the
     variant, the chunk and the sliver bound (:data:`~glvox.tolerances.SLIVER_EPS`)."""
     return {"SS_CRITERION": criterion, "SS_VARIANT": VARIANTS[variant], "SS_CHUNK": CHUNK,
-            "SS_SLIVER_EPS": SLIVER_EPS}
+            "SS_SLIVER_EPS": SLIVER_EPS, "SS_WORK_BITS": WORK_BITS}
 
 
 def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int = 0):
@@ -192,9 +203,9 @@ def sort_by_case(ctx, timer, pool, n, buffers, max_groups, prefix: str = "") -> 
     ranges = pool.get("ranges", 8 * 4)
     ranges.bind_to_storage_buffer(6)
     with timer.stage(f"{prefix}sort"):
-        sort_pairs(ctx, keys, per_tri, n, key_bits=30)
+        sort_pairs(ctx, keys, per_tri, n, key_bits=WORK_BITS + 4)
         barrier(ctx)
-    rng = compute_program(ctx, "ss/ranges.comp")
+    rng = compute_program(ctx, "ss/ranges.comp", {"SS_WORK_BITS": WORK_BITS})
     set_uniforms(rng, {"u_count": n})
     set_uniforms(dargs, {"u_sorted": True, "u_local_size": LOCAL_SIZE, "u_max_groups": max_groups})
     with timer.stage(f"{prefix}ranges"):

@@ -2,8 +2,9 @@
 // Pass 1 of every ss-conservative / ss-6sep variant: the case of each
 // triangle (Sec. 3.2 "Implementation") and its work in chunks.
 //   variants 0, 1 and 6-sep: chunks per triangle, and their maximum;
-//   variant 2 (sorted): a sort key type (2 bits) | axis (2 bits) | work (26 bits)
-//   with the triangle id as value, and the maximum chunks per type.
+//   variant 2 (sorted): a sort key type (2 bits) | axis (2 bits) | work
+//   (SS_WORK_BITS bits, clamped) with the triangle id as value, and the
+//   maximum chunks per type.
 // Type 3 marks triangles outside the grid: no work; they sort last.
 #include "common/voxel_space.glsl"
 #include "common/edge.glsl"
@@ -15,13 +16,21 @@ layout(std430, binding = 4) buffer Stats { uint stats[]; };  // [0..2] cases, [3
 layout(std430, binding = 5) writeonly buffer TriChunks { uint tri_chunks[]; };  // or sorted values
 layout(std430, binding = 7) writeonly buffer Keys { uint keys[]; };
 uniform uint u_triangles;
+
+#if SS_VARIANT == 2
+// The work's part of the sort key: the work clamped to SS_WORK_BITS bits
+// (triangles of similar work side by side, so that the lanes of a SIMD batch
+// loop about as long; fewer key bits, fewer sort passes).
+uint work_key(uint work) { return min(work, (1u << SS_WORK_BITS) - 1u); }
+#endif
+
 void main() {
     uint t = global_index_1d();
     if (t >= u_triangles) return;
     Tri T = setup_triangle(t);
     if (outside_grid(T)) {
 #if SS_VARIANT == 2
-        keys[t] = 3u << 28;
+        keys[t] = 3u << (SS_WORK_BITS + 2);
         tri_chunks[t] = t;
 #else
         tri_chunks[t] = 0u;
@@ -35,7 +44,7 @@ void main() {
     atomicAdd(stats[type], 1u);
 #endif
 #if SS_VARIANT == 2
-    keys[t] = (uint(type) << 28) | (uint(case_axis(T, type)) << 26) | min(work, (1u << 26) - 1u);
+    keys[t] = (uint(type) << (SS_WORK_BITS + 2)) | (uint(case_axis(T, type)) << SS_WORK_BITS) | work_key(work);
     tri_chunks[t] = t;
     atomicMax(stats[4 + type], chunks);
 #else
