@@ -327,12 +327,14 @@ def validate_render(args) -> None:
                          "pip install 'glvox[compare]'")
 
 
-def validate_study(args, presets: dict, name: str) -> None:
-    """What ``glvox compare`` and ``glvox bench`` share: output folder, methods, meshes, sizes."""
+def validate_study(args, presets: dict, name: str, *, meshes_needed: bool = True) -> None:
+    """What ``glvox compare`` and ``glvox bench`` share: output folder, methods, meshes, sizes
+    (``meshes_needed`` False: ``bench --end-to-end``, which takes a folder, or the shared meshes,
+    and its first size, or 64)."""
     if args.out:
         output_folder(args.out)
     preset = presets.get(args.preset or "", {})
-    if not (args.meshes or preset.get("meshes")) or not (args.sizes or preset.get("sizes")):
+    if meshes_needed and (not (args.meshes or preset.get("meshes")) or not (args.sizes or preset.get("sizes"))):
         raise GlvoxError(f"give --preset {'|'.join(presets)}, or --meshes and -r/--sizes")
     for m in args.methods or []:
         get_method(m)
@@ -352,7 +354,9 @@ def validate_compare(args) -> None:
 def validate_bench(args) -> None:
     if args.save_baseline:  # outputs first, as every command does
         output_file(args.save_baseline, (".json",), "baseline")
-    validate_study(args, BENCH_PRESETS, "bench")
+    validate_study(args, BENCH_PRESETS, "bench", meshes_needed=args.end_to_end is None)
+    if args.end_to_end and not Path(args.end_to_end).is_dir():
+        raise GlvoxError(f"--end-to-end takes a folder of meshes, got {args.end_to_end}")
     if args.check and args.check != CHECKOUT_BASELINE and not Path(args.check).is_file():
         raise GlvoxError(f"no benchmark baseline at {args.check}: run `glvox bench --preset quick "
                          f"--save-baseline {args.check}` on the version to compare against")

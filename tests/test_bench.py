@@ -575,3 +575,22 @@ def test_end_to_end_times_every_file_and_reports_meshes_per_second(tmp_path):
     assert "| glvox ss-conservative |" in text and "m1.stl" in text
     with pytest.raises(GlvoxError, match="folder of meshes"):
         endtoend.files_of(str(tmp_path / "m0.ply"))
+
+
+def test_end_to_end_from_the_command_line(tmp_path, gl_context, capsys):
+    """The README's ``glvox bench --end-to-end [FOLDER] -r N``: no --meshes needed (the preflight
+    once refused it), the per-file table printed and written; a file is refused in one line."""
+    import trimesh
+
+    folder = tmp_path / "meshes"
+    folder.mkdir()
+    trimesh.creation.icosphere(1).export(folder / "ball.ply")
+    out = tmp_path / "out"
+    rc = cli_main(["bench", "--end-to-end", str(folder), "-r", "16", "--repeat", "1", "--peers", "trimesh-subdivide",
+                   "-q", "-o", str(out)])
+    assert rc == 0
+    text = capsys.readouterr().out
+    assert "ball.ply" in text and "meshes/s" in text and (out / "end_to_end.md").read_text().strip() in text
+    assert cli_main(["bench", "--end-to-end", str(folder / "ball.ply"), "-r", "16"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"glvox: error: --end-to-end takes a folder of meshes, got {folder / 'ball.ply'}"]
