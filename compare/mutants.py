@@ -205,12 +205,6 @@ MUTANTS: list[Mutant] = [
     Mutant("carve-runs-not-joined", "carve-solid: a free run no longer carries into the next word of its row",
            "shaders/carve/sweep.comp", (("            if (carry != 0u) AT(g, c) |= (~fc & (fc + 1u)) - 1u;\n", ""),),
            ("tests/test_carve.py", "-k", "corridor or random_blockers")),
-    # GPU counts (issue 23)
-    Mutant("scanline-count-every-mark", "scanline: every mark counted, not only the one that set its bit first",
-           "shaders/scanline/budget.glsl",
-           (("    if ((atomicOr(grid[word_index(v)], b) & b) == 0u) ++g_new;",
-             "    atomicOr(grid[word_index(v)], b);\n    ++g_new;"),),
-           ("tests/test_gpu_count.py", "-k", "scanline")),
     Mutant("attr-distance-to-a-vertex", "attributes: the source triangle by the distance to its first vertex, "
            "not to its closest point", "shaders/attributes/pair.glsl",
            (("    dvec3 q = closest_bary(p, attr_a, attr_b, attr_c);", "    dvec3 q = dvec3(1.0lf, 0.0lf, 0.0lf);"),),

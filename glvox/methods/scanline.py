@@ -62,7 +62,7 @@ from .base import Method, MethodInfo, Option, Requirements, register
 _PAPER = "Zhang et al. 2018"
 _LOCAL = 64
 _MODES = {"rlv": 0, "slv": 1, "ilv": 2}
-_REQUIRES = Requirements(gl_version=450, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 6})
+_REQUIRES = Requirements(gl_version=450, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 5})
 
 #: Loop iterations kept back from LOOP_BUDGET per SIMD batch: the shader
 #: charges the entries of its outermost loops and its final partial loop
@@ -122,7 +122,6 @@ class _Scanline(Method):
             grid = pool.get("grid", spec.n_words * 4, what=f"the {spec.dims} bit grid")
             bufs = mesh_buffers(ctx, mesh)
             out = pool.get("overflow", 4 * (n + 2), what="the overflow list")
-            count = pool.get("count", 4)
             prog = self._program(ctx, tunnel, 0)
             uniforms = {**grid_uniforms(spec, bufs.anchor), "u_count": n, "u_budget": main_budget}
             set_uniforms(prog, uniforms)
@@ -132,7 +131,6 @@ class _Scanline(Method):
             grid.bind_to_storage_buffer(2)
             out.bind_to_storage_buffer(3)
             out.bind_to_storage_buffer(4)  # bound, never read in this pass
-            count.bind_to_storage_buffer(5)  # every pass adds the voxels it set first
             dispatch_1d(ctx, prog, n, _LOCAL)
             barrier(ctx)
         n_over, refused = (int(x) for x in np.frombuffer(out.read(size=8), dtype="<u4"))
@@ -149,10 +147,9 @@ class _Scanline(Method):
                 parts = self._overflow(ctx, pool, spec, bufs, grid, tunnel, ids, split_budget)
         with timer.stage("readback", gpu=False):
             words = read_grid_words(grid, spec)
-            voxels = int(np.frombuffer(count.read(size=4), dtype="<u4")[0])
         timer.stats["overflow_triangles"] = n_over
         timer.stats["overflow_parts"] = parts
-        return VoxelGrid(words=words, spec=spec, count=voxels)
+        return VoxelGrid(words=words, spec=spec)
 
     def _overflow(self, ctx, pool, spec, bufs, grid, tunnel, ids, budget) -> int:
         """Measure the listed triangles, then redraw each in parts within the budget."""

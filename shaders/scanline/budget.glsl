@@ -60,7 +60,5 @@ bool job(uint cost) {
 }
 
 void mark(ivec3 v) {
-    if (!in_grid(v)) return;
-    uint b = bit_of(uint(v.x));
-    if ((atomicOr(grid[word_index(v)], b) & b) == 0u) ++g_new;
+    if (in_grid(v)) atomicOr(grid[word_index(v)], bit_of(uint(v.x)));
 }

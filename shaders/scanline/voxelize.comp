@@ -11,8 +11,6 @@
 //   PASS        0 all triangles, 1 measure, 2 draw parts (budget.glsl); in PASS 0
 //               out_words[1] counts ILV triangles refused for ILV_COORD_LIMIT
 //   LOCAL_SIZE  work group size
-//   (every pass adds the voxels its marks set first to voxel_count, once per
-//   invocation: atomicOr returns the word before, so each bit counts once)
 //   SCANLINE_SLACK, ILV_COORD_LIMIT, ILV_BOUNDARY_SNAP, RLV_BOUNDARY_SNAP
 //               (constants of the CPU module)
 #include "common/bits.glsl"
@@ -26,8 +24,6 @@ layout(std430, binding = 1) readonly buffer Faces { uint faces[]; };
 layout(std430, binding = 2) buffer Grid { uint grid[]; };
 layout(std430, binding = 3) buffer Out { uint out_words[]; };
 layout(std430, binding = 4) readonly buffer Items { uvec4 items[]; };  // PASS 1, 2: (triangle, lo, hi, -)
-layout(std430, binding = 5) buffer Count { uint voxel_count; };
-uint g_new = 0u;  // voxels this invocation's marks set first (budget.glsl's mark)
 
 uniform uint u_count;   // triangles (PASS 0) or items (PASS 1, 2)
 uniform uint u_budget;  // loop iterations this invocation may charge (budget.glsl)
@@ -476,5 +472,4 @@ void main() {
 #else
     if (g_abort) atomicAdd(out_words[0], 1u);
 #endif
-    if (g_new != 0u) atomicAdd(voxel_count, g_new);
 }
