@@ -5,7 +5,7 @@ interleaved warm rounds (the variants take turns, the order rotating), best
 and median wall time of the whole ``run_method`` call.  Prints one row per
 cell with ``F / N^2`` (triangles per voxel of a grid face: the density that
 decides how many voxels a triangle's bounding box holds), the times, and
-the variant :func:`glvox.methods.ss_surface.default_variant` picks.
+the variant :func:`glvox.methods.ss.surface.default_variant` picks.
 
 Usage::
 
@@ -23,7 +23,7 @@ import time
 import glvox
 from glvox.datasets import resolve_mesh
 from glvox.methods import run_method
-from glvox.methods.ss_surface import default_variant
+from glvox.methods.ss.surface import default_variant
 
 MESHES = ["cad_featuretype.stl", "cad_fandisk.off", "stanford_bunny_bun_zipper.ply",
           "stanford_armadillo_libigl_86k.obj", "stanford_dragon_vrip_res2.ply"]

@@ -26,7 +26,7 @@ import numpy as np
 import glvox
 from glvox.gl.context import get_context
 from glvox.methods import method_names, run_method
-from glvox.methods.scanline import gpu_voxel_coords
+from glvox.methods.scanline.voxelize import gpu_voxel_coords
 from glvox.reference import conservative_surface
 from glvox.reference.scanline import OpCounts, lattice_points, scanline_surface
 from glvox.study.harness import timed

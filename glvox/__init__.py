@@ -24,9 +24,8 @@ from .grid import GridSpec, fit_grid, grid_for
 from .inspect import MeshReport, inspect_mesh
 from .io import load, save
 from .mesh import Mesh, load_mesh
-from .methods import DEFAULT_METHOD, get_method, method_infos, run_method
-from .methods.attribute_pass import check_request, parse_attributes
-from .methods.leung_wang import overlap_bounds, overlap_grid, run_intersection
+from .methods import DEFAULT_METHOD, Request, get_method, method_infos, run_method
+from .methods.ldi.leung_wang import overlap_bounds, overlap_grid, run_intersection
 from .results import LDI, SparseOctree, VoxelGrid
 from .visuals import load_visual_mesh
 
@@ -80,17 +79,15 @@ def voxelize(mesh: Any, resolution: int | None = None, method: str = DEFAULT_MET
     VoxelGrid (surface and solid methods) or the method kind's result type;
     ``.run`` holds method, grid, timings and statistics.
     """
-    names = parse_attributes(attributes)
-    if names:  # before loading: unknown names and methods without a grid fail fast
-        check_request(get_method(method).info, names, normals, fill_attributes)
-    m = load_visual_mesh(mesh) if names else load_mesh(mesh)
+    # before loading: unknown methods, options and attributes fail fast, and are not checked again
+    request = Request.make(method, options, attributes, normals, fill_attributes)
+    m = load_visual_mesh(mesh) if request.attributes else load_mesh(mesh)
     if grid is None:
         if resolution is None and dims is None and voxel_size is None:
             raise GridError("give a resolution (or dims, voxel_size or grid)")
         grid = grid_for(m, resolution, dims=dims, voxel_size=voxel_size, bounds=bounds,
                         padding=padding, tight=tight)
-    return run_method(method, m, grid, ctx=ctx, backend=backend, allow_open=allow_open, attributes=names,
-                      normals=normals, fill_attributes=fill_attributes, **options)
+    return run_method(request, m, grid, ctx=ctx, backend=backend, allow_open=allow_open)
 
 
 def ldi(mesh: Any, resolution: int | None = None, method: str = "leung-wang-ldi", *,
@@ -167,9 +164,11 @@ def intersecting_volume(mesh_a: Any, mesh_b: Any, resolution: int | None = None,
     return intersect_ldi(a, b, resolution, **kwargs).volume
 
 
-def list_methods(kind: str | None = None, family: str | None = None):
-    """Registry entries (:class:`glvox.methods.MethodInfo`), optionally filtered."""
-    return method_infos(kind, family)
+def list_methods(kind: str | None = None, family: str | None = None, pipeline: str | None = None):
+    """Registry entries (:class:`glvox.methods.MethodInfo`), optionally filtered by kind
+    (``'surface'``, ``'solid'``, ``'ldi'``, ``'sparse'``), family (``'ss'``, ``'depth'``, ...)
+    or pipeline (``'raster'``, ``'compute'``, ``'cpu'``)."""
+    return method_infos(kind, family, pipeline)
 
 
 def info(backend: str | None = None) -> dict:

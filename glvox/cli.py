@@ -23,8 +23,8 @@ from ._version import __version__
 from .commands import (cmd_batch, cmd_bench, cmd_compare, cmd_convert, cmd_data, cmd_info, cmd_inspect, cmd_ldi,
                        cmd_methods, cmd_render, cmd_voxelize, cmd_volume)
 from .errors import GlvoxError
-from .methods import DEFAULT_METHOD
-from .methods.attribute_pass import ATTRIBUTE_NAMES, FILL_MODES, NORMAL_MODES
+from .methods import DEFAULT_METHOD, FAMILIES, PIPELINES
+from .methods.attributes.passes import ATTRIBUTE_NAMES, FILL_MODES, NORMAL_MODES
 from .study.options import add_bench_arguments, add_compare_arguments
 
 
@@ -83,7 +83,8 @@ def _add_info_parser(sub) -> None:
 def _add_methods_parser(sub) -> None:
     pm = sub.add_parser("methods", help="list the registered methods")
     pm.add_argument("--kind", choices=["surface", "solid", "ldi", "sparse"])
-    pm.add_argument("--family", choices=["raster", "compute", "cpu"])
+    pm.add_argument("--family", choices=FAMILIES, help="a method family (its package, shaders and docs page)")
+    pm.add_argument("--pipeline", choices=PIPELINES, help="how the methods run")
     pm.add_argument("--json", action="store_true")
     pm.set_defaults(func=cmd_methods)
 
@@ -302,8 +303,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         args.method = DEFAULT_METHOD
     try:
         validate = getattr(args, "validate", None)
-        if validate is not None:
-            validate(args)  # every argument, before any work
+        # every argument, before any work; what the check returns (a validated, frozen
+        # request) is what the command runs, so nothing is checked twice
+        args.checked = validate(args) if validate is not None else None
         return args.func(args)
     except GlvoxError as exc:
         print(f"glvox: error: {exc}", file=sys.stderr)

@@ -14,7 +14,6 @@ import threading
 import warnings
 from pathlib import Path
 
-import numpy as np
 
 from . import datasets, io, preflight
 from ._version import __version__
@@ -24,9 +23,8 @@ from .gl.context import get_context
 from .grid import grid_for
 from .inspect import inspect_mesh
 from .mesh import load_mesh
-from .methods import get_method, method_infos, run_method
-from .methods.attribute_pass import parse_attributes
-from .methods.leung_wang import overlap_bounds, overlap_grid, run_intersection
+from .methods import Request, method_infos, run_method
+from .methods.ldi.leung_wang import overlap_bounds, overlap_grid, run_intersection
 from .progress import Stages
 from .visuals import load_visual_mesh
 from .results import LDI, SparseOctree
@@ -47,26 +45,26 @@ def cmd_info(args) -> int:
 
 
 def cmd_methods(args) -> int:
-    infos = method_infos(args.kind, args.family)
+    infos = method_infos(args.kind, args.family, args.pipeline)
     if args.json:
         print(json.dumps([i.to_dict() for i in infos], indent=2))
         return 0
     w = max((len(i.name) for i in infos), default=4)
-    print(f"{'name':<{w}}  {'kind':<8} {'family':<8} summary")
+    print(f"{'name':<{w}}  {'kind':<8} {'family':<9} {'pipeline':<8} summary")
+    pad = f"{'':<{w}}  {'':<8} {'':<9} {'':<8}"
     for i in infos:
-        print(f"{i.name:<{w}}  {i.kind:<8} {i.family:<8} {i.summary}")
-        print(f"{'':<{w}}  {'':<8} {'':<8} paper: {i.paper}")
+        print(f"{i.name:<{w}}  {i.kind:<8} {i.family:<9} {i.pipeline:<8} {i.summary}")
+        print(f"{pad} paper: {i.paper}")
         for name, o in i.options.items():
             choices = f" {list(o.choices)}" if o.choices else ""
-            print(f"{'':<{w}}  {'':<8} {'':<8} -O {name}={o.default}{choices}: {o.help}")
+            print(f"{pad} -O {name}={o.default}{choices}: {o.help}")
     return 0
 
 
-def _spec(args, mesh, bounds=None):
+def _spec(args, mesh):
     """The grid of ``mesh`` from the checked grid options."""
     return grid_for(mesh, args.resolution if args.dims is None and args.voxel_size is None else None,
-                    dims=args.dims, voxel_size=args.voxel_size, bounds=bounds, padding=args.padding,
-                    tight=args.tight)
+                    dims=args.dims, voxel_size=args.voxel_size, padding=args.padding, tight=args.tight)
 
 
 def _summary(result) -> str:
@@ -78,27 +76,23 @@ def _summary(result) -> str:
 
 
 def cmd_voxelize(args) -> int:
+    call: preflight.VoxelizeCall = args.checked
+    info = call.request.info
     say = Stages(args.quiet or args.json)
-    out = Path(args.output) if args.output else None
-    method = get_method(args.method)
-    options = preflight.parse_options(args.option, args.extra)
+    out = call.output
     mesh_path = datasets.resolve_mesh(args.mesh, quiet=args.quiet or args.json)
     say(f"loading {args.mesh}")
-    names = parse_attributes(args.attributes)
-    mesh = load_visual_mesh(mesh_path) if names else load_mesh(mesh_path)
+    mesh = load_visual_mesh(mesh_path) if call.request.attributes else load_mesh(mesh_path)
     say(f"{mesh.n_triangles} triangles ({mesh.n_degenerate} zero-area dropped), "
         f"{'watertight' if mesh.watertight else 'NOT watertight'}")
-    bounds = np.array(args.bounds, dtype=np.float64).reshape(2, 3) if args.bounds is not None else None
-    spec = _spec(args, mesh, bounds)
-    if out is not None:
-        preflight.format_fits(out, method.info, spec)  # the dims of --tight / --voxel-size are known now
+    spec = call.grid if call.grid is not None else _spec(args, mesh)
+    if out is not None and not call.output_fits:
+        preflight.format_fits(out, info, spec)  # the dims of --tight / --voxel-size are known now
     say(f"grid {spec}")
-    say(f"voxelizing with {method.info.name} ({method.info.family}, {method.info.kind})")
+    say(f"voxelizing with {info.name} ({info.family} family, {info.pipeline}, {info.kind})")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        result = run_method(args.method, mesh, spec, backend=args.backend, allow_open=args.allow_open,
-                            attributes=names, normals=args.normals, fill_attributes=args.fill_attributes,
-                            **options)
+        result = run_method(call.request, mesh, spec, backend=args.backend, allow_open=args.allow_open)
     for w in caught:
         print(f"glvox: warning: {w.message}", file=sys.stderr)
     run = result.run
@@ -160,13 +154,7 @@ def cmd_render(args) -> int:
 
 def cmd_batch(args) -> int:
     """``glvox batch``: exit 0 when every mesh is done or skipped, 3 when some failed."""
-    options = preflight.parse_options(args.option)
-    settings = BatchSettings(
-        method=args.method, resolution=args.resolution,
-        dims=tuple(args.dims) if args.dims is not None else None, voxel_size=args.voxel_size,
-        padding=args.padding, tight=args.tight, options=tuple(sorted(options.items())),
-        allow_open=args.allow_open, backend=args.backend, fmt=args.format, inspect=args.inspect,
-        attributes=parse_attributes(args.attributes), normals=args.normals, fill_attributes=args.fill_attributes)
+    settings: BatchSettings = args.checked
 
     def on_term(signum, frame):  # batch schedulers stop jobs with SIGTERM: keep the manifest
         raise KeyboardInterrupt
@@ -190,10 +178,10 @@ def cmd_batch(args) -> int:
 
 def cmd_ldi(args) -> int:
     """``glvox ldi``: a layered depth image (default leung-wang-ldi) into an npz."""
+    request: Request = args.checked
+    info = request.info
     say = Stages(args.quiet or args.json)
     out = Path(args.output) if args.output else None
-    info = get_method(args.method).info
-    options = preflight.ldi_options(args, info)
     mesh_path = datasets.resolve_mesh(args.mesh, quiet=args.quiet or args.json)
     say(f"loading {args.mesh}")
     mesh = load_mesh(mesh_path)
@@ -202,8 +190,7 @@ def cmd_ldi(args) -> int:
     say(f"grid {spec}; sampling with {info.name}")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        result = run_method(args.method, mesh, spec, backend=args.backend, allow_open=args.allow_open,
-                            **options)
+        result = run_method(request, mesh, spec, backend=args.backend, allow_open=args.allow_open)
     for w in caught:
         print(f"glvox: warning: {w.message}", file=sys.stderr)
     run = result.run

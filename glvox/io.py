@@ -15,11 +15,11 @@ from pathlib import Path
 from typing import Any
 
 from .errors import FormatError
-from .formats import check_readable, check_writable, format_for
+from .formats import check_dims, check_readable, check_writable, format_for
 from .formats.binvox import CONVENTIONS, binvox_bytes
 from .results import Result
 
-__all__ = ["CONVENTIONS", "binvox_bytes", "check_readable", "check_writable", "format_for", "load", "save"]
+__all__ = ["CONVENTIONS", "binvox_bytes", "check_dims", "check_readable", "check_writable", "format_for", "load", "save"]
 
 
 def _options(fmt, takes: tuple[str, ...], given: dict[str, Any], path: Path) -> dict[str, Any]:

@@ -21,6 +21,7 @@ import importlib.util
 import math
 import os
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterable, Sequence
 
@@ -29,8 +30,9 @@ import numpy as np
 from . import datasets, io
 from .errors import FormatError, GlvoxError, GridError, MeshLoadError
 from .grid import GridSpec, fit_grid
-from .methods import get_method, validate_options
-from .methods.attribute_pass import check_request, parse_attributes
+from .batch import BatchSettings
+from .methods import Request, get_method
+from .methods.attributes.passes import parse_attributes
 from .methods.base import MethodInfo
 from .study.options import BENCH_PRESETS, CHECKOUT_BASELINE, COMPARE_PRESETS
 
@@ -149,27 +151,18 @@ def grid_args(resolution: int | None = None, dims: Sequence[int] | None = None, 
 
 
 def method_args(name: str, options: dict[str, Any], kinds: Iterable[str] | None = None,
-                command: str = "glvox voxelize") -> tuple[MethodInfo, dict[str, Any]]:
-    """A registered method, of one of ``kinds`` when given, and its options coerced.
-
-    Returns
-    -------
-    (MethodInfo, dict)
-        The method's info and its options with defaults filled.
-    """
-    info = get_method(name).info
-    kinds = tuple(kinds) if kinds is not None else None
-    if kinds is not None and info.kind not in kinds:
-        raise GlvoxError(f"{command} needs a method of kind {' or '.join(repr(k) for k in kinds)}, got "
-                         f"{name!r} (kind {info.kind!r})")
-    return info, validate_options(info, options)
+                command: str = "glvox voxelize", attributes=None, normals: str = "face",
+                fill_attributes: str = "none") -> Request:
+    """A registered method, of one of ``kinds`` when given, its options coerced and the
+    attributes asked of it checked: the :class:`~glvox.methods.Request` the command runs."""
+    return Request.make(name, options, attributes, normals, fill_attributes,
+                        kinds=tuple(kinds) if kinds is not None else None, command=command)
 
 
-def format_fits(path: Path, info: MethodInfo | None, spec: GridSpec | None) -> None:
-    """Whether ``path``'s format holds ``info``'s result on ``spec`` (None: not known yet),
+def format_fits(path: Path, info: MethodInfo, spec: GridSpec) -> None:
+    """Whether ``path``'s format (checked writable before) holds ``info``'s result on ``spec``,
     e.g. binvox holds cubic voxel grids only (the format registry decides)."""
-    io.check_writable(path, kind=info.kind if info is not None else None,
-                      dims=spec.dims if spec is not None else None)
+    io.check_dims(path, info.kind, spec.dims)
 
 
 # ---------------------------------------------------------------------------
@@ -212,28 +205,52 @@ def _grid_args(args, bounds: bool = False) -> GridSpec | None:
                      getattr(args, "padding", 0), getattr(args, "tight", False))
 
 
-def attribute_args(info: MethodInfo, args, out: Path | None) -> None:
-    """--attributes, --normals, --fill-attributes: known names, a method with a grid,
-    and an output that keeps them (npz and .vti all; .vox, points and cubes the colour)."""
-    names = parse_attributes(args.attributes)
-    check_request(info, names, args.normals, args.fill_attributes)
+def attribute_output(request: Request, out: Path | None) -> None:
+    """An output that keeps the attributes asked for (npz and .vti all; .vox, points and cubes the colour)."""
+    names = request.attributes
     dropped = io.format_for(out).drops(names) if names and out is not None else []
     if dropped:
         raise GlvoxError(f"{out.name} would drop the attributes {dropped}: .npz and .vti keep every attribute, "
                          ".vox, .points.* and .cubes.* the colour only")
 
 
-def validate_voxelize(args) -> None:
-    info, _ = method_args(args.method, parse_options(args.option, args.extra))
-    out = result_file(args.output, kind=info.kind) if args.output else None
-    attribute_args(info, args, out)
+@dataclass(frozen=True)
+class VoxelizeCall:
+    """``glvox voxelize`` checked: what the command runs, nothing of it checked again.
+
+    Attributes
+    ----------
+    request : Request
+        The method, its coerced options and the attributes asked of it.
+    output : Path or None
+        The file to write, its suffix, folder and format checked.
+    grid : GridSpec or None
+        The grid when it does not depend on the mesh (``--bounds``), else None.
+    output_fits : bool
+        True when the output's format was checked against the grid's dims
+        (known before the mesh is loaded).
+    """
+
+    request: Request
+    output: Path | None
+    grid: GridSpec | None
+    output_fits: bool
+
+
+def validate_voxelize(args) -> VoxelizeCall:
+    request = method_args(args.method, parse_options(args.option, args.extra), attributes=args.attributes,
+                          normals=args.normals, fill_attributes=args.fill_attributes)
+    out = result_file(args.output, kind=request.info.kind) if args.output else None
+    attribute_output(request, out)
     mesh_arg(args.mesh)
     spec = _grid_args(args, bounds=True)
-    if out is not None:
-        format_fits(out, info, spec)
+    if out is not None and spec is not None:
+        format_fits(out, request.info, spec)
+    return VoxelizeCall(request, out, spec if args.bounds is not None else None, spec is not None)
 
 
-def validate_batch(args) -> None:
+def validate_batch(args) -> BatchSettings:
+    """The batch's settings, checked once (:meth:`BatchSettings.validate`), which the command runs."""
     output_folder(args.output)
     if args.manifest:
         output_file(args.manifest, (".csv",), "manifest")
@@ -244,12 +261,19 @@ def validate_batch(args) -> None:
                          "workers run the batch, so give one or the other")
     if args.workers is not None and args.workers < 0:
         raise GlvoxError(f"--workers must be 0 (in this process) or more, got {args.workers}")
-    info, _ = method_args(args.method, parse_options(args.option), command="glvox batch")
-    attribute_args(info, args, Path(f"x.{args.format}"))
+    options = parse_options(args.option)
+    settings = BatchSettings(
+        method=args.method, resolution=args.resolution,
+        dims=tuple(args.dims) if args.dims is not None else None, voxel_size=args.voxel_size,
+        padding=args.padding, tight=args.tight, options=tuple(sorted(options.items())),
+        allow_open=args.allow_open, backend=args.backend, fmt=args.format, inspect=args.inspect,
+        attributes=parse_attributes(args.attributes), normals=args.normals, fill_attributes=args.fill_attributes)
+    settings.validate()
     spec = _grid_args(args)
     if args.format == "binvox" and (spec is None or len(set(spec.dims)) != 1):
         raise GlvoxError("binvox stores cubic grids only: use -r N without --tight or --voxel-size, or cubic "
                          "--dims, or --format npz")
+    return settings
 
 
 def ldi_options(args, info) -> dict:
@@ -263,7 +287,7 @@ def ldi_options(args, info) -> dict:
     return {k: v for k, v in options.items() if v is not None}
 
 
-def validate_ldi(args) -> None:
+def validate_ldi(args) -> Request:
     if args.output:
         result_file(args.output, kind="ldi")
     mesh_arg(args.mesh)
@@ -272,8 +296,9 @@ def validate_ldi(args) -> None:
         raise GlvoxError(f"glvox ldi needs a method of kind 'ldi' (leung-wang-ldi, peel-ldi, reference-ldi), "
                          f"got {args.method!r} (kind {info.kind!r}); use glvox voxelize for voxel grids")
     positive("--lod-c", args.lod_c)
-    method_args(args.method, ldi_options(args, info), kinds=("ldi",), command="glvox ldi")
+    request = method_args(args.method, ldi_options(args, info), kinds=("ldi",), command="glvox ldi")
     _grid_args(args)
+    return request
 
 
 def validate_volume(args) -> None:

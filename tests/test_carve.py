@@ -23,7 +23,8 @@ from glvox.gl.timing import StageTimer
 from glvox.gpu.buffers import buffer_pool
 from glvox.grid import GridSpec, pack_bits, unpack_bits
 from glvox.mesh import load_mesh
-from glvox.methods import carve, run_method
+from glvox.methods import run_method
+from glvox.methods.carve import sweep as carve
 from glvox.metrics import check_against_reference, tie_set
 from glvox.reference.carve import MAX_CLOSE, close, close_window, exterior
 from glvox.tolerances import TIE_EPS

@@ -23,7 +23,8 @@ from glvox.gl.timing import StageTimer
 from glvox.gpu.buffers import buffer_pool, object_cache
 from glvox.grid import GridSpec, snap_to_planes
 from glvox.mesh import load_mesh
-from glvox.methods import eisemann_passes, run_method
+from glvox.methods import run_method
+from glvox.methods.eisemann import passes as eisemann_passes
 from glvox.metrics import check_against_reference, tie_set
 from glvox.reference import TIE_EPS
 from glvox.testing.slices import eisemann_slices
@@ -518,9 +519,9 @@ def test_open_mesh_is_refused_then_warned_and_parity_per_column(gl_context, shar
 def test_registry_entries():
     solid = glvox.methods.get_method("eisemann-solid").info
     surface = glvox.methods.get_method("eisemann-surface").info
-    assert (solid.kind, solid.family, solid.reference, solid.exact) == (
+    assert (solid.kind, solid.pipeline, solid.reference, solid.exact) == (
         "solid", "raster", "reference-solid", True)
-    assert (surface.kind, surface.family, surface.reference, surface.exact) == (
+    assert (surface.kind, surface.pipeline, surface.reference, surface.exact) == (
         "surface", "raster", "reference-conservative", False)
     assert solid.options["axis"].default == 2 and surface.options["masks"].default == eisemann_passes.DEFAULT_MASKS
 

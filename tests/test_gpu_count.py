@@ -22,7 +22,8 @@ import trimesh
 import glvox
 from glvox.grid import GridSpec
 from glvox.mesh import load_mesh
-from glvox.methods import method_infos, run_method, ss_solid
+from glvox.methods import method_infos, run_method
+from glvox.methods.ss import solid as ss_solid
 from glvox.results import VoxelGrid
 
 #: Dense GPU methods that count on the CPU (lazily: only when ``count`` is read), with the reason.
@@ -31,7 +32,7 @@ _SCANLINE = ("its marks are one atomicOr per voxel; counting the bits each sets 
              "numpy gives in under 0.1 ms at 128^3 when asked")
 NOT_COUNTED: dict[str, str] = {f"scanline-{mode}": _SCANLINE for mode in ("ilv", "rlv", "slv")}
 
-DENSE_GPU = [i for kind in ("surface", "solid") for i in method_infos(kind) if i.family != "cpu"]
+DENSE_GPU = [i for kind in ("surface", "solid") for i in method_infos(kind) if i.pipeline != "cpu"]
 
 
 def popcount(words) -> int:

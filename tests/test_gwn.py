@@ -24,8 +24,9 @@ import glvox
 from glvox.errors import GridError, MethodError, NotWatertightWarning
 from glvox.grid import GridSpec
 from glvox.mesh import load_mesh
-from glvox.methods import gwn, run_method
-from glvox.methods.gwn_tree import boundary_loops, build_tree, fan_moments, far_bound, far_field, pack_moments
+from glvox.methods import run_method
+from glvox.methods.gwn import field as gwn
+from glvox.methods.gwn.tree import boundary_loops, build_tree, fan_moments, far_bound, far_field, pack_moments
 from glvox.metrics import check_against_reference, tie_set
 from glvox.reference import point_triangle_distance, solid_ties
 from glvox.reference.winding import boundary_edges, crossing_counts, winding, winding_direct

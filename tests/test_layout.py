@@ -15,6 +15,9 @@ from pathlib import Path
 
 import pytest
 
+from glvox.methods import FAMILIES, method_infos
+from glvox.methods.base import PASS_FAMILIES, SHARED_SHADERS
+
 ROOT = Path(__file__).resolve().parents[1] / "glvox"
 
 #: The README's Layout order, lowest first.
@@ -95,3 +98,45 @@ def test_compare_scripts_import():
     p = subprocess.run([sys.executable, "-c", code, *map(str, scripts)], capture_output=True, text=True,
                        timeout=300, cwd=ROOT.parent)
     assert p.returncode == 0, p.stderr[-2000:]
+
+
+# ---------------------------------------------------------------------------
+# one vocabulary: a family's package, shaders, tests and page share its name
+# ---------------------------------------------------------------------------
+
+TOP = ROOT.parent
+PACKAGES = sorted(p.name for p in (ROOT / "methods").iterdir() if (p / "__init__.py").is_file())
+
+
+def test_every_method_package_is_a_family():
+    assert PACKAGES == sorted(FAMILIES + PASS_FAMILIES), \
+        "a package under glvox/methods/ is a method family (FAMILIES) or a pass family (PASS_FAMILIES)"
+    loose = sorted(p.name for p in (ROOT / "methods").glob("*.py")
+                   if p.stem not in ("__init__", "base", "envelope", "request"))
+    assert not loose, f"modules of a family belong in its package glvox/methods/<family>/: {loose}"
+
+
+@pytest.mark.parametrize("family", sorted(FAMILIES + PASS_FAMILIES))
+def test_family_names_match(family):
+    """The family's tests, and its shader folder where it has shaders, carry the package's name."""
+    assert (TOP / "tests" / f"test_{family}.py").is_file(), f"tests of {family} belong in tests/test_{family}.py"
+    uses = {line.split('"')[1].split("/")[0]
+            for path in (ROOT / "methods" / family).glob("*.py")
+            for line in path.read_text().splitlines() if '_program(' in line and '"' in line
+            and "/" in line.split('"')[1]}
+    own = uses - set(SHARED_SHADERS)
+    assert own <= {family} | set(FAMILIES + PASS_FAMILIES), own
+    if (TOP / "shaders" / family).is_dir():
+        assert family in uses, f"glvox/methods/{family}/ loads no shader of shaders/{family}/"
+
+
+def test_every_shader_folder_has_a_family():
+    folders = sorted(p.name for p in (TOP / "shaders").iterdir() if p.is_dir() and p.name != "__pycache__")
+    stray = [f for f in folders if f not in FAMILIES + PASS_FAMILIES + SHARED_SHADERS]
+    assert not stray, f"shader folders named like no family: {stray}"
+
+
+def test_every_family_registers_its_methods():
+    """Every method family registers at least one method, and each method's family is its package."""
+    by_family = {i.family for i in method_infos()}
+    assert by_family == set(FAMILIES)

@@ -33,7 +33,8 @@ from glvox.errors import (FormatError, GridError, LimitError, MethodError, NotWa
                           NotWatertightWarning)
 from glvox.grid import GridSpec, ldi_axes
 from glvox.mesh import load_mesh
-from glvox.methods import depth_raster, run_method
+from glvox.methods import run_method
+from glvox.methods.depth import raster as depth_raster
 from glvox.metrics import check_against_reference, tie_set
 from glvox.reference.ldi import crossing_tolerance, crossings, ray_ties
 from glvox.results.ldi import LDI, close_odd

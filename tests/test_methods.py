@@ -14,7 +14,7 @@ import glvox
 from glvox.errors import LimitError, MethodError
 from glvox.grid import GridSpec
 from glvox.mesh import load_mesh
-from glvox.methods import (FAMILIES, KINDS, Method, MethodInfo, get_method, method_infos, method_names,
+from glvox.methods import (FAMILIES, KINDS, PIPELINES, Method, MethodInfo, get_method, method_infos, method_names,
                            register, run_method)
 from glvox.metrics import check_against_reference, separation_leaks, tie_set
 from glvox.results.voxels import VoxelGrid
@@ -24,14 +24,14 @@ VOXEL_KINDS = ("surface", "solid")
 
 def test_registry_holds_the_references():
     assert {"reference-conservative", "reference-6sep", "reference-solid"} <= set(method_names())
-    assert method_names(kind="solid", family="cpu") == ["reference-carve", "reference-gwn", "reference-solid",
+    assert method_names(kind="solid", pipeline="cpu") == ["reference-carve", "reference-gwn", "reference-solid",
                                                         "reference-vote"]
 
 
 @pytest.mark.parametrize("name", method_names())
 def test_registry_entry_is_complete(name):
     info = get_method(name).info
-    assert info.kind in KINDS and info.family in FAMILIES
+    assert info.kind in KINDS and info.family in FAMILIES and info.pipeline in PIPELINES
     assert info.paper and info.summary
     assert info.reference in method_names()
     # a method is checked against a reference of its own kind (sparse solids against the solid one)
@@ -78,10 +78,20 @@ def test_unknown_method_and_options():
 
 def test_registering_a_name_twice_is_refused():
     class Dup(Method):
-        info = MethodInfo(name="reference-solid", kind="solid", family="cpu", paper="-", summary="-")
+        info = MethodInfo(name="reference-solid", kind="solid", pipeline="cpu", paper="-", summary="-")
 
     with pytest.raises(ValueError, match="registered twice"):
         register(Dup)
+
+
+def test_a_method_outside_a_family_package_is_refused():
+    """A method's family is the package that registers it: one defined elsewhere has none."""
+    class Stray(Method):
+        info = MethodInfo(name="stray-solid", kind="solid", pipeline="cpu", paper="-", summary="-")
+
+    with pytest.raises(ValueError, match=r"from a family package glvox.methods.<family> .*not from test_methods"):
+        register(Stray)
+    assert "stray-solid" not in method_names()
 
 
 def test_reference_check_accepts_ties_and_catches_real_errors():

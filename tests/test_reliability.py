@@ -28,7 +28,7 @@ from glvox.gl.context import create_context
 from glvox.grid import GridSpec
 from glvox.mesh import load_mesh
 from glvox.methods import get_method, method_infos, method_names, run_method
-from glvox.methods.scanline import gpu_voxel_coords
+from glvox.methods.scanline.voxelize import gpu_voxel_coords
 from glvox.metrics import check_against_reference, tie_set
 from glvox.reference import TIE_EPS, conservative_surface, orientation_ambiguous
 from glvox.reference.scanline import float_variant_ties, scanline_surface

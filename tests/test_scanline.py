@@ -44,7 +44,7 @@ from glvox.errors import LimitError, MethodError
 from glvox.grid import GridSpec
 from glvox.mesh import load_mesh
 from glvox.methods import get_method, run_method, validate_options
-from glvox.methods.scanline import gpu_voxel_coords
+from glvox.methods.scanline.voxelize import gpu_voxel_coords
 from glvox.metrics import check_against_reference, separation_leaks, tie_set
 from glvox.reference import TIE_EPS, conservative_surface, solid, surface_ties
 from glvox.reference.scanline import (OpCounts, float_variant_ties, ilv_line, lattice_points, rlv_line,
@@ -650,7 +650,7 @@ def test_ilv_refuses_coordinates_beyond_its_int32_range(gl_context):
 def test_registry_entries_and_the_tunnel_option():
     for mode in MODES:
         info = get_method(f"scanline-{mode}").info
-        assert (info.kind, info.family, info.reference, info.exact) == (
+        assert (info.kind, info.pipeline, info.reference, info.exact) == (
             "surface", "compute", "reference-conservative", False)
         assert validate_options(info, {"tunnel": "18"}) == {"tunnel": 18}
         assert validate_options(info, {}) == {"tunnel": 26}

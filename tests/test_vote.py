@@ -19,7 +19,8 @@ import glvox
 from glvox.errors import NotWatertightWarning
 from glvox.grid import GridSpec
 from glvox.mesh import load_mesh
-from glvox.methods import run_method, ss_solid
+from glvox.methods import run_method
+from glvox.methods.ss import solid as ss_solid
 from glvox.metrics import check_against_reference
 
 

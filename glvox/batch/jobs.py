@@ -9,8 +9,7 @@ from pathlib import Path
 from typing import Sequence
 
 from ..errors import GlvoxError, GridError, MeshLoadError, MethodError
-from ..methods import get_method, validate_options
-from ..methods.attribute_pass import check_request
+from ..methods import Request, get_method
 
 #: Kinds of result that :func:`glvox.io.save` writes.
 SAVED_KINDS = ("surface", "solid", "sparse")
@@ -90,10 +89,13 @@ class BatchSettings:
             raise MethodError(f"glvox batch writes voxel grids (npz, binvox), and {self.method!r} returns "
                               f"a result of kind {info.kind!r}, which glvox cannot save; use a method of "
                               f"kind {', '.join(SAVED_KINDS)}")
-        validate_options(info, dict(self.options))
-        check_request(info, self.attributes, self.normals, self.fill_attributes)
+        self.request()
         if self.attributes and self.fmt != "npz":
             raise GlvoxError(f"{self.fmt} files would drop the attributes; use --format npz")
+
+    def request(self) -> Request:
+        """The method request these settings run (options coerced, attributes checked)."""
+        return Request.make(self.method, dict(self.options), self.attributes, self.normals, self.fill_attributes)
 
     def params(self) -> str:
         """The settings as ``glvox voxelize`` arguments; equal strings mean equal outputs."""

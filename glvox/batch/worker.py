@@ -14,13 +14,14 @@ import threading
 import time
 import warnings
 from concurrent.futures import ThreadPoolExecutor
+from functools import lru_cache
 from typing import Any, Callable
 
 from ..errors import GlvoxError
 from ..grid import grid_for
 from ..inspect import inspect_mesh, uncertain_share
 from ..mesh import load_mesh
-from ..methods import run_method
+from ..methods import Request, run_method
 from ..visuals import load_visual_mesh
 from .atomic import atomic_save
 from .jobs import BatchSettings, Job
@@ -30,6 +31,12 @@ from .manifest import INSPECT_COLUMNS, base_row, now
 Task = Callable[[Job, BatchSettings], dict[str, Any]]
 
 _DOING = {"load": "loading", "voxelize": "voxelizing", "save": "saving", "inspect": "inspecting"}
+
+
+@lru_cache(maxsize=8)
+def _request(settings: BatchSettings) -> Request:
+    """The settings' method request, checked once per worker process (not once per mesh)."""
+    return settings.request()
 
 
 def voxelize_one(job: Job, settings: BatchSettings) -> dict[str, Any]:
@@ -61,10 +68,8 @@ def voxelize_one(job: Job, settings: BatchSettings) -> dict[str, Any]:
         row["dims"] = "x".join(str(d) for d in spec.dims)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            result = run_method(settings.method, mesh, spec, backend=settings.backend,
-                                allow_open=settings.allow_open, attributes=settings.attributes,
-                                normals=settings.normals, fill_attributes=settings.fill_attributes,
-                                **dict(settings.options))
+            result = run_method(_request(settings), mesh, spec, backend=settings.backend,
+                                allow_open=settings.allow_open)
         run = result.run
         row["method"] = run.method  # an alias (-m solid) records the method it ran
         row["warnings"] = "; ".join(str(w.message) for w in caught)

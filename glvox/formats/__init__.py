@@ -94,13 +94,7 @@ def check_writable(path: str | os.PathLike, kind: str | None = None,
     if kind == "ldi" and not fmt.ldi:
         raise FormatError(f"an LDI is saved as .npz (depths per ray), not {fmt.name}: {path}")
     if dims is not None:
-        dims = tuple(int(d) for d in dims)
-        if fmt.check_dims is not None:
-            fmt.check_dims(dims)
-        n = dims[0] * dims[1] * dims[2]
-        if kind == "sparse" and not fmt.sparse and n > MAX_VOXELS:
-            raise FormatError(f"{fmt.name} stores dense grids and an octree on {dims} ({n} voxels) has more "
-                              f"than the {MAX_VOXELS} glvox keeps dense: save it as .npz or .vdb")
+        check_dims(path, kind, dims)
     fmt.require()
     folder = path.parent
     if path.is_dir():
@@ -110,6 +104,20 @@ def check_writable(path: str | os.PathLike, kind: str | None = None,
     if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
         raise FormatError(f"cannot write {path}: permission denied")
     return fmt
+
+
+def check_dims(path: str | os.PathLike, kind: str | None, dims: Sequence[int]) -> None:
+    """FormatError unless ``path``'s format holds a result of ``kind`` on a grid of ``dims``
+    (binvox: cubic grids only; dense formats: an octree small enough to decode).  The part of
+    :func:`check_writable` that needs the grid, for when the grid is known only later."""
+    fmt = format_for(Path(path))
+    dims = tuple(int(d) for d in dims)
+    if fmt.check_dims is not None:
+        fmt.check_dims(dims)
+    n = dims[0] * dims[1] * dims[2]
+    if kind == "sparse" and not fmt.sparse and n > MAX_VOXELS:
+        raise FormatError(f"{fmt.name} stores dense grids and an octree on {dims} ({n} voxels) has more "
+                          f"than the {MAX_VOXELS} glvox keeps dense: save it as .npz or .vdb")
 
 
 def check_readable(path: str | os.PathLike) -> Format:
@@ -125,4 +133,4 @@ def check_readable(path: str | os.PathLike) -> Format:
     return fmt
 
 
-__all__ = ["FORMATS", "Format", "KINDS", "check_readable", "check_writable", "format_for", "suffixes"]
+__all__ = ["FORMATS", "Format", "KINDS", "check_dims", "check_readable", "check_writable", "format_for", "suffixes"]

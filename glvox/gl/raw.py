@@ -140,7 +140,7 @@ class RawGL:
             self.set_logic_op(None)
 
 
-# -- for the depth-buffer methods (glvox/methods/depth_layers.py) -------------
+# -- for the depth-buffer methods (glvox/methods/depth/) -------------
 # Framebuffers with a depth-stencil *texture* (moderngl makes depth attachments
 # without stencil), reading its stencil in shaders, integer colour clears and
 # stencil state.  Only the entry points and enums; the helpers that use them

@@ -7,88 +7,52 @@ True
 
 from __future__ import annotations
 
-import importlib
-import pkgutil
 from typing import Any
 
-from ..errors import MethodError
 from ..grid import GridSpec
 from ..mesh import Mesh
 from ..reference.attributes import reference_attributes
-from .base import _REGISTRY, FAMILIES, KINDS, Method, MethodInfo, Option, Requirements, register
-from .attribute_pass import check_mesh, check_request, gpu_attributes, parse_attributes
+from .base import _REGISTRY, FAMILIES, KINDS, PIPELINES, Method, MethodInfo, Option, Requirements, register
+from .attributes.passes import check_mesh, gpu_attributes
 from .envelope import run_in_envelope
+from .request import Request, discover, get_method, validate_options
 
 #: The method :func:`glvox.voxelize` and ``glvox voxelize`` use when none is named.
 DEFAULT_METHOD = "ss-conservative"
 
-__all__ = ["DEFAULT_METHOD", "FAMILIES", "KINDS", "Method", "MethodInfo", "Option", "Requirements", "register",
-           "get_method", "method_infos", "method_names", "run_method", "validate_options"]
+__all__ = ["DEFAULT_METHOD", "FAMILIES", "KINDS", "PIPELINES", "Method", "MethodInfo", "Option", "Requirements",
+           "register", "Request", "get_method", "method_infos", "method_names", "run_method", "validate_options"]
 
-_discovered = False
-
-
-def _discover() -> None:
-    """Import every module of this package once, so their methods register."""
-    global _discovered
-    if _discovered:
-        return
-    _discovered = True
-    for mod in pkgutil.iter_modules(__path__):
-        if not mod.name.startswith("_"):
-            importlib.import_module(f"{__name__}.{mod.name}")
-
-
-def get_method(name: str) -> Method:
-    """The registered method ``name``; MethodError lists the known names otherwise."""
-    _discover()
-    try:
-        return _REGISTRY[name]
-    except KeyError:
-        raise MethodError(
-            f"unknown method {name!r}; known methods: {', '.join(sorted(_REGISTRY))}"
-        ) from None
-
-
-def method_infos(kind: str | None = None, family: str | None = None) -> list[MethodInfo]:
-    """Registry entries, sorted by family then name, optionally filtered."""
-    _discover()
+def method_infos(kind: str | None = None, family: str | None = None,
+                 pipeline: str | None = None) -> list[MethodInfo]:
+    """Registry entries, sorted by family (:data:`FAMILIES` order) then name, optionally filtered."""
+    discover()
     infos = [m.info for m in _REGISTRY.values()]
     if kind is not None:
         infos = [i for i in infos if i.kind == kind]
     if family is not None:
         infos = [i for i in infos if i.family == family]
+    if pipeline is not None:
+        infos = [i for i in infos if i.pipeline == pipeline]
     order = {f: n for n, f in enumerate(FAMILIES)}
     return sorted(infos, key=lambda i: (order[i.family], i.name))
 
 
-def method_names(kind: str | None = None, family: str | None = None) -> list[str]:
-    return [i.name for i in method_infos(kind, family)]
+def method_names(kind: str | None = None, family: str | None = None, pipeline: str | None = None) -> list[str]:
+    return [i.name for i in method_infos(kind, family, pipeline)]
 
 
-def validate_options(info: MethodInfo, options: dict[str, Any]) -> dict[str, Any]:
-    """Options with defaults filled and values coerced; MethodError on unknown names."""
-    unknown = set(options) - set(info.options)
-    if unknown:
-        valid = ", ".join(sorted(info.options)) or "none"
-        raise MethodError(
-            f"method {info.name!r} has no option {', '.join(sorted(unknown))}; its options: {valid}"
-        )
-    out = {k: o.default for k, o in info.options.items()}
-    for k, v in options.items():
-        out[k] = info.options[k].coerce(k, v)
-    return out
-
-
-def run_method(name: str, mesh: Mesh, spec: GridSpec, *, ctx=None, backend: str | None = None,
+def run_method(name: str | Request, mesh: Mesh, spec: GridSpec, *, ctx=None, backend: str | None = None,
                allow_open: bool = False, debug: bool | None = None, attributes=None, normals: str = "face",
                fill_attributes: str = "none", **options: Any):
     """Run method ``name`` on a validated mesh and grid spec.
 
     Parameters
     ----------
-    name : str
-        Registry name.
+    name : str or Request
+        Registry name, or a :class:`~glvox.methods.request.Request` checked
+        before (then ``attributes``, ``normals``, ``fill_attributes`` and
+        ``options`` are the request's and must not be given again).
     mesh : Mesh
         From :func:`glvox.mesh.load_mesh`.
     spec : GridSpec
@@ -104,7 +68,7 @@ def run_method(name: str, mesh: Mesh, spec: GridSpec, *, ctx=None, backend: str 
     attributes : sequence of str or comma-separated str, optional
         Per-voxel attributes to carry (``triangle``, ``color``, ``normal``,
         ``material``; surface and solid methods): ``result.attributes``, by
-        the source-triangle rule of :mod:`glvox.methods.attribute_pass`
+        the source-triangle rule of :mod:`glvox.methods.attributes.passes`
         (computed on the GPU; CPU methods use the float64 reference).
     normals : {'face', 'vertex'}
         The ``normal`` attribute: the source triangle's, or the mesh's vertex
@@ -123,27 +87,30 @@ def run_method(name: str, mesh: Mesh, spec: GridSpec, *, ctx=None, backend: str 
     (:meth:`Method.resolve`): ``result.run.method`` names that one, and
     ``result.run.stats['requested']`` the alias.
     """
-    requested = get_method(name)
-    opts = validate_options(requested.info, options)
-    method = get_method(requested.resolve(mesh))
-    if method is not requested:  # the alias's options, then the defaults of the method it runs
-        opts = validate_options(method.info, opts)
-    names = parse_attributes(attributes)
-    check_request(method.info, names, normals, fill_attributes)
+    if isinstance(name, Request):
+        if options or attributes is not None or normals != "face" or fill_attributes != "none":
+            raise TypeError("run_method: a Request carries its options and attributes; give them to Request.make")
+        asked = name
+    else:
+        asked = Request.make(name, options, attributes, normals, fill_attributes)
+    picked = asked.method.resolve(mesh)
+    request = asked if picked == asked.name else asked.for_method(get_method(picked))
+    method, opts, names = request.method, dict(request.options), request.attributes
     if names:
-        check_mesh(mesh, names, normals)
+        check_mesh(mesh, names, request.normals)
 
     def work(ctx, timer):
         result = method.run(mesh, spec, ctx=ctx, timer=timer, **opts)
         if names:
             timer.stats["attributes"] = list(names)
-            result.set_attributes(_attributes(ctx, mesh, result, timer, names, normals, fill_attributes))
+            result.set_attributes(_attributes(ctx, mesh, result, timer, names, request.normals,
+                                              request.fill_attributes))
         return result
 
     result = run_in_envelope(method.info, (mesh,), spec, work, options=opts, ctx=ctx, backend=backend,
                              allow_open=allow_open, debug=debug)
-    if method is not requested:
-        result.run.stats["requested"] = requested.info.name
+    if request is not asked:
+        result.run.stats["requested"] = asked.name
     return result
 
 

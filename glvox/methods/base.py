@@ -10,7 +10,7 @@ method is adding one module (and its shader folder).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar, Mapping
 
 import numpy as np
@@ -19,7 +19,18 @@ from ..errors import MethodError
 from ..gpu.buffers import buffer_pool
 
 KINDS = ("surface", "solid", "ldi", "sparse")
-FAMILIES = ("raster", "compute", "cpu")
+#: How a method runs: the raster pipeline, compute shaders, or numpy on the CPU.
+PIPELINES = ("raster", "compute", "cpu")
+#: The method families, in the order ``glvox methods`` lists them.  Each is a
+#: package ``glvox/methods/<family>/`` named like its shader folder
+#: ``shaders/<family>/``, its tests ``tests/test_<family>.py`` and its page
+#: ``docs/methods/<family>.md`` (``tests/test_layout.py`` holds them together);
+#: a method's family is the package that registers it.
+FAMILIES = ("depth", "eisemann", "ldi", "ss", "ss_octree", "scanline", "carve", "gwn", "vote", "solid", "reference")
+#: Families of passes that run after any method and register none (``--attributes``).
+PASS_FAMILIES = ("attributes",)
+#: Shader folders that belong to no family: what every family includes or runs.
+SHARED_SHADERS = ("common", "render", "sort", "testing")
 
 
 @dataclass(frozen=True)
@@ -86,7 +97,8 @@ class MethodInfo:
     name : str
         Registry key, e.g. ``'reference-solid'``.
     kind : {'surface', 'solid', 'ldi', 'sparse'}
-    family : {'raster', 'compute', 'cpu'}
+    pipeline : {'raster', 'compute', 'cpu'}
+        How it runs (:data:`PIPELINES`).
     paper : str
         Paper and section implemented.
     summary : str
@@ -102,11 +114,13 @@ class MethodInfo:
         True for a solid method whose inside is defined for any mesh (open,
         non-manifold, self-intersecting; e.g. generalized winding numbers):
         the run envelope does not refuse open meshes for it.
+    family : str
+        The package that registers it (:data:`FAMILIES`); set by :func:`register`.
     """
 
     name: str
     kind: str
-    family: str
+    pipeline: str
     paper: str
     summary: str
     reference: str | None = None
@@ -114,20 +128,23 @@ class MethodInfo:
     requires: Requirements = field(default_factory=Requirements)
     options: Mapping[str, Option] = field(default_factory=dict)
     any_mesh: bool = False
+    family: str = ""
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
             raise ValueError(f"kind must be one of {KINDS}, got {self.kind!r}")
-        if self.family not in FAMILIES:
+        if self.pipeline not in PIPELINES:
+            raise ValueError(f"pipeline must be one of {PIPELINES}, got {self.pipeline!r}")
+        if self.family and self.family not in FAMILIES:
             raise ValueError(f"family must be one of {FAMILIES}, got {self.family!r}")
 
     @property
     def uses_gl(self) -> bool:
-        return self.family != "cpu"
+        return self.pipeline != "cpu"
 
     def to_dict(self) -> dict[str, Any]:
         return {
-            "name": self.name, "kind": self.kind, "family": self.family, "paper": self.paper,
+            "name": self.name, "kind": self.kind, "family": self.family, "pipeline": self.pipeline, "paper": self.paper,
             "summary": self.summary, "reference": self.reference, "exact": self.exact,
             "any_mesh": self.any_mesh,
             "requires": {"gl_version": self.requires.gl_version,
@@ -197,10 +214,21 @@ class Method:
 _REGISTRY: dict[str, Method] = {}
 
 
+def family_of(module: str) -> str:
+    """The family of a method defined in ``module``: ``'glvox.methods.ss.surface'`` -> ``'ss'``."""
+    parts = module.split(".")
+    if len(parts) < 4 or parts[:2] != ["glvox", "methods"] or parts[2] not in FAMILIES:
+        raise ValueError(f"methods are registered from a family package glvox.methods.<family> "
+                         f"({', '.join(FAMILIES)}), not from {module}")
+    return parts[2]
+
+
 def register(cls: type[Method]) -> type[Method]:
-    """Class decorator: add a method to the registry (name must be new)."""
-    info = cls.info
-    if info.name in _REGISTRY and type(_REGISTRY[info.name]) is not cls:
-        raise ValueError(f"method name {info.name!r} is registered twice")
-    _REGISTRY[info.name] = cls()
+    """Class decorator: add a method to the registry (name must be new); its
+    family is the package it is defined in (:func:`family_of`)."""
+    name = cls.info.name
+    if name in _REGISTRY and type(_REGISTRY[name]) is not cls:
+        raise ValueError(f"method name {name!r} is registered twice")
+    cls.info = replace(cls.info, family=family_of(cls.__module__))
+    _REGISTRY[name] = cls()
     return cls

@@ -183,7 +183,7 @@ def sample_texture(tex: Texture, uv: np.ndarray) -> np.ndarray:
 def index_attribute(mesh, name: str, tri: np.ndarray) -> np.ndarray:
     """``triangle`` (the input's face index) or ``material`` (the part) of voxels whose
     source triangle (an index into ``mesh.faces``) is ``tri``, -1 where ``tri`` < 0; int32.
-    The one mapping of the GPU pass (:mod:`glvox.methods.attribute_pass`) and of this reference."""
+    The one mapping of the GPU pass (:mod:`glvox.methods.attributes.passes`) and of this reference."""
     has = tri >= 0
     ts = np.where(has, tri, 0)
     if name == "triangle":

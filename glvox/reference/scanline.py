@@ -1048,7 +1048,7 @@ def scanline_surface(tris: np.ndarray, dims: Sequence[int], mode: str = "ilv", t
         Triangle vertices in voxel space (voxel (i, j, k) is the unit cube at
         (i, j, k)).  For a voxel-for-voxel comparison with the GPU, pass the
         vertices as the GPU computes them (float32, see
-        ``glvox.methods.scanline.gpu_voxel_coords``): ILV then agrees exactly.
+        ``glvox.methods.scanline.voxelize.gpu_voxel_coords``): ILV then agrees exactly.
     dims : (3,) int
         Grid size (nx, ny, nz); voxels outside are clipped.
     mode : {'rlv', 'slv', 'ilv'}

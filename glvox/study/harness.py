@@ -324,9 +324,9 @@ def _base_row(c: Contender, mesh, name: str, n: int, spec: GridSpec) -> dict[str
                            "method": c.method or c.peer or c.key, "options": dict(c.options)}
     if c.method is not None:
         info = get_method(c.method).info
-        row.update(kind=info.kind, family=info.family, exact=info.exact)
+        row.update(kind=info.kind, family=info.family, pipeline=info.pipeline, exact=info.exact)
     elif c.is_peer:
-        row.update(kind=get_peer(c.peer).kind, family="peer", exact=None)
+        row.update(kind=get_peer(c.peer).kind, family="peer", pipeline="peer", exact=None)
     row.update(mesh=name, triangles=mesh.n_triangles, watertight=mesh.watertight, n=n, dims=list(spec.dims),
                status="ok", error=None)
     return row

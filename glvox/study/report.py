@@ -244,7 +244,7 @@ def plot_times(rows, out: Path) -> list[Path]:
         for label in dict.fromkeys(_label(r) for r in mine):
             pts = sorted((r["n"], r["gpu_ms"] if r.get("gpu_ms") else r["wall_ms"])
                          for r in mine if _label(r) == label)
-            style = "--" if mine and next(r for r in mine if _label(r) == label)["family"] == "cpu" else "-"
+            style = "--" if mine and next(r for r in mine if _label(r) == label).get("pipeline") == "cpu" else "-"
             ax.plot([p[0] for p in pts], [p[1] for p in pts], style, marker="o", label=label)
         ax.set_xscale("log", base=2)
         ax.set_yscale("log")

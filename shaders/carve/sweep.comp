@@ -5,7 +5,7 @@
 // those not in the blocker); a sweep spreads it along one axis through the
 // free voxels, forward then backward, so after it every free run along that
 // axis that held an exterior voxel is exterior.  Sweeps along x, y and z
-// repeat until a round of them adds nothing (glvox.methods.carve): each
+// repeat until a round of them adds nothing (glvox.methods.carve.sweep): each
 // round lets a path turn a corner more.
 //
 // AXIS 0: one invocation per row; within a word the run is filled by a

@@ -16,7 +16,7 @@
 //
 // A dispatch handles the roots u_roots.x .. u_roots.y - 1 (one chunk of the
 // tree, so that an invocation stays within llvmpipe's loop budget:
-// glvox.methods.gwn.plan_chunks).  With several chunks the sums so far live
+// glvox.methods.gwn.field.plan_chunks).  With several chunks the sums so far live
 // in Acc (F, bound).  The last chunk decides: a voxel whose
 // |C + F - threshold| exceeds the bound plus u_margin is decided, its bit
 // set when w >= threshold; a block of 4 voxels with an undecided one is
@@ -49,7 +49,7 @@ uniform ivec2 u_segs;   // s0, ns
 #include "gwn/segment.glsl"
 
 // the walk's stack: a binary tree's depth first walk holds at most one node
-// per level plus one (glvox.methods.gwn.TREE_STACK checks the depth)
+// per level plus one (glvox.methods.gwn.field.TREE_STACK checks the depth)
 const int GWN_STACK = 64;
 
 // The blocks of 4 voxels among `blocks` (bit i: voxels 4 i .. 4 i + 3 of the

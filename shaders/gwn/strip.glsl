@@ -67,7 +67,7 @@ void add_strip(vec3 u, vec3 v, vec2 c, float x0, float weight, uint blocks) {
 // Adds the far-field expansion of a node (gwn_tree.pack_moments: n[0] = (c, r),
 // n[1] = (D, tr Q), n[2..6] the symmetric Q, g, symmetric T), in half solid
 // angles (Omega / 2), and the bound of its error (turns; the fan's unsigned
-// area in n[6].w; glvox.methods.gwn_tree.far_bound):
+// area in n[6].w; glvox.methods.gwn.tree.far_bound):
 // area / (4 pi rho^2) * q^3 (4 - 3 q) / (1 - q)^2, q = r / rho < 1.
 // Along the row only t = c_x - x varies: the numerator over rho^7 is a
 // polynomial in t whose coefficients are set up once.

@@ -33,7 +33,7 @@ uniform uint u_budget;  // loop iterations this invocation may charge (budget.gl
 
 // Vertex i in voxel space: the one transform of every method (double, plane
 // snap, then float32: common/snap.glsl), which the CPU repeats exactly
-// (glvox.methods.scanline.gpu_voxel_coords).
+// (glvox.methods.scanline.voxelize.gpu_voxel_coords).
 uniform dvec3 u_origin_d;
 uniform double u_inv_h_d;
 vec3 vertex(uint i) {

@@ -11,7 +11,7 @@
 // rows of u_rows (the mesh's projected bounding box on the (y, z) plane: no
 // other row has a crossing) and writes only the words that change: words with
 // crossings or an odd carry.  Every invocation does u_rows_per rows (set by
-// glvox.methods.ss_solid_tuning.fill_rows within LOOP_BUDGET); the set voxels
+// glvox.methods.ss.solid_tuning.fill_rows within LOOP_BUDGET); the set voxels
 // are counted on the way (voxel_count), so no one counts the grid again on
 // the CPU.
 //

@@ -1,0 +1,6 @@
+"""Generalized winding numbers in compute shaders (``gwn-solid``): the field (:mod:`.field`) over a
+cluster tree (:mod:`.tree`); shaders in ``shaders/gwn/``, its exact CPU twin in :mod:`glvox.reference.winding`."""
+
+from . import field, tree
+
+__all__ = ["field", "tree"]

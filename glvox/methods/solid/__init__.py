@@ -1,0 +1,5 @@
+"""``solid``: the solid method chosen per mesh (:mod:`.choose`)."""
+
+from . import choose
+
+__all__ = ["choose"]

@@ -1,0 +1,293 @@
+"""Schwarz & Seidel 2010 surface voxelization in compute shaders (Sec. 3.1-3.4, 6).
+
+``ss-conservative`` sets every voxel a triangle overlaps or touches; three
+variants, as in the paper's Table 1:
+
+* ``simple``: one invocation per triangle tests every voxel of its bounding box;
+* ``specialized``: the nine 1D/2D/3D bounding-box cases, dominant-axis voxel
+  columns with the range from the plane, the two remaining 2D tests only, and
+  the shortcuts for one-voxel-thick ranges and boxes;
+* ``sorted``: a first pass writes case and work per triangle, a GLSL radix
+  sort orders them, and one indirect dispatch per bounding-box type follows.
+
+``ss-6sep`` is the 6-separating criterion (Sec. 3.4) with the dominant-axis
+columns.  All variants write the bit-packed grid of ``common/voxel_space.glsl``
+with ``atomicOr`` through a small register buffer of words.
+
+Pipeline (all on the GPU; only the grid and three case counters are read back):
+``transform`` (vertices to voxel space), ``classify`` (case and work of each
+triangle), [``sort``, ``ranges`` for the sorted variant], ``voxelize``
+(indirect dispatches sized on the GPU), ``readback``.  A triangle's work is
+split into chunks of :data:`CHUNK` voxels or columns, one invocation each, so
+no invocation exceeds the loop budget of Mesa's llvmpipe (see
+:data:`glvox.gpu.dispatch.LOOP_BUDGET`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...errors import LimitError
+from ...gl.shaders import compute_program
+from ...gpu.buffers import buffer_pool, read_grid_words
+from ...gpu.sort import sort_pairs
+from ...gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set_uniforms
+from ...gpu.transform import transform_vertices
+from ...results.voxels import VoxelGrid
+from ...tolerances import SLIVER_EPS
+from ..base import Method, MethodInfo, Option, Requirements, register
+
+_PAPER = "Schwarz & Seidel 2010"
+LOCAL_SIZE = 64  # local_size_x of ss/surface.comp and ss/classify.comp
+
+#: Work units (voxels or columns) per invocation.  A column costs at most six
+#: loop iterations (itself and up to five voxels), so an invocation stays far
+#: below LOOP_BUDGET; nearly every triangle is one chunk.
+CHUNK = 4096
+assert 6 * CHUNK < LOOP_BUDGET
+VARIANTS = {"simple": 0, "specialized": 1, "sorted": 2}
+
+#: Bits of a triangle's work in the sorted variant's keys (``ss/classify.comp``:
+#: type, axis, then the work clamped to these bits).  12 hold the work of
+#: nearly every triangle (more than 4095 units is a rare big one), and the
+#: 16-bit keys take two radix passes where the former 26 bits (30-bit keys)
+#: took four: the sorted variant's whole run took 0.87-0.98 of the time on
+#: the bunny and the armadillo at 256^3-1024^3 (``glvox bench -m
+#: ss-conservative --meshes stanford_bunny_bun_zipper.ply
+#: stanford_armadillo_libigl_86k.obj -r 256 512 1024 --check-max 0 --against
+#: b7fd10f --repeat 15``).
+WORK_BITS = 12
+_REQUIRES = Requirements(gl_version=430, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 7,
+                                                 "GL_MAX_COMPUTE_WORK_GROUP_SIZE": 256})
+
+#: ``ss-conservative``'s variant ``auto`` (the default) runs ``simple`` where a
+#: grid face has at most 1 / AUTO_SIMPLE_DENSITY voxels per triangle
+#: (F / N^2 >= AUTO_SIMPLE_DENSITY, N^2 = the geometric mean of the grid's
+#: face areas), ``sorted`` below.  Measured with compare/ss_variants.py on
+#: five shared meshes (3.5k to 203k triangles) at 64^3-1024^3, twice: simple
+#: led in 12 and 13 of the 13 cells with F / N^2 >= 0.77; below, sorted and
+#: specialized traded the lead within ~25% from run to run.  The rule's
+#: summed time was within 3% and 9% of always picking the fastest variant
+#: (worst cell 1.31x), where specialized, the former default, was 26% and 15%
+#: over (worst cell 3.8x: many voxels per triangle), simple 87% and 59%,
+#: sorted 11% and 22%.  Figures in README "Methods".
+AUTO_SIMPLE_DENSITY = 0.5
+
+#: The variant ``auto`` takes when ``sorted`` cannot run (more triangles than
+#: one indirect dispatch holds).
+AUTO_FALLBACK = "specialized"
+
+
+def default_variant(n_triangles: int, dims) -> str:
+    """The variant ``auto`` picks for ``n_triangles`` on a grid of ``dims`` (see :data:`AUTO_SIMPLE_DENSITY`)."""
+    # F / V^(2/3) >= d  <=>  (F / d)^3 >= V^2: exact in floats for every grid glvox takes
+    volume = float(np.prod(np.asarray(dims, dtype=np.float64)))
+    return "simple" if (n_triangles / AUTO_SIMPLE_DENSITY) ** 3 >= volume * volume else "sorted"
+
+
+def auto_variant(n_triangles: int, dims, max_groups: int) -> str:
+    """:func:`default_variant`, or :data:`AUTO_FALLBACK` where ``sorted`` cannot dispatch every triangle."""
+    variant = default_variant(n_triangles, dims)
+    return AUTO_FALLBACK if variant == "sorted" and n_triangles > max_groups * LOCAL_SIZE else variant
+
+
+def surface_defines(criterion: int, variant: str) -> dict:
+    """The defines of ``ss/classify.comp`` and ``ss/surface.comp``: the criterion, the
+    variant, the chunk and the sliver bound (:data:`~glvox.tolerances.SLIVER_EPS`)."""
+    return {"SS_CRITERION": criterion, "SS_VARIANT": VARIANTS[variant], "SS_CHUNK": CHUNK,
+            "SS_SLIVER_EPS": SLIVER_EPS, "SS_WORK_BITS": WORK_BITS}
+
+
+def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int = 0):
+    """The S&S surface of ``mesh`` on ``spec`` in a GPU buffer, nothing read back.
+
+    The building block of ``ss-conservative`` and ``ss-6sep`` (stages
+    ``transform``, ``classify``, [``sort``, ``ranges``], ``voxelize``), for
+    methods that go on working on the surface on the GPU (``carve-solid``).
+
+    Parameters
+    ----------
+    ctx : GLContext
+        Current context.
+    mesh : Mesh
+    spec : GridSpec
+    timer : StageTimer
+    pool : BufferPool
+        The caller's pool; the surface uses its buffers ``grid``, ``stats``,
+        ``per_triangle``, ``args`` (and ``keys``, ``ranges`` when sorted).
+    criterion : {0, 1}
+        0 conservative (26-separating), 1 6-separating.
+    variant : {'simple', 'specialized', 'sorted'}
+
+    Returns
+    -------
+    grid : moderngl.Buffer
+        The packed surface (``common/voxel_space.glsl``'s layout, uint32
+        (nz, ny, words_per_row) words), bits past nx zero.
+    stats : moderngl.Buffer
+        uint32[8]; the first three count the 1D/2D/3D cases (criterion 0).
+    """
+    n = mesh.n_triangles
+    max_groups = int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])
+    if variant == "sorted" and n > max_groups * LOCAL_SIZE:
+        raise LimitError(
+            f"the sorted variant dispatches each bounding-box type at once, at most "
+            f"{max_groups * LOCAL_SIZE} triangles (GL_MAX_COMPUTE_WORK_GROUP_COUNT {max_groups} x "
+            f"{LOCAL_SIZE}); this mesh has {n}: use variant 'specialized'"
+        )
+    # the grid first: a grid over the SSBO limit is refused before any other work
+    grid = pool.get("grid", spec.n_words * 4, what=f"the {spec.dims} bit grid")
+    bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool)
+    stats = pool.get("stats", 8 * 4)
+    per_tri = pool.get("per_triangle", n * 4, what="per-triangle work", clear=False)
+    args = pool.get("args", 9 * 4, clear=False)
+    defines = surface_defines(criterion, variant)
+    common = {**grid_uniforms(spec, bufs.anchor), "u_triangles": n, "u_tri_offset": 0,
+              "u_local_size": LOCAL_SIZE, "u_max_groups": max_groups}
+    vox.bind_to_storage_buffer(1)
+    bufs.faces.bind_to_storage_buffer(2)
+    grid.bind_to_storage_buffer(3)
+    stats.bind_to_storage_buffer(4)
+    per_tri.bind_to_storage_buffer(5)
+    args.bind_to_storage_buffer(8)
+    keys = None
+    if variant == "sorted":
+        keys = pool.get("keys", n * 4, what="sort keys", clear=False)
+        keys.bind_to_storage_buffer(7)
+    classify = compute_program(ctx, "ss/classify.comp", defines)
+    set_uniforms(classify, common)
+    with timer.stage("classify"):
+        dispatch_1d(ctx, classify, n, LOCAL_SIZE)
+        barrier(ctx)
+    if variant != "sorted":
+        voxelize_unsorted(ctx, timer, n, defines, common, args, max_groups)
+    else:
+        _voxelize_sorted(ctx, timer, pool, n, defines, common, (vox, bufs.faces, grid, stats, per_tri, keys, args),
+                         max_groups)
+    return grid, stats
+
+
+def voxelize_unsorted(ctx, timer, n, defines, common, args, max_groups, stage: str = "voxelize"):
+    """Stage ``voxelize`` (or ``stage``) of the simple and specialized variants: indirect
+    dispatches over the triangles, at most GL_MAX_COMPUTE_WORK_GROUP_COUNT groups each
+    (the attribute passes run them too, with ``SS_ATTR_PASS`` defined)."""
+    dargs = compute_program(ctx, "ss/dispatch_args.comp")
+    prog = compute_program(ctx, "ss/surface.comp", defines)
+    set_uniforms(prog, common)
+    batch = max_groups * LOCAL_SIZE  # triangles per dispatch along x
+    with timer.stage(stage):
+        for offset in range(0, n, batch):
+            count = min(batch, n - offset)
+            set_uniforms(dargs, {"u_sorted": False, "u_groups_x": -(-count // LOCAL_SIZE),
+                                 "u_max_groups": max_groups, "u_local_size": LOCAL_SIZE})
+            dargs.run(1, 1, 1)
+            barrier(ctx)
+            set_uniforms(prog, {"u_tri_offset": offset})
+            prog.run_indirect(args)
+            barrier(ctx)
+
+
+def _voxelize_sorted(ctx, timer, pool, n, defines, common, buffers, max_groups):
+    """Stages ``sort``, ``ranges`` and ``voxelize`` of the sorted variant: triangles
+    sorted by case, one indirect dispatch per bounding-box type."""
+    vox, faces, grid, stats, per_tri, keys, args = buffers
+    sort_by_case(ctx, timer, pool, n, (stats, per_tri, keys, args), max_groups)
+    voxelize_sorted(ctx, timer, defines, common, (vox, faces, grid, per_tri, args))
+
+
+def sort_by_case(ctx, timer, pool, n, buffers, max_groups, prefix: str = "") -> None:
+    """Stages ``sort`` and ``ranges`` of the sorted variant (``prefix`` before the
+    names): triangles sorted by case, the indirect arguments of each type."""
+    stats, per_tri, keys, args = buffers
+    dargs = compute_program(ctx, "ss/dispatch_args.comp")
+    ranges = pool.get("ranges", 8 * 4)
+    ranges.bind_to_storage_buffer(6)
+    with timer.stage(f"{prefix}sort"):
+        sort_pairs(ctx, keys, per_tri, n, key_bits=WORK_BITS + 4)
+        barrier(ctx)
+    rng = compute_program(ctx, "ss/ranges.comp", {"SS_WORK_BITS": WORK_BITS})
+    set_uniforms(rng, {"u_count": n})
+    set_uniforms(dargs, {"u_sorted": True, "u_local_size": LOCAL_SIZE, "u_max_groups": max_groups})
+    with timer.stage(f"{prefix}ranges"):
+        # the sort may have bound its own buffers: bind ours again
+        keys.bind_to_storage_buffer(7)
+        ranges.bind_to_storage_buffer(6)
+        stats.bind_to_storage_buffer(4)
+        args.bind_to_storage_buffer(8)
+        dispatch_1d(ctx, rng, n, 256)
+        barrier(ctx)
+        dargs.run(1, 1, 1)
+        barrier(ctx)
+
+
+def voxelize_sorted(ctx, timer, defines, common, buffers, stage: str = "voxelize") -> None:
+    """Stage ``voxelize`` (or ``stage``) of the sorted variant, after :func:`sort_by_case`:
+    one indirect dispatch per bounding-box type (the attribute passes run it too)."""
+    vox, faces, grid, per_tri, args = buffers
+    with timer.stage(stage):
+        vox.bind_to_storage_buffer(1)
+        faces.bind_to_storage_buffer(2)
+        grid.bind_to_storage_buffer(3)
+        per_tri.bind_to_storage_buffer(5)
+        for bbox_type in range(3):
+            prog = compute_program(ctx, "ss/surface.comp", {**defines, "SS_BBOX_TYPE": bbox_type})
+            set_uniforms(prog, common)
+            prog.run_indirect(args, offset=12 * bbox_type)
+        barrier(ctx)
+
+
+class _SSSurface(Method):
+    criterion = 0
+
+    def _run(self, ctx, mesh, spec, timer, variant: str):
+        grid, stats = surface_on_gpu(ctx, mesh, spec, timer, buffer_pool(ctx, self.info.name),
+                                     criterion=self.criterion, variant=variant)
+        return self._finish(spec, timer, grid, stats)
+
+    def _finish(self, spec, timer, grid, stats):
+        with timer.stage("readback", gpu=False):
+            words = read_grid_words(grid, spec)
+            stat_words = np.frombuffer(stats.read(size=32), dtype="<u4")
+        cases, voxels = stat_words[:3], int(stat_words[7])  # ss/write.glsl counts the voxels
+        if self.criterion == 0:
+            total = int(cases.sum())
+            timer.stats["cases_1d_2d_3d"] = [int(c) for c in cases]
+            timer.stats["case_percent_1d_2d_3d"] = [round(100.0 * int(c) / total, 1) if total else 0.0
+                                                    for c in cases]
+        return VoxelGrid(words=words, spec=spec, count=voxels)
+
+
+@register
+class SSConservative(_SSSurface):
+    info = MethodInfo(
+        name="ss-conservative", kind="surface", pipeline="compute",
+        paper=f"{_PAPER}, Sec. 3.1-3.2 and 6 (triangle-parallel conservative voxelization)",
+        summary="conservative (26-separating) surface, one compute invocation per triangle, atomicOr",
+        reference="reference-conservative",
+        requires=_REQUIRES,
+        options={"variant": Option("auto", "Table 1's realization; auto: simple where triangles / N^2 >= "
+                                           f"{AUTO_SIMPLE_DENSITY}, else sorted (measured, "
+                                           "compare/ss_variants.py)", ("auto", *VARIANTS))},
+    )
+    criterion = 0
+
+    def run(self, mesh, spec, *, ctx, timer, variant):
+        if variant == "auto":
+            max_groups = int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])
+            variant = timer.stats["variant"] = auto_variant(mesh.n_triangles, spec.dims, max_groups)
+        return self._run(ctx, mesh, spec, timer, variant)
+
+
+@register
+class SS6Sep(_SSSurface):
+    info = MethodInfo(
+        name="ss-6sep", kind="surface", pipeline="compute",
+        paper=f"{_PAPER}, Sec. 3.4 (6-separating surface voxelization, dominant-axis columns)",
+        summary="6-separating (thin) surface, one compute invocation per triangle, atomicOr",
+        reference="reference-6sep",
+        requires=_REQUIRES,
+    )
+    criterion = 1
+
+    def run(self, mesh, spec, *, ctx, timer):
+        return self._run(ctx, mesh, spec, timer, "specialized")
