@@ -243,6 +243,13 @@ def validate_voxelize(args) -> VoxelizeCall:
     out = result_file(args.output, kind=request.info.kind) if args.output else None
     attribute_output(request, out)
     mesh_arg(args.mesh)
+    if getattr(args, "fit", "center") == "binvox":
+        given = [flag for flag, on in (("--dims", args.dims is not None), ("--voxel-size", args.voxel_size is not None),
+                                       ("--bounds", args.bounds is not None), ("--padding", args.padding != 0),
+                                       ("--tight", args.tight)) if on]
+        if given or args.resolution is None:
+            raise GlvoxError("--fit binvox places an N^3 grid by -r N alone (binvox -d N); "
+                             + (f"drop {', '.join(given)}" if given else "give -r N"))
     spec = _grid_args(args, bounds=True)
     if out is not None and spec is not None:
         format_fits(out, request.info, spec)
