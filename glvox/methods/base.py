@@ -26,7 +26,8 @@ PIPELINES = ("raster", "compute", "cpu")
 #: ``shaders/<family>/``, its tests ``tests/test_<family>.py`` and its page
 #: ``docs/methods/<family>.md`` (``tests/test_layout.py`` holds them together);
 #: a method's family is the package that registers it.
-FAMILIES = ("depth", "eisemann", "ldi", "ss", "ss_octree", "scanline", "carve", "gwn", "vote", "solid", "reference")
+FAMILIES = ("depth", "eisemann", "ldi", "ss", "ss_octree", "scanline", "carve", "gwn", "vote", "binvox", "solid",
+            "reference")
 #: Families of passes that run after any method and register none (``--attributes``).
 PASS_FAMILIES = ("attributes",)
 #: Shader folders that belong to no family: what every family includes or runs.
