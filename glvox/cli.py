@@ -153,7 +153,8 @@ def _add_batch_parser(sub) -> None:
         "batch", help="voxelize every mesh of a folder or list (parallel, resumable)",
         description="Voxelize every mesh file under INPUT (a folder, searched recursively by suffix, or a "
                     "text file with one mesh path per line) with the same options, into OUTPUT mirroring "
-                    "the input tree.  Workers are Dask processes, one GL context each.  Outputs are written "
+                    "the input tree.  Workers are local processes (an existing Dask cluster with --scheduler), "
+                    "one GL context each.  Outputs are written "
                     "atomically and skipped on rerun, so a killed batch resumes; OUTPUT/manifest.csv has "
                     "one row per mesh.  Exit status 0 when every mesh is done or skipped, 3 when some "
                     "failed (see the manifest).")
@@ -168,8 +169,7 @@ def _add_batch_parser(sub) -> None:
     pb.add_argument("--allow-open", action="store_true",
                     help="let solid methods run on meshes that are not watertight")
     pb.add_argument("--workers", type=int, default=None,
-                    help="worker processes of the local Dask cluster (default 1); 0 runs in this "
-                         "process without Dask (no crash isolation)")
+                    help="local worker processes (default 1); 0 runs in this process (no crash isolation)")
     pb.add_argument("--scheduler", metavar="ADDRESS",
                     help="run on an existing Dask cluster (e.g. tcp://host:8786) instead of a local one")
     pb.add_argument("--overwrite", action="store_true", help="redo meshes whose output exists")

@@ -1,7 +1,7 @@
 """Grid specification: placement, fit, the bit-packed layout.
 
-Convention (DESIGN.md, shared by every method and reference)
------------------------------------------------------------
+Convention (docs/design.md, shared by every method and reference)
+-------------------------------------------------------------------
 A grid has ``dims = (nx, ny, nz)``, a world ``origin`` (the minimum corner of
 voxel (0, 0, 0)) and one isotropic voxel size ``h``.  Voxel (i, j, k) is the
 closed box ``origin + [i, i+1] x [j, j+1] x [k, k+1] * h``; its center is at

@@ -1,6 +1,6 @@
 """The exact CPU references (float64 numpy), registered as methods.
 
-They are what every GPU method is checked against (DESIGN.md, "Kinds of
+They are what every GPU method is checked against (docs/design.md, "Kinds of
 result"); the geometry lives in :mod:`glvox.reference`.  ``reference-ldi``
 gives the exact crossings of every pixel ray; its rays are checked with
 :func:`glvox.reference.ldi.ray_ties` rather than a voxel tie set (an LDI is
@@ -131,7 +131,7 @@ def check_close(close: int) -> int:
 class ReferenceCarve(_CpuReference):
     info = MethodInfo(
         name="reference-carve", kind="solid", pipeline="cpu",
-        paper="exterior carving (DESIGN.md's carved solid, binvox-style): a 6-connected flood fill "
+        paper="exterior carving (docs/design.md, 'Carved solid'; binvox-style): a 6-connected flood fill "
               f"(scipy.ndimage.label) around the exact conservative surface of {_SS}, Sec. 3.1",
         summary="exact carved solid: every voxel not 6-connected to the grid boundary outside the "
                 "conservative surface (closed first with close=K), surface included",
