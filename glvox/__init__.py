@@ -20,7 +20,7 @@ from .errors import (BackendError, CapabilityError, DatasetError, EmptyMeshError
                      GLError, GlvoxError, GridError, LimitError, MeshError, MeshLoadError, MethodError,
                      NonFiniteVertexError, NotWatertightError, ShaderError)
 from .gl.context import get_context
-from .grid import GridSpec, fit_grid, grid_for
+from .grid import DEFAULT_RESOLUTION, GridSpec, fit_grid, grid_for
 from .inspect import MeshReport, inspect_mesh
 from .io import load, save
 from .mesh import Mesh, load_mesh
@@ -32,7 +32,7 @@ from .visuals import load_visual_mesh
 __all__ = [
     "voxelize", "grid_for", "load_mesh", "fit_grid", "save", "load", "list_methods", "info",
     "ldi", "intersect_ldi", "intersecting_volume", "LDI", "datasets", "inspect_mesh", "MeshReport",
-    "GridSpec", "VoxelGrid", "SparseOctree", "Mesh", "DEFAULT_METHOD", "__version__",
+    "GridSpec", "VoxelGrid", "SparseOctree", "Mesh", "DEFAULT_METHOD", "DEFAULT_RESOLUTION", "__version__",
     "GlvoxError", "BackendError", "CapabilityError", "DatasetError", "EmptyMeshError", "FaceIndexError",
     "FormatError", "GLError", "GridError", "LimitError", "MeshError", "MeshLoadError",
     "MethodError", "NonFiniteVertexError", "NotWatertightError", "ShaderError",
@@ -52,7 +52,8 @@ def voxelize(mesh: Any, resolution: int | None = None, method: str = DEFAULT_MET
     mesh : path, "gen:NAME", trimesh.Trimesh, (vertices, faces) or Mesh
     resolution : int, optional
         N: voxels along the longest axis; cubic N^3 grid centered on the mesh
-        (the papers' fit).  Or give ``grid``, ``dims`` or ``voxel_size``.
+        (the papers' fit).  Or give ``grid``, ``dims`` or ``voxel_size``; with
+        none of them, :data:`~glvox.grid.DEFAULT_RESOLUTION` (128).
     method : str
         Registry name (``glvox methods`` lists them).
     grid : GridSpec, optional
@@ -84,7 +85,7 @@ def voxelize(mesh: Any, resolution: int | None = None, method: str = DEFAULT_MET
     m = load_visual_mesh(mesh) if request.attributes else load_mesh(mesh)
     if grid is None:
         if resolution is None and dims is None and voxel_size is None:
-            raise GridError("give a resolution (or dims, voxel_size or grid)")
+            resolution = DEFAULT_RESOLUTION
         grid = grid_for(m, resolution, dims=dims, voxel_size=voxel_size, bounds=bounds,
                         padding=padding, tight=tight)
     return run_method(request, m, grid, ctx=ctx, backend=backend, allow_open=allow_open)
@@ -135,7 +136,8 @@ def intersect_ldi(mesh_a: Any, mesh_b: Any, resolution: int | None = None, *, lo
     ----------
     mesh_a, mesh_b : path, "gen:NAME", trimesh.Trimesh, (vertices, faces) or Mesh
     resolution, grid, dims, voxel_size, padding
-        The grid, as :func:`voxelize` (fitted to the overlap region).
+        The grid, as :func:`voxelize` (fitted to the overlap region; with
+        none of them, :data:`~glvox.grid.DEFAULT_RESOLUTION`).
     lod_c : int
         Cells along the rays (Leung & Wang's LOD-C).
     axis : {0, 1, 2}
@@ -149,6 +151,8 @@ def intersect_ldi(mesh_a: Any, mesh_b: Any, resolution: int | None = None, *, lo
     """
     a, b = load_mesh(mesh_a), load_mesh(mesh_b)
     if grid is None:
+        if resolution is None and dims is None and voxel_size is None:
+            resolution = DEFAULT_RESOLUTION
         grid = overlap_grid(a, b, resolution, dims=dims, voxel_size=voxel_size, padding=padding)
     return run_intersection(a, b, grid, ctx=ctx, backend=backend, allow_open=allow_open, lod_c=lod_c,
                             axis=axis, targets=targets)
