@@ -29,7 +29,7 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 
 from . import datasets, io
-from .errors import FormatError, GlvoxError, GridError, MeshLoadError
+from .errors import FormatError, GlvoxError, GridError
 from .grid import DEFAULT_RESOLUTION, GridSpec, fit_grid
 from .batch import BatchSettings
 from .methods import Request, get_method
@@ -196,8 +196,7 @@ def parse_options(pairs: Sequence[str], extra: Sequence[str] = ()) -> dict[str, 
 
 def mesh_arg(name: str) -> None:
     """A mesh argument names a file, a generated mesh or a mesh glvox can fetch (checked, not loaded)."""
-    if not (name.startswith("gen:") or os.path.exists(name) or name in datasets.SOURCES):
-        raise MeshLoadError(f"mesh file not found: {name} (nor is it a mesh name glvox knows: `glvox data list`)")
+    datasets.check_mesh_name(name)
 
 
 #: The line a command prints (stderr, unless --quiet or --json) when it uses
