@@ -233,3 +233,22 @@ def test_times_served_from_a_cache_are_marked_and_not_plotted(tmp_path, gl_conte
     series = report.timing_series(rows, "gen:torus")
     assert list(series) == ["ss-solid"] and [n for n, _ in series["ss-solid"]] == [16, 32]
 
+
+def test_every_method_and_peer_has_its_own_plot_style():
+    from glvox.study.peers import PEERS
+
+    names = sorted(set(method_names()) | set(PEERS))
+    styles = [tuple(sorted(report.style_for(n).items())) for n in names]
+    assert len(set(styles)) == len(names)                                   # pairwise distinct
+    assert len({s[0] for s in styles}) == min(20, len(names))               # tab20 used up before reuse
+    assert [tuple(sorted(report.style_for(n).items())) for n in names] == styles   # stable
+    # a CPU reference dashed, a GPU method solid, a peer dotted, options dash-dotted with the colour kept
+    assert report.style_for("reference-solid")["linestyle"] == "--"
+    assert report.style_for("ss-solid")["linestyle"] == "-"
+    assert {report.style_for(p)["linestyle"] for p in PEERS} == {":"}
+    opt = report.style_for("ss-solid (axis=1)")
+    assert opt["color"] == report.style_for("ss-solid")["color"] and opt["linestyle"] == "-."
+    assert opt["marker"] != report.style_for("ss-solid")["marker"]
+    unknown = report.style_for("some-future-method")
+    assert unknown == report.style_for("some-future-method")
+    assert tuple(sorted(unknown.items())) not in styles

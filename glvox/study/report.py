@@ -2,13 +2,20 @@
 
 Markdown tables are laid out like the papers' (mesh x grid rows, method
 columns); plots are PNG files drawn with matplotlib's Agg backend (no display).
+A method or peer has one line style (:func:`style_for`) in every plot; in the
+bar charts methods are the bars' places and the colours are the meshes'.
 """
 
 from __future__ import annotations
 
+import zlib
 from collections import OrderedDict
 from pathlib import Path
 from typing import Any, Sequence
+
+from glvox.methods import get_method, method_names
+
+from .peers import PEERS
 
 
 def _label(r: dict[str, Any]) -> str:
@@ -253,6 +260,61 @@ def markdown(rows: Sequence[dict[str, Any]], machine: dict[str, Any]) -> str:
 
 # -- plots -------------------------------------------------------------------------
 
+#: matplotlib's tab20, dark hues then light ones (written out: no matplotlib to pick a style).
+TAB20 = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22",
+         "#17becf", "#aec7e8", "#ffbb78", "#98df8a", "#ff9896", "#c5b0d5", "#c49c94", "#f7b6d2", "#c7c7c7",
+         "#dbdb8d", "#9edae5")
+#: 9 markers: 9 and 20 are coprime, so the i-th name's (colour, marker) repeats only after 180 names.
+MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">")
+#: Line styles by what runs: GPU methods solid, CPU references dashed, peers dotted; a label with
+#: options dash-dotted.
+LINESTYLES = {"gpu": "-", "cpu": "--", "peer": ":", "options": "-."}
+
+
+def _style_names() -> list[str]:
+    """Every name a plot can show, in a fixed order: registered methods, then peers, each sorted."""
+    methods = sorted(method_names())
+    return methods + sorted(p for p in PEERS if p not in methods)
+
+
+def style_for(label: str) -> dict[str, str]:
+    """The line style of a method or peer in every plot: distinct for every registered
+    method and peer, the same for a name in every plot.
+
+    Parameters
+    ----------
+    label : str
+        A method or peer name, optionally with options as the tables write them
+        (``'ss-solid (axis=1)'``).
+
+    Returns
+    -------
+    dict
+        matplotlib keywords ``color`` (a tab20 colour), ``marker`` and ``linestyle``.
+        The i-th of the sorted methods, then peers, gets colour i mod 20 and marker
+        i mod 9: pairwise distinct for up to 180 names.  A label with options keeps
+        its method's colour with another marker and a dash-dotted line; a name glvox
+        does not know gets a place from its CRC-32, stable across plots and runs.
+    """
+    names = _style_names()
+    base, _, options = label.partition(" (")
+    # an unknown name takes one of the places after the known ones (none left: any place)
+    free = 180 - len(names)
+    i = names.index(base) if base in names else (
+        len(names) + zlib.crc32(base.encode()) % free if free > 0 else zlib.crc32(base.encode()) % 180)
+    marker = i % len(MARKERS)
+    if options:
+        marker = (marker + 1 + zlib.crc32(options.encode()) % (len(MARKERS) - 1)) % len(MARKERS)
+        line = LINESTYLES["options"]
+    elif base in PEERS and base not in method_names():
+        line = LINESTYLES["peer"]
+    elif base in names:
+        line = LINESTYLES["cpu" if get_method(base).info.pipeline == "cpu" else "gpu"]
+    else:
+        line = LINESTYLES["gpu"]
+    return {"color": TAB20[i % 20], "marker": MARKERS[marker], "linestyle": line}
+
+
 def _plt():
     import matplotlib
 
@@ -273,8 +335,7 @@ def plot_times(rows, out: Path) -> list[Path]:
             continue
         fig, ax = plt.subplots(figsize=(8, 5.5))
         for label, pts in series.items():
-            cpu = next(r for r in rows if r["mesh"] == mesh and _label(r) == label).get("pipeline") == "cpu"
-            ax.plot([p[0] for p in pts], [p[1] for p in pts], "--" if cpu else "-", marker="o", label=label)
+            ax.plot([p[0] for p in pts], [p[1] for p in pts], label=label, **style_for(label))
         ax.set_xscale("log", base=2)
         ax.set_yscale("log")
         ax.set_xlabel("grid resolution N (N^3 voxels)")
