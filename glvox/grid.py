@@ -62,6 +62,12 @@ MAX_VOXELS = 2**31 - 1
 #: glvox.results.octree.MAX_OCTREE_DIM (4096, 32-bit Morton codes).
 MAX_DIM = 2**16
 
+#: N of the cubic N^3 grid used when no grid is given (``glvox voxelize MESH``,
+#: ``glvox.voxelize(mesh)``, ``glvox ldi``, ``glvox volume``, ``glvox batch``):
+#: fine enough to show a scanned model's shape, small enough (2 Mi voxels,
+#: 256 KiB of bits) for every method and for a software rasterizer.
+DEFAULT_RESOLUTION = 128
+
 
 def _as_dims(dims: Sequence[int]) -> tuple[int, int, int]:
     try:

@@ -150,20 +150,26 @@ class _WindingCache:
     """The last few exact winding fields, so that a reference run and its tie set
     (or a test's several thresholds) share one evaluation: it is the costly part.
     Entries hold a weak reference to their mesh: a new mesh at a recycled id
-    never matches."""
+    never matches.  A run served from here says so (``run.stats['cached']``),
+    so that timings of it are not taken for the evaluation's (``glvox compare``
+    marks those rows and leaves them out of its timing plots)."""
 
     def __init__(self, size: int = 2):
         self.size = size
         self._items: list[tuple[Any, tuple, np.ndarray]] = []
 
-    def get(self, mesh, spec) -> np.ndarray:
+    def lookup(self, mesh, spec) -> tuple[np.ndarray, bool]:
+        """The winding field of ``mesh`` on ``spec``, float64 (nx, ny, nz), and whether it was cached."""
         key = (spec.dims, tuple(spec.origin), spec.voxel_size)
         for ref, k, w in self._items:
             if ref() is mesh and k == key:
-                return w
+                return w, True
         w = winding(mesh.triangles_voxel(spec), spec.dims)
         self._items = [(weakref.ref(mesh), key, w)] + self._items[: self.size - 1]
-        return w
+        return w, False
+
+    def get(self, mesh, spec) -> np.ndarray:
+        return self.lookup(mesh, spec)[0]
 
 
 @register
@@ -182,7 +188,7 @@ class ReferenceGwn(Method):
 
     def run(self, mesh, spec, *, ctx, timer, threshold, shell):
         with timer.stage("winding", gpu=False):
-            w = self.cache.get(mesh, spec)
+            w, timer.stats["cached"] = self.cache.lookup(mesh, spec)
             occ = w >= threshold
         if shell:
             with timer.stage("shell", gpu=False):
