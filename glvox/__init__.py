@@ -11,19 +11,20 @@ The whole public API in one place (nothing inside glvox imports this module)::
 
 from __future__ import annotations
 
+import os
 from typing import Any, Sequence
-
 
 from ._version import __version__
 from . import datasets
 from .errors import (BackendError, CapabilityError, DatasetError, EmptyMeshError, FaceIndexError, FormatError,
-                     GLError, GlvoxError, GridError, LimitError, MeshError, MeshLoadError, MethodError,
-                     NonFiniteVertexError, NotWatertightError, ShaderError)
+                     GLError, GlvoxError, GridError, LimitError, MeshError, MeshLoadError, MeshNotFoundError,
+                     MethodError, NonFiniteVertexError, NotWatertightError, ShaderError)
 from .gl.context import get_context
-from .grid import GridSpec, fit_grid, grid_for
+from .grid import DEFAULT_RESOLUTION, GridSpec, fit_grid, grid_for
 from .inspect import MeshReport, inspect_mesh
 from .io import load, save
-from .mesh import Mesh, load_mesh
+from .mesh import Mesh
+from .mesh import load_mesh as _load_mesh
 from .methods import DEFAULT_METHOD, Request, get_method, method_infos, run_method
 from .methods.ldi.leung_wang import overlap_bounds, overlap_grid, run_intersection
 from .results import LDI, SparseOctree, VoxelGrid
@@ -32,11 +33,48 @@ from .visuals import load_visual_mesh
 __all__ = [
     "voxelize", "grid_for", "load_mesh", "fit_grid", "save", "load", "list_methods", "info",
     "ldi", "intersect_ldi", "intersecting_volume", "LDI", "datasets", "inspect_mesh", "MeshReport",
-    "GridSpec", "VoxelGrid", "SparseOctree", "Mesh", "DEFAULT_METHOD", "__version__",
+    "GridSpec", "VoxelGrid", "SparseOctree", "Mesh", "DEFAULT_METHOD", "DEFAULT_RESOLUTION", "__version__",
     "GlvoxError", "BackendError", "CapabilityError", "DatasetError", "EmptyMeshError", "FaceIndexError",
-    "FormatError", "GLError", "GridError", "LimitError", "MeshError", "MeshLoadError",
+    "FormatError", "GLError", "GridError", "LimitError", "MeshError", "MeshLoadError", "MeshNotFoundError",
     "MethodError", "NonFiniteVertexError", "NotWatertightError", "ShaderError",
 ]
+
+
+def _resolve(mesh: Any) -> Any:
+    """A mesh argument as the command line takes it: a file, ``gen:NAME`` or a mesh name
+    glvox knows (fetched when missing: :func:`glvox.datasets.resolve_mesh`); other
+    arguments (arrays, trimesh objects, Mesh) as they are."""
+    return datasets.resolve_mesh(mesh) if isinstance(mesh, (str, os.PathLike)) else mesh
+
+
+def load_mesh(mesh: Any, *, name: str | None = None) -> Mesh:
+    """Load and validate a mesh given as :func:`voxelize` and the command line take it.
+
+    Parameters
+    ----------
+    mesh : path, "gen:NAME", mesh name, trimesh.Trimesh, (vertices, faces) or Mesh
+        A file trimesh can load; ``"gen:NAME"``, a generated mesh
+        (:func:`glvox.mesh.generated_mesh`); a name ``glvox data list`` shows
+        (e.g. ``"stanford_bunny_bun_zipper.ply"``), looked for in
+        ``GLVOX_MESHES``, ``../shared/meshes`` or the user cache and
+        downloaded when missing (:mod:`glvox.datasets`); a trimesh mesh; or
+        arrays, vertices (V, 3) float and faces (F, 3) int.  A :class:`Mesh`
+        is returned as is.
+    name : str, optional
+        The mesh's label (default the file name).
+
+    Returns
+    -------
+    Mesh
+
+    Raises
+    ------
+    MeshNotFoundError
+        Neither a file, ``gen:NAME`` nor a known name (the command line's
+        one-line message; a :class:`MeshLoadError` and a :class:`DatasetError`).
+    DatasetError, MeshLoadError, EmptyMeshError, NonFiniteVertexError, FaceIndexError
+    """
+    return _load_mesh(_resolve(mesh), name=name)
 
 
 def voxelize(mesh: Any, resolution: int | None = None, method: str = DEFAULT_METHOD, *,
@@ -49,10 +87,12 @@ def voxelize(mesh: Any, resolution: int | None = None, method: str = DEFAULT_MET
 
     Parameters
     ----------
-    mesh : path, "gen:NAME", trimesh.Trimesh, (vertices, faces) or Mesh
+    mesh : path, "gen:NAME", mesh name, trimesh.Trimesh, (vertices, faces) or Mesh
+        As :func:`load_mesh` takes it.
     resolution : int, optional
         N: voxels along the longest axis; cubic N^3 grid centered on the mesh
-        (the papers' fit).  Or give ``grid``, ``dims`` or ``voxel_size``.
+        (the papers' fit).  Or give ``grid``, ``dims`` or ``voxel_size``; with
+        none of them, :data:`~glvox.grid.DEFAULT_RESOLUTION` (128).
     method : str
         Registry name (``glvox methods`` lists them).
     grid : GridSpec, optional
@@ -81,10 +121,10 @@ def voxelize(mesh: Any, resolution: int | None = None, method: str = DEFAULT_MET
     """
     # before loading: unknown methods, options and attributes fail fast, and are not checked again
     request = Request.make(method, options, attributes, normals, fill_attributes)
-    m = load_visual_mesh(mesh) if request.attributes else load_mesh(mesh)
+    m = load_visual_mesh(_resolve(mesh)) if request.attributes else load_mesh(mesh)
     if grid is None:
         if resolution is None and dims is None and voxel_size is None:
-            raise GridError("give a resolution (or dims, voxel_size or grid)")
+            resolution = DEFAULT_RESOLUTION
         grid = grid_for(m, resolution, dims=dims, voxel_size=voxel_size, bounds=bounds,
                         padding=padding, tight=tight)
     return run_method(request, m, grid, ctx=ctx, backend=backend, allow_open=allow_open)
@@ -133,9 +173,10 @@ def intersect_ldi(mesh_a: Any, mesh_b: Any, resolution: int | None = None, *, lo
 
     Parameters
     ----------
-    mesh_a, mesh_b : path, "gen:NAME", trimesh.Trimesh, (vertices, faces) or Mesh
+    mesh_a, mesh_b : path, "gen:NAME", mesh name, trimesh.Trimesh, (vertices, faces) or Mesh
     resolution, grid, dims, voxel_size, padding
-        The grid, as :func:`voxelize` (fitted to the overlap region).
+        The grid, as :func:`voxelize` (fitted to the overlap region; with
+        none of them, :data:`~glvox.grid.DEFAULT_RESOLUTION`).
     lod_c : int
         Cells along the rays (Leung & Wang's LOD-C).
     axis : {0, 1, 2}
@@ -149,6 +190,8 @@ def intersect_ldi(mesh_a: Any, mesh_b: Any, resolution: int | None = None, *, lo
     """
     a, b = load_mesh(mesh_a), load_mesh(mesh_b)
     if grid is None:
+        if resolution is None and dims is None and voxel_size is None:
+            resolution = DEFAULT_RESOLUTION
         grid = overlap_grid(a, b, resolution, dims=dims, voxel_size=voxel_size, padding=padding)
     return run_intersection(a, b, grid, ctx=ctx, backend=backend, allow_open=allow_open, lod_c=lod_c,
                             axis=axis, targets=targets)

@@ -23,6 +23,7 @@ from ._version import __version__
 from .commands import (cmd_batch, cmd_bench, cmd_compare, cmd_convert, cmd_data, cmd_info, cmd_inspect, cmd_ldi,
                        cmd_methods, cmd_render, cmd_voxelize, cmd_volume)
 from .errors import GlvoxError
+from .grid import DEFAULT_RESOLUTION
 from .methods import DEFAULT_METHOD, FAMILIES, PIPELINES
 from .methods.attributes.passes import ATTRIBUTE_NAMES, FILL_MODES, NORMAL_MODES
 from .study.options import add_bench_arguments, add_compare_arguments
@@ -43,6 +44,11 @@ def _axis(value: str) -> int:
     if v in ("0", "1", "2"):
         return int(v)
     raise argparse.ArgumentTypeError(f"axis must be x, y, z or 0, 1, 2, got {value!r}")
+
+
+#: -r's help where a grid is needed (voxelize, batch, ldi).
+_RESOLUTION_HELP = (f"voxels along the longest axis (cubic N^3 grid); default {DEFAULT_RESOLUTION} when "
+                    "neither --dims nor --voxel-size is given")
 
 
 def _add_output_arguments(p, json_help: str, quiet_help: str = "no progress messages") -> None:
@@ -94,7 +100,7 @@ def _add_voxelize_parser(sub) -> None:
                         description="Voxelize MESH (a file trimesh loads, or gen:torus / gen:sphere / "
                                     "gen:box / gen:bunny-like).")
     pv.add_argument("mesh")
-    pv.add_argument("-r", "--resolution", type=int, help="voxels along the longest axis (cubic N^3 grid)")
+    pv.add_argument("-r", "--resolution", type=int, help=_RESOLUTION_HELP)
     pv.add_argument("-m", "--method", default=None, help="registry name (see `glvox methods`)")
     pv.add_argument("-o", "--output", help="output file: .npz, .binvox, .nrrd, .nii(.gz), .vti, .vdb, .vox, "
                                            ".points.ply/.glb or .cubes.ply/.glb")
@@ -157,13 +163,14 @@ def _add_batch_parser(sub) -> None:
         "batch", help="voxelize every mesh of a folder or list (parallel, resumable)",
         description="Voxelize every mesh file under INPUT (a folder, searched recursively by suffix, or a "
                     "text file with one mesh path per line) with the same options, into OUTPUT mirroring "
-                    "the input tree.  Workers are Dask processes, one GL context each.  Outputs are written "
+                    "the input tree.  Workers are local processes (an existing Dask cluster with --scheduler), "
+                    "one GL context each.  Outputs are written "
                     "atomically and skipped on rerun, so a killed batch resumes; OUTPUT/manifest.csv has "
                     "one row per mesh.  Exit status 0 when every mesh is done or skipped, 3 when some "
                     "failed (see the manifest).")
     pb.add_argument("input", help="folder of meshes, or text file listing mesh paths")
     pb.add_argument("-o", "--output", required=True, help="output folder")
-    pb.add_argument("-r", "--resolution", type=int, help="voxels along the longest axis (cubic N^3 grid)")
+    pb.add_argument("-r", "--resolution", type=int, help=_RESOLUTION_HELP)
     pb.add_argument("-m", "--method", default=None, help="registry name (see `glvox methods`)")
     pb.add_argument("--format", choices=["npz", "binvox"], default="npz", help="output format (default npz)")
     pb.add_argument("-O", "--option", action="append", default=[], metavar="KEY=VALUE",
@@ -172,8 +179,7 @@ def _add_batch_parser(sub) -> None:
     pb.add_argument("--allow-open", action="store_true",
                     help="let solid methods run on meshes that are not watertight")
     pb.add_argument("--workers", type=int, default=None,
-                    help="worker processes of the local Dask cluster (default 1); 0 runs in this "
-                         "process without Dask (no crash isolation)")
+                    help="local worker processes (default 1); 0 runs in this process (no crash isolation)")
     pb.add_argument("--scheduler", metavar="ADDRESS",
                     help="run on an existing Dask cluster (e.g. tcp://host:8786) instead of a local one")
     pb.add_argument("--overwrite", action="store_true", help="redo meshes whose output exists")
@@ -196,7 +202,7 @@ def _add_ldi_parser(sub) -> None:
                     "npz keys: depths (float32, (n_p, n_q, n_max), voxel units along the axis, NaN past "
                     "each ray's count), counts, origin, voxel_size, axis, dims, lod_c.")
     pl.add_argument("mesh")
-    pl.add_argument("-r", "--resolution", type=int, help="voxels along the longest axis (cubic N^3 grid)")
+    pl.add_argument("-r", "--resolution", type=int, help=_RESOLUTION_HELP)
     pl.add_argument("--lod-c", type=int, default=None,
                     help="cells along the rays (Leung & Wang's LOD-C; default 1024)")
     pl.add_argument("--axis", type=_axis, default=2, help="ray direction: x, y or z (default z)")
@@ -219,7 +225,8 @@ def _add_volume_parser(sub) -> None:
                     "boxes: an upper bound of the overlap sampled on the rays.")
     pvol.add_argument("mesh_a")
     pvol.add_argument("mesh_b")
-    pvol.add_argument("-r", "--resolution", type=int, help="voxels along the overlap region's longest axis")
+    pvol.add_argument("-r", "--resolution", type=int,
+                      help=f"voxels along the overlap region's longest axis (default {DEFAULT_RESOLUTION})")
     pvol.add_argument("--lod-c", type=int, default=1024, help="cells along the rays (default 1024)")
     pvol.add_argument("--axis", type=_axis, default=2, help="ray direction: x, y or z (default z)")
     pvol.add_argument("--dims", type=int, nargs=3, metavar=("NX", "NY", "NZ"), help="explicit dims")

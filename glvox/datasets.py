@@ -33,7 +33,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import quote
 
-from .errors import DatasetError
+from .errors import DatasetError, MeshNotFoundError
 
 #: Download base of the sources (a mirror replaces it: ``GLVOX_DATA_MIRROR``).
 RAW_BASE = "https://raw.githubusercontent.com"
@@ -289,17 +289,33 @@ def resolve_mesh(name: str | os.PathLike, *, quiet: bool = False) -> str:
     Raises
     ------
     DatasetError
-        When ``name`` is neither an existing file nor a known mesh name, or
-        the mesh cannot be fetched.
+        When ``name`` is neither an existing file nor a known mesh name
+        (:class:`~glvox.errors.MeshNotFoundError`, see :func:`check_mesh_name`),
+        or the mesh cannot be fetched.
     """
     name = str(name)
+    check_mesh_name(name)
     if name.startswith("gen:"):
         return name
     if os.path.exists(name):
         return os.path.abspath(name)
-    if name not in SOURCES:
-        raise DatasetError(f"mesh file not found: {name} (nor is it a mesh name glvox knows: `glvox data list`)")
     return str(fetch(name, quiet=quiet))
+
+
+def check_mesh_name(name: str | os.PathLike) -> None:
+    """That ``name`` is a generated mesh (``gen:...``), an existing path or a known mesh name
+    (checked, not loaded nor fetched): the one check, and the one message, of every mesh
+    argument (:func:`resolve_mesh`, :func:`glvox.load_mesh`, the command line).
+
+    Raises
+    ------
+    MeshNotFoundError
+        ``mesh file not found: NAME (nor is it a mesh name glvox knows: `glvox data list`)``.
+    """
+    name = str(name)
+    if not (name.startswith("gen:") or os.path.exists(name) or name in SOURCES):
+        raise MeshNotFoundError(f"mesh file not found: {name} (nor is it a mesh name glvox knows: "
+                                "`glvox data list`)")
 
 
 def file_sha256(path: str | os.PathLike) -> str:

@@ -84,3 +84,9 @@ class FormatWarning(UserWarning):
 
 class DatasetError(GlvoxError, LookupError):
     """A mesh asked for by name is unknown, or not on this machine and cannot be downloaded."""
+
+
+class MeshNotFoundError(MeshLoadError, DatasetError):
+    """A mesh argument is neither a file, a generated mesh (``gen:NAME``) nor a mesh name
+    glvox knows (``glvox data list``): a :class:`MeshLoadError` to those who load files, a
+    :class:`DatasetError` to those who ask for names."""

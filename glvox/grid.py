@@ -1,7 +1,7 @@
 """Grid specification: placement, fit, the bit-packed layout.
 
-Convention (DESIGN.md, shared by every method and reference)
------------------------------------------------------------
+Convention (docs/design.md, shared by every method and reference)
+-------------------------------------------------------------------
 A grid has ``dims = (nx, ny, nz)``, a world ``origin`` (the minimum corner of
 voxel (0, 0, 0)) and one isotropic voxel size ``h``.  Voxel (i, j, k) is the
 closed box ``origin + [i, i+1] x [j, j+1] x [k, k+1] * h``; its center is at
@@ -61,6 +61,12 @@ MAX_VOXELS = 2**31 - 1
 #: grids are bounded by MAX_VOXELS and the storage-block size, ss-octree by
 #: glvox.results.octree.MAX_OCTREE_DIM (4096, 32-bit Morton codes).
 MAX_DIM = 2**16
+
+#: N of the cubic N^3 grid used when no grid is given (``glvox voxelize MESH``,
+#: ``glvox.voxelize(mesh)``, ``glvox ldi``, ``glvox volume``, ``glvox batch``):
+#: fine enough to show a scanned model's shape, small enough (2 Mi voxels,
+#: 256 KiB of bits) for every method and for a software rasterizer.
+DEFAULT_RESOLUTION = 128
 
 
 def _as_dims(dims: Sequence[int]) -> tuple[int, int, int]:

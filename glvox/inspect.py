@@ -15,11 +15,13 @@ are undirected pairs of merged vertices; a face's edges are its three sides.
 
 from __future__ import annotations
 
+import os
 from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
 
+from .datasets import resolve_mesh
 from .grid import grid_for
 from .mesh import Mesh, load_mesh
 from .methods import run_method
@@ -345,7 +347,8 @@ def inspect_mesh(mesh: Any, resolution: int | None = None, *, backend: str | Non
 
     Parameters
     ----------
-    mesh : path, "gen:NAME", trimesh.Trimesh, (vertices, faces) or Mesh
+    mesh : path, "gen:NAME", mesh name, trimesh.Trimesh, (vertices, faces) or Mesh
+        As :func:`glvox.load_mesh` takes it (a name of ``glvox data list`` too).
     resolution : int, optional
         N: also compute ``uncertain_share`` on the N^3 grid glvox fits to the
         mesh (from ``gwn-solid``'s winding numbers, on the GPU).
@@ -356,7 +359,7 @@ def inspect_mesh(mesh: Any, resolution: int | None = None, *, backend: str | Non
     -------
     MeshReport
     """
-    m = load_mesh(mesh)
+    m = load_mesh(resolve_mesh(mesh) if isinstance(mesh, (str, os.PathLike)) else mesh)
     positions, faces = merged_faces(m)
     edges, uses, balance, face_edge = edge_table(faces)
     two = uses == 2

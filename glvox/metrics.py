@@ -2,7 +2,7 @@
 
 What every method's tests and the comparison use: a result is checked
 against the reference its registry entry names, and each mismatch must lie
-in the tie set DESIGN.md defines (surfaces: the verdict flips with box
+in the tie set docs/design.md defines (surfaces: the verdict flips with box
 half-size 0.5 +/- TIE_EPS; solids: the verdict can flip when the mesh moves by
 at most TIE_EPS voxel).
 """

@@ -20,6 +20,7 @@ from __future__ import annotations
 import importlib.util
 import math
 import os
+import sys
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,8 +29,8 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 
 from . import datasets, io
-from .errors import FormatError, GlvoxError, GridError, MeshLoadError
-from .grid import GridSpec, fit_grid
+from .errors import FormatError, GlvoxError, GridError
+from .grid import DEFAULT_RESOLUTION, GridSpec, fit_grid
 from .batch import BatchSettings
 from .methods import Request, get_method
 from .methods.attributes.passes import parse_attributes
@@ -195,8 +196,28 @@ def parse_options(pairs: Sequence[str], extra: Sequence[str] = ()) -> dict[str, 
 
 def mesh_arg(name: str) -> None:
     """A mesh argument names a file, a generated mesh or a mesh glvox can fetch (checked, not loaded)."""
-    if not (name.startswith("gen:") or os.path.exists(name) or name in datasets.SOURCES):
-        raise MeshLoadError(f"mesh file not found: {name} (nor is it a mesh name glvox knows: `glvox data list`)")
+    datasets.check_mesh_name(name)
+
+
+#: The line a command prints (stderr, unless --quiet or --json) when it uses
+#: the default grid.
+DEFAULT_GRID_NOTE = f"glvox: grid: -r {DEFAULT_RESOLUTION} (default; give -r N, --dims or --voxel-size)"
+
+
+def default_grid(args) -> bool:
+    """Set ``args.resolution`` to :data:`~glvox.grid.DEFAULT_RESOLUTION` when no grid option
+    (-r, --dims, --voxel-size) is given; whether it did (see :func:`note_default_grid`)."""
+    if args.resolution is None and args.dims is None and args.voxel_size is None:
+        args.resolution = DEFAULT_RESOLUTION
+        return True
+    return False
+
+
+def note_default_grid(args, defaulted: bool) -> None:
+    """Print :data:`DEFAULT_GRID_NOTE` on stderr when the default grid was taken, unless
+    --quiet or --json; the validators call it last, so a failing check prints its error alone."""
+    if defaulted and not (getattr(args, "quiet", False) or getattr(args, "json", False)):
+        print(DEFAULT_GRID_NOTE, file=sys.stderr)
 
 
 def _grid_args(args, bounds: bool = False) -> GridSpec | None:
@@ -243,16 +264,17 @@ def validate_voxelize(args) -> VoxelizeCall:
     out = result_file(args.output, kind=request.info.kind) if args.output else None
     attribute_output(request, out)
     mesh_arg(args.mesh)
+    defaulted = default_grid(args)
     if getattr(args, "fit", "center") == "binvox":
         given = [flag for flag, on in (("--dims", args.dims is not None), ("--voxel-size", args.voxel_size is not None),
                                        ("--bounds", args.bounds is not None), ("--padding", args.padding != 0),
                                        ("--tight", args.tight)) if on]
-        if given or args.resolution is None:
-            raise GlvoxError("--fit binvox places an N^3 grid by -r N alone (binvox -d N); "
-                             + (f"drop {', '.join(given)}" if given else "give -r N"))
+        if given:
+            raise GlvoxError(f"--fit binvox places an N^3 grid by -r N alone (binvox -d N); drop {', '.join(given)}")
     spec = _grid_args(args, bounds=True)
     if out is not None and spec is not None:
         format_fits(out, request.info, spec)
+    note_default_grid(args, defaulted)
     return VoxelizeCall(request, out, spec if args.bounds is not None else None, spec is not None)
 
 
@@ -269,6 +291,7 @@ def validate_batch(args) -> BatchSettings:
     if args.workers is not None and args.workers < 0:
         raise GlvoxError(f"--workers must be 0 (in this process) or more, got {args.workers}")
     options = parse_options(args.option)
+    defaulted = default_grid(args)
     settings = BatchSettings(
         method=args.method, resolution=args.resolution,
         dims=tuple(args.dims) if args.dims is not None else None, voxel_size=args.voxel_size,
@@ -280,6 +303,7 @@ def validate_batch(args) -> BatchSettings:
     if args.format == "binvox" and (spec is None or len(set(spec.dims)) != 1):
         raise GlvoxError("binvox stores cubic grids only: use -r N without --tight or --voxel-size, or cubic "
                          "--dims, or --format npz")
+    note_default_grid(args, defaulted)
     return settings
 
 
@@ -304,7 +328,9 @@ def validate_ldi(args) -> Request:
                          f"got {args.method!r} (kind {info.kind!r}); use glvox voxelize for voxel grids")
     positive("--lod-c", args.lod_c)
     request = method_args(args.method, ldi_options(args, info), kinds=("ldi",), command="glvox ldi")
+    defaulted = default_grid(args)
     _grid_args(args)
+    note_default_grid(args, defaulted)
     return request
 
 
@@ -314,7 +340,9 @@ def validate_volume(args) -> None:
     mesh_arg(args.mesh_a)
     mesh_arg(args.mesh_b)
     positive("--lod-c", args.lod_c)
+    defaulted = default_grid(args)
     grid_args(args.resolution, args.dims, args.voxel_size)
+    note_default_grid(args, defaulted)
 
 
 def validate_inspect(args) -> None:

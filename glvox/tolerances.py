@@ -21,7 +21,7 @@ from __future__ import annotations
 #: few operations; anything beyond that is a real disagreement, not rounding.
 #: A surface voxel is a tie when its verdict flips with the box half-size
 #: 0.5 +/- TIE_EPS, a solid voxel when its center lies within TIE_EPS of the
-#: surface (DESIGN.md, "Ties"; :mod:`glvox.reference.ties`).
+#: surface (docs/design.md, "Ties"; :mod:`glvox.reference.ties`).
 TIE_EPS = 1e-4
 
 #: (voxels) Attribute ties: a voxel's source triangle (the overlapping

@@ -105,7 +105,6 @@ def test_voxelize_grid_options(tmp_path):
     (["voxelize", "gen:torus", "-r", "8", "-o", "no_such_folder/x.npz"],
      "output folder no_such_folder does not exist"),
     (["ldi", "gen:torus", "-r", "8", "--lod-c", "0"], "--lod-c must be a positive integer, got 0"),
-    (["volume", "gen:torus", "gen:box"], "give -r/--resolution N, --dims NX NY NZ or --voxel-size H"),
     (["batch", "/nonexistent/glvox-batch-in", "-o", "out", "-r", "8"],
      "batch input not found: /nonexistent/glvox-batch-in"),
     (["batch", ".", "-o", "out", "-r", "8", "--tight", "--format", "binvox"], "binvox stores cubic grids only"),
@@ -119,7 +118,8 @@ def test_voxelize_grid_options(tmp_path):
     (["voxelize", "gen:torus", "-r", "8", "-m", "reference-solid", "--axis", "3"],
      "option axis must be one of [0, 1, 2], got 3"),
     (["voxelize", "gen:torus", "-r", "0"], "resolution must be a positive integer, got 0"),
-    (["voxelize", "gen:torus"], "give -r/--resolution N, --dims NX NY NZ or --voxel-size H"),
+    # the default grid (-r 128) is checked like a given one, and its note is not printed before the error
+    (["voxelize", "gen:torus", "--padding", "64"], "padding 64 leaves no voxel inside a grid of resolution 128"),
 ])
 def test_errors_are_one_line_and_non_zero(tmp_path, args, msg):
     """Each error is found before any work: the one line is all stderr holds (no "loading ..." before it)."""
@@ -221,3 +221,64 @@ def test_compare_check_max_zero_means_no_reference_checks(given, checked):
     argv = ["compare", "--meshes", "gen:torus", "-r", "32", "64", "128"] + (["--check-max", given] if given else [])
     plan = plan_from(build_parser().parse_args(argv))
     assert [n for n in plan.sizes if plan.checks(n)] == checked
+
+
+# ---------------------------------------------------------------------------
+# the default grid: -r DEFAULT_RESOLUTION when no grid option is given
+# ---------------------------------------------------------------------------
+
+
+def test_voxelize_without_a_grid_uses_the_default_and_says_so(tmp_path):
+    from glvox.grid import DEFAULT_RESOLUTION
+    from glvox.preflight import DEFAULT_GRID_NOTE
+
+    assert DEFAULT_RESOLUTION == 128 and "-r 128 (default" in DEFAULT_GRID_NOTE
+    out = tmp_path / "t.npz"
+    p = glvox("voxelize", "gen:torus", "-m", "ss-conservative", "-o", out)
+    assert p.returncode == 0, p.stderr
+    assert p.stderr.splitlines()[0] == DEFAULT_GRID_NOTE, p.stderr  # before any work
+    assert max(io.load(out).dims) == 128
+    # a grid option given, --quiet or --json: no note
+    for args in (["-r", "16"], ["--dims", "8", "8", "8"], ["--voxel-size", "0.5"], ["-q"], ["--json"]):
+        p = glvox("voxelize", "gen:torus", "-m", "ss-conservative", *args)
+        assert p.returncode == 0 and "default" not in p.stderr, (args, p.stderr)
+    assert json.loads(p.stdout)["grid"]["dims"] == [128, 128, 128]
+
+
+@pytest.mark.parametrize("argv, given", [
+    (["ldi", "gen:torus"], False), (["ldi", "gen:torus", "-r", "8"], True),
+    (["volume", "gen:torus", "gen:box"], False), (["volume", "gen:torus", "gen:box", "--dims", "4", "4", "4"], True),
+    (["batch", ".", "-o", "out"], False), (["batch", ".", "-o", "out", "--voxel-size", "0.1"], True),
+])
+def test_every_command_that_needs_a_grid_has_the_default(argv, given, capsys, tmp_path, monkeypatch):
+    """ldi, volume and batch fill in -r 128 in their checks (run here without the command)."""
+    from glvox.preflight import DEFAULT_GRID_NOTE
+
+    from glvox.methods import DEFAULT_METHOD
+
+    def parse(argv):
+        args = build_parser().parse_args(argv)
+        if getattr(args, "method", "x") is None:  # as glvox.cli.main does
+            args.method = DEFAULT_METHOD
+        return args
+
+    monkeypatch.chdir(tmp_path)
+    args = parse(argv)
+    checked = args.validate(args)
+    err = capsys.readouterr().err
+    assert (err == "") if given else (err == DEFAULT_GRID_NOTE + "\n"), err
+    assert (args.resolution == 128) is (not given)
+    if argv[0] == "batch":
+        assert checked.params().startswith(f"-m {args.method} " + ("--voxel-size" if given else "-r 128"))
+    args = parse(argv + ["--json"])
+    args.validate(args)
+    assert capsys.readouterr().err == ""
+
+
+def test_python_voxelize_without_a_grid_uses_the_default():
+    import glvox
+
+    assert glvox.DEFAULT_RESOLUTION == 128
+    g = glvox.voxelize("gen:torus", method="ss-conservative")
+    assert g.dims == (128, 128, 128)
+    assert glvox.voxelize("gen:torus", 16, method="ss-conservative").dims == (16, 16, 16)

@@ -208,3 +208,47 @@ def test_open_preset_plan(shared_mesh):
     assert set(methods) == set(method_names(kind="solid") + method_names(kind="sparse")) - {"reference-gwn"}
     for name in SHARED_MESHES:
         assert (name in preset["meshes"]) == (not glvox.load_mesh(shared_mesh(name)).watertight), name
+
+
+def test_times_served_from_a_cache_are_marked_and_not_plotted(tmp_path, gl_context):
+    """reference-gwn keeps its winding field per mesh and grid: its warm runs reuse the cold
+    run's, so their time is no computation's.  The row says so, the tables mark it, and the
+    timing plot's series leave it out; a method that computes every run is kept."""
+    out = tmp_path / "cmp"
+    assert run_cli("-m", "reference-gwn", "ss-solid", "--meshes", "gen:torus", "-r", "16", "32",
+                   "--repeat", "2", "-o", str(out)) == 0
+    rows = json.loads((out / "results.json").read_text())["rows"]
+    assert len(rows) == 4 and all(r["status"] == "ok" for r in rows)
+    for r in rows:
+        gwn = r["method"] == "reference-gwn"
+        assert r["stats"]["cached"] is gwn if gwn else "cached" not in r["stats"]
+        assert r["cached"] is gwn and r["cold_cached"] is False, r  # the first run computes
+    with open(out / "results.csv") as f:
+        assert {(r["method"], r["cached"]) for r in csv.DictReader(f)} == {("reference-gwn", "True"),
+                                                                           ("ss-solid", "False")}
+    md = (out / "tables.md").read_text()
+    time_rows = [ln for ln in md.split("### Time (ms)")[1].split("###")[0].splitlines() if ln.startswith("| gen")]
+    assert len(time_rows) == 2 and all(ln.count(report.CACHED_MARK) == 1 for ln in time_rows), time_rows
+    assert report.CACHED_NOTE in md
+    series = report.timing_series(rows, "gen:torus")
+    assert list(series) == ["ss-solid"] and [n for n, _ in series["ss-solid"]] == [16, 32]
+
+
+def test_every_method_and_peer_has_its_own_plot_style():
+    from glvox.study.peers import PEERS
+
+    names = sorted(set(method_names()) | set(PEERS))
+    styles = [tuple(sorted(report.style_for(n).items())) for n in names]
+    assert len(set(styles)) == len(names)                                   # pairwise distinct
+    assert len({s[0] for s in styles}) == min(20, len(names))               # tab20 used up before reuse
+    assert [tuple(sorted(report.style_for(n).items())) for n in names] == styles   # stable
+    # a CPU reference dashed, a GPU method solid, a peer dotted, options dash-dotted with the colour kept
+    assert report.style_for("reference-solid")["linestyle"] == "--"
+    assert report.style_for("ss-solid")["linestyle"] == "-"
+    assert {report.style_for(p)["linestyle"] for p in PEERS} == {":"}
+    opt = report.style_for("ss-solid (axis=1)")
+    assert opt["color"] == report.style_for("ss-solid")["color"] and opt["linestyle"] == "-."
+    assert opt["marker"] != report.style_for("ss-solid")["marker"]
+    unknown = report.style_for("some-future-method")
+    assert unknown == report.style_for("some-future-method")
+    assert tuple(sorted(unknown.items())) not in styles

@@ -481,7 +481,7 @@ def test_reference_solid_rules_on_the_surface_independently(axis):
 
 @pytest.mark.parametrize("criterion", ["conservative", "6sep"])
 def test_tie_sets_use_design_md_tolerance(criterion):
-    """DESIGN.md: a surface voxel is a tie when its verdict flips as the box half-size moves by
+    """docs/design.md: a surface voxel is a tie when its verdict flips as the box half-size moves by
     1e-4 voxel (the number is the design's, written here, not taken from glvox.tolerances).
     The plane x + y + z = 10 + d (normal (k, k, k)) misses the voxels below it by d along the
     sum of coordinates, which a box grown by eps per axis closes when 3 eps >= d; the 6-separating

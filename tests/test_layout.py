@@ -140,3 +140,12 @@ def test_every_family_registers_its_methods():
     """Every method family registers at least one method, and each method's family is its package."""
     by_family = {i.family for i in method_infos()}
     assert by_family == set(FAMILIES)
+
+
+@pytest.mark.parametrize("family", sorted(FAMILIES + PASS_FAMILIES))
+def test_every_family_has_a_docs_page(family):
+    """docs/methods/<family>.md documents the family (its methods, papers, options, figures);
+    tests/test_docs_examples.py checks that the page names each method and that its examples run."""
+    assert (TOP / "docs" / "methods" / f"{family}.md").is_file(), f"document {family} in docs/methods/{family}.md"
+    pages = sorted(p.stem for p in (TOP / "docs" / "methods").glob("*.md"))
+    assert set(pages) <= set(FAMILIES + PASS_FAMILIES), f"pages named like no family: {pages}"

@@ -2,7 +2,7 @@
 the CPU reference, the LDI type, and the intersecting volume (Leung & Wang 2013 Sec. III, V-A).
 
 Every check is against exact float64 ray/mesh crossings (glvox.reference.ldi) with the
-DESIGN.md tie rule: a ray whose set of crossed triangles can change when the mesh moves
+docs/design.md tie rule: a ray whose set of crossed triangles can change when the mesh moves
 by TIE_EPS is a tie and left out, and a crossing may move by its
 ``crossing_tolerance`` (TIE_EPS times the slope of its triangle).  Nothing is tolerated
 by count.

@@ -39,6 +39,51 @@ def test_missing_file(tmp_path):
         load_mesh(tmp_path / "nothing.stl")
 
 
+def test_the_face_takes_generated_meshes_and_refuses_unknown_names_as_the_command_line(tmp_path, monkeypatch,
+                                                                                      capsys):
+    from glvox.cli import main as cli_main
+    from glvox.errors import DatasetError, MeshNotFoundError
+
+    np.testing.assert_array_equal(glvox.load_mesh("gen:torus").triangles(), generated_mesh("torus").triangles())
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(MeshNotFoundError) as err:
+        glvox.load_mesh("no_such_mesh.ply")
+    assert isinstance(err.value, MeshLoadError) and isinstance(err.value, DatasetError)
+    assert str(err.value) == ("mesh file not found: no_such_mesh.ply (nor is it a mesh name glvox knows: "
+                              "`glvox data list`)")
+    assert cli_main(["voxelize", "no_such_mesh.ply"]) == 1
+    assert capsys.readouterr().err == f"glvox: error: {err.value}\n"
+    with pytest.raises(MeshNotFoundError, match=r"^mesh file not found: no_such_mesh.ply \(nor is it"):
+        glvox.voxelize("no_such_mesh.ply", 8, attributes="color")
+
+
+def test_the_face_takes_the_mesh_names_glvox_knows(tmp_path, monkeypatch, shared_mesh):
+    """glvox.load_mesh, voxelize and inspect_mesh: a name of `glvox data list`, found through
+    GLVOX_MESHES (never downloaded here), is the mesh of that file."""
+    bunny_file = shared_mesh("stanford_bunny_bun_zipper.ply")
+    monkeypatch.setenv("GLVOX_MESHES", str(bunny_file.parent))
+    monkeypatch.chdir(tmp_path)  # no file of that name here: the name is looked up
+    by_name = glvox.load_mesh("stanford_bunny_bun_zipper.ply")
+    by_file = load_mesh(bunny_file)
+    assert by_name.name == by_file.name == "stanford_bunny_bun_zipper.ply"
+    np.testing.assert_array_equal(by_name.triangles(), by_file.triangles())
+    assert glvox.voxelize("stanford_bunny_bun_zipper.ply", 8, method="reference-conservative").count > 0
+    assert glvox.inspect_mesh("stanford_bunny_bun_zipper.ply").triangles == by_file.n_triangles
+
+
+def test_inspect_takes_a_mesh_name(tmp_path, monkeypatch, shared_mesh):
+    """`glvox inspect NAME`: the name its checks accept is the name it loads."""
+    import subprocess
+    import sys
+
+    bunny_file = shared_mesh("stanford_bunny_bun_zipper.ply")
+    env = {**__import__("os").environ, "GLVOX_MESHES": str(bunny_file.parent)}
+    p = subprocess.run([sys.executable, "-m", "glvox", "inspect", "stanford_bunny_bun_zipper.ply", "--json"],
+                       capture_output=True, text=True, cwd=tmp_path, env=env, timeout=600)
+    assert p.returncode == 0, p.stderr
+    assert '"triangles": 69451' in p.stdout
+
+
 def test_directory_is_not_a_mesh(tmp_path):
     with pytest.raises(MeshLoadError, match="mesh path is a directory"):
         load_mesh(tmp_path)

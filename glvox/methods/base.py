@@ -198,7 +198,7 @@ class Method:
 
     def tie_set(self, mesh, spec, eps: float, **options) -> np.ndarray:
         """Dense (nx, ny, nz) bool: the voxels whose verdict under this method's
-        definition is a proven tie (DESIGN.md, "Ties") for ``mesh`` on ``spec``,
+        definition is a proven tie (docs/design.md, "Ties") for ``mesh`` on ``spec``,
         with tolerance ``eps`` voxel; ``options``: the reference's options that
         move the definition (reference-gwn's threshold, reference-carve's close).
         Defined by the exact references (:attr:`has_ties`), which results are

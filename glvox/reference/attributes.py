@@ -4,7 +4,7 @@ A set voxel's *source triangle* is, among the triangles that overlap or
 touch its box (the conservative test of :func:`conservative_pairs`), the one
 whose closest point to the voxel's center is nearest; ties go to the lowest
 triangle index.  Its attributes are evaluated at that closest point
-(DESIGN.md, "attributes"; glvox/grid.py's convention).
+(docs/design.md, "Attributes"; glvox/grid.py's convention).
 
 The closest point is found here by projection onto the plane and, outside
 the triangle, the nearest of the three edges: a different construction from
@@ -301,7 +301,7 @@ def proven_ties(tris: np.ndarray, dims, voxels: np.ndarray, triangle: np.ndarray
     A voxel is a tie when the two triangles' distances to its center are
     within ``eps`` voxel, or when either one's overlap of the voxel is itself a
     tie (it overlaps the box of half-size 0.5 + TIE_EPS but not 0.5 - TIE_EPS:
-    DESIGN.md, "Ties").  Voxels where both agree are False.
+    docs/design.md, "Ties").  Voxels where both agree are False.
 
     Returns
     -------

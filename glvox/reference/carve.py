@@ -1,4 +1,4 @@
-"""Exact CPU carved solid (DESIGN.md, "carved solid"): binvox-style exterior carving.
+"""Exact CPU carved solid (docs/design.md, "Carved solid"): binvox-style exterior carving.
 
 A voxel is outside when a 6-connected path of voxels not in the blocker
 joins it to the grid's boundary; everything else, the blocker included, is

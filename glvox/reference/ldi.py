@@ -3,7 +3,7 @@
 An LDI along ``axis`` has one ray per pixel center of the grid's other two
 axes, ``(p, q) = ldi_axes(axis)`` in increasing order (x, y for rays along z;
 y, z along x; x, z along y), through the centers ``(i + 1/2, j + 1/2)`` in
-voxel space (DESIGN.md).  A ray's crossings with the surface, sorted, are the
+voxel space (docs/design.md).  A ray's crossings with the surface, sorted, are the
 exact LDI samples: pairs ``(2i, 2i+1)`` bound the solid along the ray.
 
 Which rays a triangle crosses and where is decided exactly as
@@ -15,7 +15,7 @@ silhouette is crossed 0 or 2 times.  Depths are in voxel units along the
 axis, clamped to the grid's range ``[0, n_axis]`` (the solid is clipped to the
 grid, as every glvox result is).
 
-:func:`ray_ties` is the tie set of DESIGN.md for rays: the rays whose set of
+:func:`ray_ties` is the tie set of docs/design.md for rays: the rays whose set of
 crossed triangles can change when the mesh moves by at most ``eps`` voxel.
 :func:`crossing_tolerance` bounds how far one crossing can move under such a
 motion.

@@ -13,7 +13,7 @@ Conventions: the paper's lattice and glvox's voxel space
 The paper puts grid points (voxel centers) on Z^3: voxel P = (X, Y, Z) is
 the cube ``[X - 1/2, X + 1/2]^3`` and a point p lies in voxel
 ``floor(p + 1/2)`` (Sec. 4).  glvox's voxel (i, j, k) is ``[i, i+1] x
-[j, j+1] x [k, k+1]`` (DESIGN.md).  So paper coordinates are voxel-space
+[j, j+1] x [k, k+1]`` (docs/design.md).  So paper coordinates are voxel-space
 coordinates minus 1/2, and **voxel indices are the same numbers**: paper
 ``floor(x + 1/2)`` = glvox ``floor(x)``.  Consequently
 

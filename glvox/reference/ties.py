@@ -2,7 +2,7 @@
 
 GPU methods work in float32 on vertices transformed to voxel space, the
 references in float64.  A mismatch between them is acceptable only where it
-is proven to be a tie (DESIGN.md, "Ties"):
+is proven to be a tie (docs/design.md, "Ties"):
 
 - surfaces: the voxel's verdict changes when the tested box half-size goes
   from ``0.5 - TIE_EPS`` to ``0.5 + TIE_EPS``, along the axes where rounding
@@ -42,7 +42,7 @@ def rounding_perturbation(tris: np.ndarray, eps: float = TIE_EPS) -> tuple[np.nd
     """Where rounding can move a snapped triangle relative to the voxels, as box half-size
     perturbations per axis and edge shifts: ``(half (T, 3), edge (T, 3, 3))``, each 0 or eps.
 
-    A slanted triangle: every axis (DESIGN.md's definition).  A triangle lying in a
+    A slanted triangle: every axis (docs/design.md's definition).  A triangle lying in a
     plane ``x_c = const`` (:func:`flat_axes`) is decided exactly, by float32 and float64
     alike, except where a coordinate is off the snap planes: its verdicts turn where
     the plane or an extreme coordinate meets a voxel face plane, or where one of its
@@ -135,7 +135,7 @@ def surface_ties(tris: np.ndarray, dims: Sequence[int],
     Both criteria are monotone in the half-size (a larger box or cross only
     meets more), so the first part is the set accepted at ``0.5 + eps`` but
     not at ``0.5 - eps``: voxels that a triangle touches or misses by at most
-    about ``eps`` voxel (DESIGN.md's definition), perturbed only where rounding
+    about ``eps`` voxel (docs/design.md's definition), perturbed only where rounding
     can move the triangle (:func:`rounding_perturbation`: a face on a voxel
     plane touches both layers exactly, no tie).  The second part extends it
     to what the float32 copy of the mesh on the GPU can legitimately change:

@@ -1,6 +1,6 @@
 """Layered depth images (LDI): the result type of the ``ldi`` methods.
 
-An LDI of a solid along ``axis`` (DESIGN.md, "Kinds of result"; Leung & Wang
+An LDI of a solid along ``axis`` (docs/design.md, "Kinds of result"; Leung & Wang
 2013 Sec. I) has one ray per pixel: the centers of the grid's voxel columns
 along the axis, the pixel axes ``(p, q)`` being the other two axes in
 increasing order (x, y for rays along z; y, z along x; x, z along y), so pixel

@@ -16,6 +16,11 @@ Per mesh and grid size, every contender of the plan with a cell there:
   library call (:meth:`glvox.study.peers.Peer.run`), with the mesh already in
   the library's type; converting a peer's result to glvox's grid is
   reported apart (``convert_ms``) and not counted;
+* a glvox run whose result came from a cache (``result.run.stats['cached']``:
+  reference-gwn keeps the last winding fields per mesh and grid) is no
+  computation's time: the row says so (``cached``: a warm run was served
+  from a cache; ``cold_cached``: the cold run was), and the reports mark
+  such rows and leave them out of timing plots;
 * its last result is compared with its exact CPU reference on the same grid
   (:func:`glvox.metrics.agreement`: missing / extra voxels, IoU, mismatches
   that are not proven ties); references and tie sets are computed once per
@@ -97,6 +102,12 @@ def bimodal(values: Sequence[float]) -> bool:
     return any(a > 0 and b / a >= BIMODAL_RATIO for a, b in zip(s, s[1:]))
 
 
+def served_from_cache(result: Any) -> bool:
+    """Whether a glvox result was taken from a cache rather than computed
+    (``result.run.stats['cached']``, set by the methods that keep results)."""
+    return bool(result.run.stats.get("cached", False))
+
+
 @dataclass
 class Samples:
     """The warm runs of one contender in one cell (seconds)."""
@@ -105,12 +116,15 @@ class Samples:
     gpus: list[float] = field(default_factory=list)
     overheads: list[float] = field(default_factory=list)
     stages: dict[str, list[float]] = field(default_factory=dict)
+    cached: int = 0
 
     def add(self, wall: float, result: Any = None) -> None:
-        """One run's wall time, and the GPU and stage times of a glvox ``result``."""
+        """One run's wall time, and the GPU and stage times of a glvox ``result``
+        (and whether the result came from a cache: :func:`served_from_cache`)."""
         self.walls.append(wall)
         if result is None:
             return
+        self.cached += served_from_cache(result)
         t = result.run.timings
         if t.gpu_s is not None:
             self.gpus.append(t.gpu_s)
@@ -130,7 +144,8 @@ class Samples:
                 "gpu_ms": _median_ms(self.gpus),
                 "gpu_min_ms": min(self.gpus) * 1e3 if self.gpus else None, "gpu_spread_ms": _spread_ms(self.gpus),
                 "overhead_ms": _median_ms(self.overheads),
-                "stages_ms": {k: statistics.median(v) * 1e3 for k, v in self.stages.items()}}
+                "stages_ms": {k: statistics.median(v) * 1e3 for k, v in self.stages.items()},
+                "cached": self.cached > 0}
 
 
 @dataclass
@@ -244,6 +259,7 @@ class _Contestant:
         self.samples = Samples()
         self.last: Any = None
         self.cold_s = self.compile_s = self.prep_s = 0.0
+        self.cold_cached = False
         self.gpu_bytes: int | None = None
         self.error: str | None = None
         self.calib = Calibration(ctx) if c.is_calibration else None
@@ -281,6 +297,7 @@ class _Contestant:
             self.error = f"{type(exc).__name__}: {exc}"
             return
         if self.is_method:
+            self.cold_cached = served_from_cache(self.last)
             self.compile_s = self.last.run.timings.compile_s
             self.gpu_bytes = gpu_bytes(self.ctx) if get_method(self.c.method).info.uses_gl else 0
 
@@ -376,7 +393,7 @@ def _finish_row(plan: Plan, row: dict[str, Any], r: _Contestant, refs: Reference
     if r.error is not None:
         row.update(status="error", error=r.error)
         return
-    row.update(r.samples.summary(), cold_ms=r.cold_s * 1e3)
+    row.update(r.samples.summary(), cold_ms=r.cold_s * 1e3, cold_cached=r.cold_cached)
     if r.calib is not None:
         return
     grid = _result_grid(r, row)

@@ -1,7 +1,7 @@
 """The voxelizers people use today, aligned to glvox's grid.
 
 Each *peer* wraps one library call so that it produces occupancy on the very
-grid glvox uses (DESIGN.md): a :class:`~glvox.grid.GridSpec` with ``dims``,
+grid glvox uses (docs/design.md): a :class:`~glvox.grid.GridSpec` with ``dims``,
 world ``origin`` and voxel size ``h``, voxel (i, j, k) the closed box
 ``origin + [i, i+1] x [j, j+1] x [k, k+1] * h`` with its center at ``+ 0.5 h``.
 How each peer is brought onto that grid is explained in its class docstring

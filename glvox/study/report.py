@@ -2,13 +2,20 @@
 
 Markdown tables are laid out like the papers' (mesh x grid rows, method
 columns); plots are PNG files drawn with matplotlib's Agg backend (no display).
+A method or peer has one line style (:func:`style_for`) in every plot; in the
+bar charts methods are the bars' places and the colours are the meshes'.
 """
 
 from __future__ import annotations
 
+import zlib
 from collections import OrderedDict
 from pathlib import Path
 from typing import Any, Sequence
+
+from glvox.methods import get_method, method_names
+
+from .peers import PEERS
 
 
 def _label(r: dict[str, Any]) -> str:
@@ -50,6 +57,33 @@ def _ms(v) -> str:
     return "-" if v is None else (f"{v:.0f}" if v >= 100 else f"{v:.2f}" if v < 1 else f"{v:.1f}")
 
 
+#: What a time served from a cache carries in the tables (the row's ``cached``).
+CACHED_MARK = " *cached*"
+
+#: The tables' note on :data:`CACHED_MARK`.
+CACHED_NOTE = ("*cached*: the timed runs reused a result computed before (reference-gwn keeps the winding "
+               "field per mesh and grid), so the time is not the computation's; `cold_ms` in the CSV is the "
+               "first run's, uncached unless `cold_cached`. Cached rows are left out of the timing plots.")
+
+
+def _cached(r: dict[str, Any]) -> str:
+    return CACHED_MARK if r.get("cached") else ""
+
+
+def timing_series(rows: Sequence[dict[str, Any]], mesh: str) -> dict[str, list[tuple[int, float]]]:
+    """What :func:`plot_times` draws for ``mesh``: per method label, (N, ms) sorted by N, GPU
+    time where measured else wall; rows that did not run and rows whose time came from a
+    cache (``cached``) left out, so a reused result never passes for a fast method."""
+    series: dict[str, list[tuple[int, float]]] = {}
+    for r in rows:
+        if r["mesh"] != mesh or r["status"] != "ok" or r.get("cached"):
+            continue
+        t = r["gpu_ms"] if r.get("gpu_ms") else r.get("wall_ms")
+        if t is not None:
+            series.setdefault(_label(r), []).append((r["n"], t))
+    return {label: sorted(pts) for label, pts in series.items()}
+
+
 def summary_table(rows) -> str:
     """One row per method at the largest size: time, voxels and agreement per mesh."""
     ok = [r for r in rows if r["status"] in ("ok", "skipped")]
@@ -60,6 +94,7 @@ def summary_table(rows) -> str:
     meshes = list(dict.fromkeys(r["mesh"] for r in at))
     labels = list(dict.fromkeys(_label(r) for r in at))
     out = [f"### Summary at {n}^3: GPU ms (wall for CPU references) / voxels / IoU against the reference", "",
+           *([CACHED_NOTE, ""] if any(r.get("cached") for r in at) else []),
            "| method | kind | " + " | ".join(meshes) + " |", "|---|---|" + "---|" * len(meshes)]
     for lb in labels:
         cells, kind = [], ""
@@ -73,7 +108,7 @@ def summary_table(rows) -> str:
                 cells.append("skipped (open mesh)" if "watertight" in (r["error"] or "") else r["status"])
                 continue
             t = r.get("gpu_ms") if r.get("gpu_ms") is not None else r.get("wall_ms")
-            c = f"{_ms(t)} ms"
+            c = f"{_ms(t)} ms{_cached(r)}"
             if r.get("voxels") is not None:
                 c += f" / {r['voxels']:,}"
             if r.get("iou") is not None:
@@ -84,10 +119,12 @@ def summary_table(rows) -> str:
 
 
 def time_table(rows) -> str:
-    return _table(rows, lambda r: f"{_ms(r.get('wall_ms'))} ({_ms(r.get('gpu_ms'))})",
-                  "Time (ms): wall (GPU), median of warm runs",
-                  "GPU time sums the stages' GL_TIMESTAMP intervals; CPU references have wall time only. "
-                  "Cold runs (with shader compilation) are in the CSV (`cold_ms`, `compile_ms`).")
+    note = ("GPU time sums the stages' GL_TIMESTAMP intervals; CPU references have wall time only. "
+            "Cold runs (with shader compilation) are in the CSV (`cold_ms`, `compile_ms`).")
+    if any(r.get("cached") for r in rows):
+        note += " " + CACHED_NOTE
+    return _table(rows, lambda r: f"{_ms(r.get('wall_ms'))} ({_ms(r.get('gpu_ms'))}){_cached(r)}",
+                  "Time (ms): wall (GPU), median of warm runs", note)
 
 
 def count_table(rows) -> str:
@@ -201,7 +238,7 @@ def open_table(rows) -> str:
             t = r.get("gpu_ms") if r.get("gpu_ms") is not None else r.get("wall_ms")
             band = r.get("mismatch_uncertain")
             cells.append(f"{r['iou']:.4f} / {r['missing']:,} / {r['extra']:,}"
-                         + (f" ({band:.2f})" if band is not None else "") + f" / {_ms(t)}")
+                         + (f" ({band:.2f})" if band is not None else "") + f" / {_ms(t)}{_cached(r)}")
         out.append(f"| `{lb}` | " + " | ".join(cells) + " |")
     return "\n".join(out) + "\n"
 
@@ -223,6 +260,61 @@ def markdown(rows: Sequence[dict[str, Any]], machine: dict[str, Any]) -> str:
 
 # -- plots -------------------------------------------------------------------------
 
+#: matplotlib's tab20, dark hues then light ones (written out: no matplotlib to pick a style).
+TAB20 = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22",
+         "#17becf", "#aec7e8", "#ffbb78", "#98df8a", "#ff9896", "#c5b0d5", "#c49c94", "#f7b6d2", "#c7c7c7",
+         "#dbdb8d", "#9edae5")
+#: 9 markers: 9 and 20 are coprime, so the i-th name's (colour, marker) repeats only after 180 names.
+MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">")
+#: Line styles by what runs: GPU methods solid, CPU references dashed, peers dotted; a label with
+#: options dash-dotted.
+LINESTYLES = {"gpu": "-", "cpu": "--", "peer": ":", "options": "-."}
+
+
+def _style_names() -> list[str]:
+    """Every name a plot can show, in a fixed order: registered methods, then peers, each sorted."""
+    methods = sorted(method_names())
+    return methods + sorted(p for p in PEERS if p not in methods)
+
+
+def style_for(label: str) -> dict[str, str]:
+    """The line style of a method or peer in every plot: distinct for every registered
+    method and peer, the same for a name in every plot.
+
+    Parameters
+    ----------
+    label : str
+        A method or peer name, optionally with options as the tables write them
+        (``'ss-solid (axis=1)'``).
+
+    Returns
+    -------
+    dict
+        matplotlib keywords ``color`` (a tab20 colour), ``marker`` and ``linestyle``.
+        The i-th of the sorted methods, then peers, gets colour i mod 20 and marker
+        i mod 9: pairwise distinct for up to 180 names.  A label with options keeps
+        its method's colour with another marker and a dash-dotted line; a name glvox
+        does not know gets a place from its CRC-32, stable across plots and runs.
+    """
+    names = _style_names()
+    base, _, options = label.partition(" (")
+    # an unknown name takes one of the places after the known ones (none left: any place)
+    free = 180 - len(names)
+    i = names.index(base) if base in names else (
+        len(names) + zlib.crc32(base.encode()) % free if free > 0 else zlib.crc32(base.encode()) % 180)
+    marker = i % len(MARKERS)
+    if options:
+        marker = (marker + 1 + zlib.crc32(options.encode()) % (len(MARKERS) - 1)) % len(MARKERS)
+        line = LINESTYLES["options"]
+    elif base in PEERS and base not in method_names():
+        line = LINESTYLES["peer"]
+    elif base in names:
+        line = LINESTYLES["cpu" if get_method(base).info.pipeline == "cpu" else "gpu"]
+    else:
+        line = LINESTYLES["gpu"]
+    return {"color": TAB20[i % 20], "marker": MARKERS[marker], "linestyle": line}
+
+
 def _plt():
     import matplotlib
 
@@ -233,19 +325,17 @@ def _plt():
 
 
 def plot_times(rows, out: Path) -> list[Path]:
-    """Time vs resolution per method on log axes, one figure per mesh."""
+    """Time vs resolution per method on log axes, one figure per mesh (:func:`timing_series`:
+    times served from a cache left out)."""
     plt = _plt()
     paths = []
     for mesh in dict.fromkeys(r["mesh"] for r in rows):
-        mine = [r for r in rows if r["mesh"] == mesh and r["status"] == "ok"]
-        if not mine:
+        series = timing_series(rows, mesh)
+        if not series:
             continue
         fig, ax = plt.subplots(figsize=(8, 5.5))
-        for label in dict.fromkeys(_label(r) for r in mine):
-            pts = sorted((r["n"], r["gpu_ms"] if r.get("gpu_ms") else r["wall_ms"])
-                         for r in mine if _label(r) == label)
-            style = "--" if mine and next(r for r in mine if _label(r) == label).get("pipeline") == "cpu" else "-"
-            ax.plot([p[0] for p in pts], [p[1] for p in pts], style, marker="o", label=label)
+        for label, pts in series.items():
+            ax.plot([p[0] for p in pts], [p[1] for p in pts], label=label, **style_for(label))
         ax.set_xscale("log", base=2)
         ax.set_yscale("log")
         ax.set_xlabel("grid resolution N (N^3 voxels)")

@@ -1,6 +1,6 @@
 """Per-voxel attributes on the GPU: source triangles, then what they carry.
 
-The rule (glvox/grid.py's convention, DESIGN.md "attributes"): a set voxel's
+The rule (glvox/grid.py's convention, docs/design.md, "Attributes"): a set voxel's
 source triangle is, among the triangles overlapping its box, the one whose
 closest point to the voxel center is nearest (ties: the lowest index); its
 attributes are evaluated at that closest point.  Any method's grid gets them

@@ -1,4 +1,4 @@
-"""Exterior carving on the GPU: ``carve-solid`` (DESIGN.md, "carved solid").
+"""Exterior carving on the GPU: ``carve-solid`` (docs/design.md, "Carved solid").
 
 binvox-style: a voxel is outside when a 6-connected path of voxels outside
 the conservative surface joins it to the grid's boundary; everything else,
@@ -171,7 +171,7 @@ def flood_on_gpu(ctx, spec, timer, pool, blocker, ext) -> int:
 class CarveSolid(Method):
     info = MethodInfo(
         name="carve-solid", kind="solid", pipeline="compute",
-        paper="exterior carving (DESIGN.md's carved solid, binvox-style) around the conservative surface of "
+        paper="exterior carving (docs/design.md, 'Carved solid'; binvox-style) around the conservative surface of "
               "Schwarz & Seidel 2010, Sec. 3.1-3.2: a flood fill by sweeps along x, y and z on the GPU",
         summary="robust solid for any mesh: everything not 6-connected to the grid boundary outside the "
                 "conservative surface (optionally closed first: close=K), surface included",

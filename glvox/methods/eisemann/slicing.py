@@ -31,7 +31,7 @@ depth test, no culling, no blending.
 Coverage (``coverage`` option).  GL rasterizers snap vertices to
 ``2^-GL_SUBPIXEL_BITS`` of a pixel (1/256 on llvmpipe and current GPUs), so
 which pixel centers a triangle covers is decided on a mesh moved by up to
-2e-3 voxel, twenty times the tie tolerance of DESIGN.md; measured, that
+2e-3 voxel, twenty times the tie tolerance of docs/design.md; measured, that
 misplaces whole column segments (40 non-tie voxels on cad_featuretype.stl at
 128^3).  ``"exact"`` (the default) draws each triangle grown by 1/16 pixel
 (edges moved outwards, corners on the miter; a triangle around its bounding

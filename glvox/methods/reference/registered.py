@@ -1,6 +1,6 @@
 """The exact CPU references (float64 numpy), registered as methods.
 
-They are what every GPU method is checked against (DESIGN.md, "Kinds of
+They are what every GPU method is checked against (docs/design.md, "Kinds of
 result"); the geometry lives in :mod:`glvox.reference`.  ``reference-ldi``
 gives the exact crossings of every pixel ray; its rays are checked with
 :func:`glvox.reference.ldi.ray_ties` rather than a voxel tie set (an LDI is
@@ -132,7 +132,7 @@ def check_close(close: int) -> int:
 class ReferenceCarve(_CpuReference):
     info = MethodInfo(
         name="reference-carve", kind="solid", pipeline="cpu",
-        paper="exterior carving (DESIGN.md's carved solid, binvox-style): a 6-connected flood fill "
+        paper="exterior carving (docs/design.md, 'Carved solid'; binvox-style): a 6-connected flood fill "
               f"(scipy.ndimage.label) around the exact conservative surface of {_SS}, Sec. 3.1",
         summary="exact carved solid: every voxel not 6-connected to the grid boundary outside the "
                 "conservative surface (closed first with close=K), surface included",
@@ -178,20 +178,26 @@ class _WindingCache:
     """The last few exact winding fields, so that a reference run and its tie set
     (or a test's several thresholds) share one evaluation: it is the costly part.
     Entries hold a weak reference to their mesh: a new mesh at a recycled id
-    never matches."""
+    never matches.  A run served from here says so (``run.stats['cached']``),
+    so that timings of it are not taken for the evaluation's (``glvox compare``
+    marks those rows and leaves them out of its timing plots)."""
 
     def __init__(self, size: int = 2):
         self.size = size
         self._items: list[tuple[Any, tuple, np.ndarray]] = []
 
-    def get(self, mesh, spec) -> np.ndarray:
+    def lookup(self, mesh, spec) -> tuple[np.ndarray, bool]:
+        """The winding field of ``mesh`` on ``spec``, float64 (nx, ny, nz), and whether it was cached."""
         key = (spec.dims, tuple(spec.origin), spec.voxel_size)
         for ref, k, w in self._items:
             if ref() is mesh and k == key:
-                return w
+                return w, True
         w = winding(mesh.triangles_voxel(spec), spec.dims)
         self._items = [(weakref.ref(mesh), key, w)] + self._items[: self.size - 1]
-        return w
+        return w, False
+
+    def get(self, mesh, spec) -> np.ndarray:
+        return self.lookup(mesh, spec)[0]
 
 
 @register
@@ -210,7 +216,7 @@ class ReferenceGwn(Method):
 
     def run(self, mesh, spec, *, ctx, timer, threshold, shell):
         with timer.stage("winding", gpu=False):
-            w = self.cache.get(mesh, spec)
+            w, timer.stats["cached"] = self.cache.lookup(mesh, spec)
             occ = w >= threshold
         if shell:
             with timer.stage("shell", gpu=False):
