@@ -4,8 +4,9 @@ For each model of a folder (a subfolder holding ``model_normalized.obj`` and
 ``model_normalized.solid.binvox``, or a pair ``NAME.obj`` / ``NAME.solid.binvox``)
 the mesh is voxelized on binvox's placement (:func:`glvox.grid.binvox_grid` of
 every ``v`` record's bounding box, the file's resolution) by ``binvox-solid``
-in each mode, with the ShapeNet recipe (``dilated=True, down=1``: binvox
-``-dc -down``), by ``carve-solid`` and ``karabassi``, and compared with the
+with binvox's own defaults in each mode, with its defaults (ShapeNet's recipe,
+``dilated=True, down=1``: binvox ``-dc -down``), by the ``solid`` alias, by
+``carve-solid`` and ``karabassi``, and compared with the
 file's occupancy (read in binvox's convention; its header is not trusted, some
 files have it rewritten).  Prints one row per model and the mean.
 
@@ -28,15 +29,18 @@ from glvox.gl.context import get_context
 from glvox.grid import binvox_grid
 from glvox.mesh import binvox_bounds, load_mesh
 from glvox.methods import run_method
+from glvox.methods.binvox.solid import BINVOX_DEFAULTS
 
-#: (column, method, options)
+#: (column, method, options): binvox-solid with binvox's own defaults in each mode, then its
+#: defaults (ShapeNet's recipe, -dc -down), the ``solid`` alias, and two other solids.
 RUNS = [
-    ("default", "binvox-solid", {}),
-    ("carve (-c)", "binvox-solid", {"mode": "carve"}),
-    ("vote (-v)", "binvox-solid", {"mode": "vote"}),
-    ("-dc", "binvox-solid", {"dilated": True}),
-    ("ShapeNet (-dc -down)", "binvox-solid", {"dilated": True, "down": 1}),
-    ("no surface", "binvox-solid", {"surface": False}),
+    ("binvox default", "binvox-solid", BINVOX_DEFAULTS),
+    ("carve (-c)", "binvox-solid", {**BINVOX_DEFAULTS, "mode": "carve"}),
+    ("vote (-v)", "binvox-solid", {**BINVOX_DEFAULTS, "mode": "vote"}),
+    ("-dc", "binvox-solid", {**BINVOX_DEFAULTS, "dilated": True}),
+    ("no surface", "binvox-solid", {**BINVOX_DEFAULTS, "surface": False}),
+    ("ShapeNet (-dc -down, the defaults)", "binvox-solid", {}),
+    ("-m solid", "solid", {}),
     ("carve-solid", "carve-solid", {}),
     ("karabassi", "karabassi", {}),
 ]
@@ -61,7 +65,7 @@ def main(argv=None) -> int:
     ap.add_argument("folder", type=Path)
     ap.add_argument("--markdown", action="store_true", help="print a markdown table")
     args = ap.parse_args(argv)
-    rows = []
+    rows, picked = [], {}
     for name, obj, solid in models(args.folder):
         shipped = read(solid, convention="binvox").dense()
         mesh = load_mesh(obj)
@@ -70,7 +74,10 @@ def main(argv=None) -> int:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # open meshes: the point of the comparison
             for _, method, options in RUNS:
-                grid = run_method(method, mesh, spec, allow_open=True, **options).dense()
+                result = run_method(method, mesh, spec, allow_open=True, **options)
+                if method == "solid":
+                    picked[name] = result.run.method
+                grid = result.dense()
                 row.append(iou(grid, shipped))
         rows.append(row)
     if not rows:
@@ -87,7 +94,8 @@ def main(argv=None) -> int:
         print("  ".join(f"{h:>14}" for h in head))
         for r in rows + [mean]:
             print("  ".join(f"{fmt(v):>14}" for v in r))
-    print(f"\n{get_context().renderer}; {platform.node()}")
+    print(f"\n-m solid picked: {', '.join(f'{k}: {v}' for k, v in picked.items())}")
+    print(f"{get_context().renderer}; {platform.node()}")
     return 0
 
 

@@ -23,7 +23,7 @@ from .gl.context import get_context
 from .grid import binvox_grid, grid_for
 from .inspect import inspect_mesh
 from .mesh import binvox_bounds, load_mesh
-from .methods import Request, method_infos, run_method
+from .methods import Request, get_method, method_infos, run_method
 from .methods.ldi.leung_wang import overlap_bounds, overlap_grid, run_intersection
 from .progress import Stages
 from .visuals import load_visual_mesh
@@ -93,7 +93,14 @@ def cmd_voxelize(args) -> int:
     if out is not None and not call.output_fits:
         preflight.format_fits(out, info, spec)  # the dims of --tight / --voxel-size are known now
     say(f"grid {spec}")
-    say(f"voxelizing with {info.name} ({info.family} family, {info.pipeline}, {info.kind})")
+    picked = call.request.method.resolve(mesh)
+    if picked != info.name:  # an alias (-m solid): say what it picked and why
+        why = call.request.method.why(mesh)
+        info = get_method(picked).info
+        say(f"voxelizing with {info.name} ({info.family} family, {info.pipeline}, {info.kind}; "
+            f"picked by {call.request.name}: {why})")
+    else:
+        say(f"voxelizing with {info.name} ({info.family} family, {info.pipeline}, {info.kind})")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         result = run_method(call.request, mesh, spec, backend=args.backend, allow_open=args.allow_open)

@@ -193,6 +193,11 @@ class Method:
         runs that one and records it in the run info."""
         return self.info.name
 
+    def why(self, mesh) -> str | None:
+        """For an alias, why :meth:`resolve` picks its method for ``mesh`` (recorded as
+        ``result.run.stats['picked_because']``); None for other methods."""
+        return None
+
     #: True for references that define :meth:`tie_set`.
     has_ties: ClassVar[bool] = False
 

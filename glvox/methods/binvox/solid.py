@@ -15,7 +15,11 @@ z-buffer methods, both by default:
   beyond it are two votes, six in all.
 
 Default: a voxel surviving carving gets 3 votes and is set when it has more
-than 2, i.e. ``carve | (votes >= 3)``.  ``surface=True`` (default) also sets
+than 2, i.e. ``carve | (votes >= 3)``.  ``down=1`` (binvox ``-down``) voxelizes
+at twice the resolution and halves the grid (a voxel set when ``dmin`` = 4 of
+its 8 are).  The defaults are ShapeNet's recipe (``binvox -dc -down``:
+``dilated=True, down=1``), which reproduces its files best;
+:data:`BINVOX_DEFAULTS` are binvox's own.  ``surface=True`` (default) also sets
 every voxel that holds a crossing of the pixel-center rays: the ShapeNet
 ``*.solid.binvox`` files contain the surface (measured in
 docs/methods/binvox.md).  Winding plays no part, so double-sided and
@@ -61,14 +65,20 @@ _REQUIRES = Requirements(gl_version=450, limits={"GL_MAX_SHADER_STORAGE_BUFFER_B
 OPTIONS = {
     "mode": Option("default", "binvox's methods: 'default' carving and parity voting (carve | votes >= 3 of 6), "
                               "'carve' (binvox -c), 'vote' (binvox -v)", MODES),
-    "dilated": Option(False, "dilated carving (binvox -dc): keep one more voxel at each end of every column"),
+    "dilated": Option(True, "dilated carving (binvox -dc): keep one more voxel at each end of every column "
+                            "(default true: ShapeNet's recipe; false for binvox's own default)"),
     "surface": Option(True, "also set the voxels holding a crossing of the pixel-center rays (the ShapeNet "
                             "solid.binvox files hold their surface)"),
-    "down": Option(0, "binvox -down, repeated: voxelize at 2^down times the resolution, then halve the grid "
-                      "that many times (0 to 2)", (0, 1, 2)),
+    "down": Option(1, "binvox -down, repeated: voxelize at 2^down times the resolution, then halve the grid "
+                      "that many times (0 to 2; default 1: ShapeNet's recipe; 0 for binvox's own default)",
+                   (0, 1, 2)),
     "dmin": Option(4, "binvox -dmin: when halving, a voxel is set if at least dmin of its 8 are (1 to 8)",
                    tuple(range(1, 9))),
 }
+
+#: The options that give binvox's own defaults (``binvox -d N``), where OPTIONS' defaults
+#: give ShapeNet's recipe (``binvox -dc -down``), which matches its files best.
+BINVOX_DEFAULTS = {"mode": "default", "dilated": False, "surface": True, "down": 0, "dmin": 4}
 
 
 def fine_spec(spec: GridSpec, down: int) -> GridSpec:

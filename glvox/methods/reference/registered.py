@@ -24,6 +24,7 @@ from ...reference.ldi import crossings
 from ...results.ldi import LDI, close_odd
 from ...results.voxels import VoxelGrid
 from ..base import Method, MethodInfo, Option, register
+from ..binvox.solid import OPTIONS as BINVOX_OPTIONS
 from ..ldi.common import AXIS_OPTION, warn_open
 
 _SS = "Schwarz & Seidel 2010"
@@ -158,12 +159,7 @@ class ReferenceBinvox(Method):
               "(Nooruddin & Turk 2003) at the pixel-center rays, in float64",
         summary="exact binvox solid: carving | parity votes >= 3 of 6, surface included (mode, dilated)",
         reference="reference-binvox", any_mesh=True,
-        options={"mode": Option("default", "'default' (carve | votes >= 3), 'carve' (-c), 'vote' (-v)",
-                                ("default", "carve", "vote")),
-                 "dilated": Option(False, "dilated carving (binvox -dc)"),
-                 "surface": Option(True, "also set the voxels holding a crossing"),
-                 "down": Option(0, "binvox -down, repeated (0 to 2)", (0, 1, 2)),
-                 "dmin": Option(4, "binvox -dmin (1 to 8)", tuple(range(1, 9)))},
+        options=BINVOX_OPTIONS,
     )
 
     def run(self, mesh, spec, *, ctx, timer, mode, dilated, surface, down, dmin):
