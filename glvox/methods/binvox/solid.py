@@ -151,12 +151,14 @@ class BinvoxSolid(Method):
         set_uniforms(record, {"u_layer": 0, "u_stencil": 1, "u_dilate": int(bool(dilated))})
         bounds = spec.world_to_voxel(mesh.bounds)
         layers: dict[str, int] = {}
+        tiles: dict[str, int] = {}
         with _BinvoxRun(ctx, bufs, uniforms, record, out) as run:
             for axis in range(3):
                 name = _AXIS_NAMES[axis]
                 n_u, n_v = spec.dims[(axis + 1) % 3], spec.dims[(axis + 2) % 3]
                 size, origins = tile_origins(n_u, n_v, side)
                 target = depth_target(ctx, size)
+                tiles[name] = len(origins)
                 run.set_view(spec, bounds, axis, size)
                 set_uniforms(record, {"u_axis": axis, "u_view_size": (n_u, n_v)})
                 if carve:
@@ -212,7 +214,7 @@ class BinvoxSolid(Method):
                           "and carving alone empties a mesh open towards every view; try mode='default'",
                           EmptySolidWarning, stacklevel=2)
         timer.stats.update({"mode": mode, "dilated": bool(dilated), "surface": bool(surface), "down": down,
-                            "passes": passes, "layers": layers})
+                            "passes": passes, "layers": layers, "tiles": tiles})
         return VoxelGrid(words=words, spec=target_spec, count=voxels)
 
     @staticmethod
