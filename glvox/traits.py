@@ -59,13 +59,13 @@ class MeshTraits:
     parts : int
         Connected components of faces sharing an edge (after welding).
     inconsistent_parts : int
-        Parts where two faces traverse a shared edge in the same direction
-        (orientation not consistent, or an edge of three or more faces).
+        Parts where the two faces of an edge traverse it in the same direction
+        (orientation not consistent; edges of three or more faces are not judged).
         Judged on the faces left after setting coincident faces aside: the
         two faces of an opposite pair are dropped, same-winding copies kept once.
     inverted_parts : int
-        Consistently oriented parts whose signed volume is negative (inside
-        out), of those with a volume above 1e-6 of the bounding box.
+        Closed, consistently oriented parts whose signed volume is negative
+        (inside out), beyond 1e-6 of the bounding box's volume.
     open_edges : int
         Boundary edges: edges of exactly one face once coincident faces count
         once (so a doubled open sheet's rim counts, a doubled closed shell has none).
@@ -128,6 +128,14 @@ def _weld(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return remap[faces]
 
 
+def _runs(sorted_keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Start index and length of each run of equal values in a sorted array."""
+    if not len(sorted_keys):
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    starts = np.flatnonzero(np.r_[True, sorted_keys[1:] != sorted_keys[:-1]])
+    return starts, np.diff(np.r_[starts, len(sorted_keys)])
+
+
 def _one_per_label(labels: np.ndarray, n_labels: int) -> np.ndarray:
     """(len(labels),) bool: one element of each label set, any one (no sort)."""
     rep = np.full(n_labels, -1, dtype=np.int64)
@@ -179,20 +187,24 @@ def _compute(mesh: Mesh) -> MeshTraits:
     n_parts, part = connected_components(graph, directed=False) if m else (0, np.zeros(0, np.int64))
 
     # orientation: among the faces that remain once opposite pairs are set aside
-    # and same-winding copies kept once, a directed edge used twice is a clash
+    # and same-winding copies kept once, an edge of two faces (a manifold
+    # edge: at three or more, as where closed parts touch, there is no
+    # orientation to agree on) traversed twice in one direction is a clash
     single = _one_per_label(group * 2 + (sign > 0), 2 * n_groups) & (pairs[group] == 0)
     keep = single[so]
     kd, ko = ks[keep], so[keep]
-    clash = kd[1:] == kd[:-1]
-    bad_parts = np.unique(part[ko[1:][clash]]) if m else np.zeros(0, np.int64)
+    s2, len2 = _runs(kd >> 1)
+    s2 = s2[len2 == 2]
+    clash = s2[kd[s2] == kd[s2 + 1]]
+    bad_parts = np.unique(part[ko[clash]]) if m else np.zeros(0, np.int64)
 
     # boundary: undirected edges of one face once coincident faces count once
-    ue = und[_one_per_label(group, n_groups)[so]]
-    if len(ue):
-        starts = np.flatnonzero(np.r_[True, ue[1:] != ue[:-1]])
-        open_edges = int((np.diff(np.r_[starts, len(ue)]) == 1).sum())
-    else:
-        open_edges = 0
+    once = _one_per_label(group, n_groups)[so]
+    ue, uo = und[once], so[once]
+    s1, len1 = _runs(ue)
+    open_edges = int((len1 == 1).sum())
+    closed = np.ones(n_parts, dtype=bool)
+    closed[part[uo[s1[len1 == 1]]]] = False
 
     # volumes, relative to the box center (less cancellation far from the origin)
     lo, hi = mesh.bounds
@@ -206,9 +218,9 @@ def _compute(mesh: Mesh) -> MeshTraits:
     if box > 0:
         ratio = float(vol.sum() / box)
         part_ratio = float(np.abs(per_part).sum() / box)
-        consistent = np.ones(n_parts, dtype=bool)
-        consistent[bad_parts] = False
-        inverted = int(((per_part / box) < -1e-6)[consistent].sum())
+        judged = closed.copy()  # an open or inconsistent part has no inside to be inverted
+        judged[bad_parts] = False
+        inverted = int(((per_part / box) < -1e-6)[judged].sum())
     else:
         ratio = part_ratio = 0.0
         inverted = 0
@@ -268,6 +280,12 @@ MECHANISM_WORDS = {
 #: in an otherwise double-sided model change nothing a user sees).
 ALL_SHARE = 0.999
 
+#: From this share of cancelling faces up, a method that they defeat is
+#: called unreliable (and always warned about); below it the doubled patches
+#: act as holes (warned about when the result comes out nearly empty): scans
+#: such as the Stanford dragon hold ~1% of doubled faces and voxelize fine.
+MOST_SHARE = 0.5
+
 #: Methods to name instead of one that the traits rule out.
 ROBUST = "-m binvox-solid or -m carve-solid"
 
@@ -287,8 +305,9 @@ def solid_outlook(traits: MeshTraits) -> dict[str, str]:
     -------
     dict
         Method name (every key of :data:`SOLID_MECHANISMS`) -> ``'ok'`` or
-        a verdict whose first word is the consequence (``empty``, ``partly
-        empty``, ``unreliable``, ``may leak``, ``may streak``, ``surface
+        a verdict whose first words are the consequence (``empty``, ``partly
+        empty``, ``unreliable``: the method gets this mesh wrong; ``may leak``,
+        ``may streak``, ``may dent``: it may, where the defect is; ``surface
         only``) and whose parenthesis is the cause, e.g. ``'empty
         (double-sided faces cancel)'``.  Causes are tried in this order:
         coincident faces, zero volume, inside-out parts, inconsistent
@@ -304,8 +323,10 @@ def _verdict(mech: str, t: MeshTraits) -> str:
         return "empty (double-sided faces cancel)"
     if t.part_volume_ratio == 0.0 and t.opposite_share < ALL_SHARE:
         return "surface only (zero volume)" if mech in ("carve", "binvox") else "empty (zero volume)"
-    if cancelling > 0:
+    if cancelling >= MOST_SHARE:
         return f"unreliable ({_pct(cancelling)} of faces double-sided: they cancel)"
+    if cancelling > 0:  # patches that cancel act as holes in the surface
+        return f"{'may dent' if mech == 'winding' else 'may streak'} ({_pct(cancelling)} of faces double-sided)"
     if mech == "winding":
         if t.inverted_parts and t.inverted_parts >= t.parts - t.inconsistent_parts:
             return "empty (inside out)"
@@ -354,9 +375,12 @@ def solid_warning(traits: MeshTraits, method: str, count: int, bbox_voxels: int)
     if verdict.startswith(("empty", "partly empty", "unreliable")):
         cause = verdict[verdict.index("(") + 1:-1]
         if "double-sided" in verdict:
-            cause += (f" ({_pct(traits.opposite_share)} of faces doubled with opposite winding, "
-                      f"{_pct(traits.duplicate_share)} with the same)")
+            shares = [f"{_pct(x)} of faces doubled with {w} winding" for x, w in
+                      ((traits.opposite_share, "opposite"), (traits.duplicate_share, "the same")) if x > 0]
+            cause += f" ({', '.join(shares)})"
         return f"{got} from {method}: {cause}; use {ROBUST}"
+    if verdict.startswith(("may dent", "may streak")) and small and "double-sided" in verdict:
+        return f"{got} from {method}: {verdict[verdict.index('(') + 1:-1]}, which cancel; use {ROBUST}"
     if verdict.startswith(("may leak", "may streak")) and small:
         return (f"{got} from {method}: open boundary ({traits.open_edges} boundary edges) let the outside in; "
                 f"repair the mesh, or use -m gwn-solid (robust to holes) or -m carve-solid close=K")

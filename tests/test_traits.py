@@ -59,12 +59,28 @@ def test_same_winding_copies():
     assert out["gwn-solid"] == "ok"
 
 
-def test_a_few_doubled_faces_make_parity_unreliable():
+def test_doubled_patches_act_as_holes_many_make_methods_unreliable():
     v, f = defects.cube()
-    t = mesh_traits(load_mesh((v, np.vstack([f, f[:2, ::-1]]))))
+    t = mesh_traits(load_mesh((v, np.vstack([f, f[:2, ::-1]]))))  # one side doubled: 4 of 14 faces
     assert (t.opposite_pairs, t.opposite_share) == (2, pytest.approx(4 / 14))
-    assert solid_outlook(t)["reference-solid"].startswith("unreliable (28.6% of faces double-sided")
     assert t.inconsistent_parts == 0  # the pairs are set aside, the rest is consistent
+    out = solid_outlook(t)
+    assert out["reference-solid"] == "may streak (28.6% of faces double-sided)"
+    assert out["gwn-solid"] == "may dent (28.6% of faces double-sided)"
+    assert solid_warning(t, "gwn-solid", 400, 1000) is None  # a result that holds the body: no alarm
+    assert solid_warning(t, "gwn-solid", 3, 1000).startswith("3 voxels (far fewer than the mesh's box holds)")
+    t = mesh_traits(load_mesh((v, np.vstack([f, f[:8, ::-1]]))))  # four sides: 16 of 20 faces
+    assert solid_outlook(t)["reference-solid"] == "unreliable (80% of faces double-sided: they cancel)"
+
+
+def test_touching_closed_parts_are_not_inconsistent():
+    """Two cubes sharing an edge: that edge has four faces, two in each direction; a
+    consistent mesh, not judged there."""
+    v1, f1 = defects.cube()
+    v2, f2 = defects.cube(lo=(1.0, 1.0, 0.0))
+    t = mesh_traits(load_mesh((np.vstack([v1, v2]), np.vstack([f1, f2 + 8]))))
+    assert (t.parts, t.inconsistent_parts, t.inverted_parts) == (1, 0, 0)
+    assert t.signed_volume_ratio == pytest.approx(0.5)  # two unit cubes in a 2 x 2 x 1 box
 
 
 def test_whole_mesh_inside_out():
