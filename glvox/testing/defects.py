@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["cube", "double_sided_cube", "flipped_face_cube", "two_cubes_one_inside_out", "open_box",
+__all__ = ["write_obj", "cube", "double_sided_cube", "flipped_face_cube", "two_cubes_one_inside_out", "open_box",
            "DEFECTS", "cube_solid"]
 
 # the 12 triangles of the unit cube, outward (counter-clockwise seen from outside)
@@ -58,6 +58,16 @@ def open_box(**kw):
     """The cube without its top (z = 1) side: 10 faces, 4 boundary edges."""
     v, f = cube(**kw)
     return v, np.delete(f, [2, 3], axis=0)
+
+
+def write_obj(path, mesh: tuple[np.ndarray, np.ndarray]):
+    """Write ``(vertices, faces)`` as a Wavefront OBJ file, faces as given (no merging); returns ``path``."""
+    v, f = mesh
+    lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in np.asarray(v, dtype=np.float64).tolist()]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in np.asarray(f).tolist()]
+    with open(path, "w") as fh:
+        fh.write("\n".join(lines) + "\n")
+    return path
 
 
 #: name -> (builder, known traits as a dict of MeshTraits fields)
