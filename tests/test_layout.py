@@ -21,8 +21,8 @@ from glvox.methods.base import PASS_FAMILIES, SHARED_SHADERS
 ROOT = Path(__file__).resolve().parents[1] / "glvox"
 
 #: The README's Layout order, lowest first.
-LAYERS = ["_version", "errors", "tolerances", "progress", "grid", "meshfiles", "mesh", "visuals", "datasets", "results",
-          "formats", "io", "gl", "gpu", "reference", "methods", "inspect", "metrics", "batch", "study", "testing",
+LAYERS = ["_version", "errors", "tolerances", "progress", "grid", "meshfiles", "mesh", "traits", "visuals", "datasets",
+          "results", "formats", "io", "gl", "gpu", "reference", "methods", "inspect", "metrics", "batch", "study", "testing",
           "preflight", "commands", "cli", "__main__"]
 
 
