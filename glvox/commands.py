@@ -262,6 +262,13 @@ def cmd_bench(args) -> int:
     return bench_main(args)
 
 
+def cmd_selftest(args) -> int:
+    """``glvox selftest``: exit 0, or 1 when a method mismatches its check or fails."""
+    from .study.selftest import main as selftest_main  # for start-up time, as in cmd_compare
+
+    return selftest_main(args)
+
+
 def cmd_data(args) -> int:
     """``glvox data list | fetch NAME... | path [NAME]``: the meshes glvox knows by name."""
     if args.action == "list":

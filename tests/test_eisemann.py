@@ -399,8 +399,8 @@ def test_tiling_at_a_forced_limit_gives_identical_results(gl_context, axis):
         run_method("eisemann-solid", mesh, specs[0], axis=axis, tile=16)
 
 
-def test_grid_over_the_ssbo_limit_is_refused(gl_context):
-    limit = gl_context.limits()["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"]
+def test_grid_over_the_ssbo_limit_is_refused(ssbo_limit):
+    limit = ssbo_limit
     nz = (limit * 8 // (1024 * 1024)) + 1
     spec = GridSpec((1024, 1024, nz), (0, 0, 0), 1.0)
     if spec.n_voxels > glvox.grid.MAX_VOXELS:

@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
 from ..errors import ShaderError
+from .compiler_log import map_log
 
 MAX_INCLUDE_DEPTH = 16
 LINE_BASE = 100000
@@ -38,8 +39,6 @@ LINE_BASE = 100000
 _INCLUDE = re.compile(r'^\s*#\s*include\s+[<"]([^">]+)[">]\s*(//.*)?$')
 _VERSION = re.compile(r"^\s*#\s*version\b")
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
-# Mesa: "0:12(3): error: ...", NVIDIA: "0(12) : error C0000: ...", AMD: "ERROR: 0:12: ..."
-_LOC = re.compile(r"(\d+):(\d+)\((\d+)\)|(\d+)\((\d+)\)|\b(\d+):(\d+):")
 
 
 
@@ -128,16 +127,10 @@ class Source:
         return str(path)
 
     def map_log(self, log: str) -> str:
-        """Rewrite the compiler's locations in ``log`` to ``file:line``."""
-
-        def repl(m: re.Match) -> str:
-            if m.group(2) is not None:
-                return f"{self.location(int(m.group(2)))}({m.group(3)})"
-            if m.group(5) is not None:
-                return self.location(int(m.group(5)))
-            return self.location(int(m.group(7))) + ":"
-
-        return _LOC.sub(repl, log)
+        """``log`` with each located line (Mesa, NVIDIA, AMD or glslang shape,
+        :mod:`glvox.gl.compiler_log`) rewritten to ``file:line[:column]:
+        severity: message``; lines without a location are kept as they are."""
+        return map_log(log, self.location)
 
 
 def resolve(path: str | os.PathLike, dirs: Sequence[Path], relative_to: Path | None = None) -> Path:

@@ -65,6 +65,13 @@ DIGIT_BITS = 8
 #: for 8-bit digits); the tile (wg * items keys) must stay below 65536 for its
 #: 16-bit counters.
 RADIX_CONFIGS = {4: (64, 64), 8: (32, 256)}
+#: Every ``(shader, defines)`` the scan and the sort compile: what a method that
+#: scans or sorts adds to its ``Requirements(compute=...)`` (the work group
+#: sizes and shared memory are read from these, glvox.gl.workgroups).
+SHADERS = tuple(("sort/scan_block.comp", {"WG_SIZE": SCAN_WG, "ITEMS": SCAN_ITEMS, "HAS_OFFSETS": h}) for h in (0, 1)) + (
+    ("sort/scan_reduce.comp", {"WG_SIZE": SCAN_WG, "ITEMS": SCAN_ITEMS}),) + tuple(
+    (f"sort/{k}.comp", {"WG_SIZE": wg, "ITEMS": items, "DIGIT_BITS": bits})
+    for bits, (wg, items) in RADIX_CONFIGS.items() for k in ("radix_count", "radix_scatter"))
 
 
 def _u32_count(n: Any, name: str = "n") -> int:

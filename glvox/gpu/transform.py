@@ -20,6 +20,8 @@ from .dispatch import barrier, dispatch_1d, set_uniforms
 #: Defines of every program that includes ``common/snap.glsl`` (it refuses
 #: to compile without them): the snap distance named once in glvox.tolerances.
 SNAP_DEFINES = {"SNAP_EPS": float(SNAP_EPS)}
+#: The ``(shader, defines)`` :func:`transform_vertices` compiles, for ``Requirements(compute=...)``.
+SHADERS = (("common/transform.comp", {"VOX_DOUBLE": 0, **SNAP_DEFINES}),)
 
 
 def transform_vertices(ctx, mesh, spec, timer, pool, *, double: bool = False, stretch=(1.0, 1.0, 1.0),

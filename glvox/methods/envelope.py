@@ -23,7 +23,7 @@ from ..gl.timing import StageTimer
 from ..grid import MAX_VOXELS, GridSpec
 from ..results.base import Result, RunInfo
 from ..traits import ALL_SHARE, ROBUST, SOLID_MECHANISMS, mesh_traits, solid_warning
-from .base import MethodInfo
+from .base import MethodInfo, alternative
 
 #: Kinds whose result depends on an inside: undefined for an open mesh.
 INSIDE_KINDS = ("solid", "sparse", "ldi")
@@ -97,7 +97,9 @@ def run_in_envelope(info: MethodInfo, meshes: Sequence[Any], spec: GridSpec,
         ctx.make_current()
         missing = info.requires.missing(ctx)
         if missing:
-            raise CapabilityError(f"method {info.name!r} needs {'; '.join(missing)} ({ctx.renderer})")
+            other = alternative(info, ctx)
+            instead = f"; {other!r} runs on this context instead" if other else ""
+            raise CapabilityError(f"method {info.name!r} needs {'; '.join(missing)} ({ctx.renderer}){instead}")
         if debug:
             ctx.check_error(f"method {info.name!r}, before the first stage")
     else:

@@ -41,7 +41,7 @@ from ...reference.carve import close_window
 from ...results.voxels import VoxelGrid
 from ..base import Method, MethodInfo, Requirements, register
 from ..reference.registered import CLOSE_OPTION, check_close
-from ..ss.surface import surface_on_gpu
+from ..ss.surface import COMPUTE as SURFACE_COMPUTE, surface_on_gpu
 
 _LOCAL = 64  # local_size_x of the carve shaders
 
@@ -65,8 +65,8 @@ SIMPLE_MAX_DIM = 512
 #: this only guards against a broken flag.
 MAX_ROUNDS = 10_000
 
-_REQUIRES = Requirements(gl_version=430, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 9,
-                                                 "GL_MAX_COMPUTE_WORK_GROUP_SIZE": 256})
+_REQUIRES = Requirements(gl_version=430, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 9},
+                         compute=(("carve/*.comp", {}),) + SURFACE_COMPUTE)
 
 
 def surface_slices(spec, bufs) -> tuple[int, int]:

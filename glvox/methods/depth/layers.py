@@ -94,7 +94,8 @@ assert SCAN_SEGMENT + 64 < LOOP_BUDGET
 
 _AXES = ("xyz", "xy", "xz", "yz", "x", "y", "z")
 _AXIS_NAMES = "xyz"
-_REQUIRES = Requirements(gl_version=450, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 6})
+_REQUIRES = Requirements(gl_version=450, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 6},
+                         compute=(("depth/*.comp", {}),))
 _OPTIONS = {
     "axes": Option("xyz", "directions of projection (the paper uses all three)", _AXES),
     "tile": Option(0, "largest render-target side in pixels; larger views are drawn in tiles "

@@ -51,13 +51,14 @@ from ...results.voxels import VoxelGrid
 from ...tolerances import WINDING_TIE
 from ..base import Method, MethodInfo, Option, Requirements, register
 from .tree import ClusterTree, boundary_loops, build_tree
-from ..ss.solid import COLUMN_CHUNK, crossing_passes, mesh_rows
+from ..ss.solid import COMPUTE as SOLID_COMPUTE, COLUMN_CHUNK, crossing_passes, mesh_rows
 from ..carve.sweep import surface_slices
-from ..ss.surface import surface_on_gpu
+from ..ss.surface import COMPUTE as SURFACE_COMPUTE, surface_on_gpu
 
 _LOCAL = 64  # local_size_x of the gwn shaders
 _REQUIRES = Requirements(gl_version=430, extensions=("GL_ARB_gpu_shader_fp64",),
-                         limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 12})
+                         limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 12},
+                         compute=(("gwn/*.comp", {}),) + SOLID_COMPUTE + SURFACE_COMPUTE)
 
 #: vec4 per row segment: a segment is 4 * SEGV voxels, a whole 32-bit word,
 #: so each invocation of the field pass writes its word alone.

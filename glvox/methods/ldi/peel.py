@@ -218,7 +218,8 @@ class PeelLDI(Method):
               "Leung & Wang 2013, Sec. II and Table II)",
         summary="exact LDI by depth peeling: one raster pass per layer, every crossing in depth order",
         reference="reference-solid", exact=True,
-        requires=Requirements(gl_version=450, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 8}),
+        requires=Requirements(gl_version=450, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 8},
+                              compute=(("ldi/peel_*.comp", {}),)),
         options={
             "axis": AXIS_OPTION,
             "tile": Option(0, "largest render-target side in pixels; larger views are drawn in tiles "

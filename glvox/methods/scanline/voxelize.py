@@ -53,7 +53,7 @@ from ...errors import LimitError
 from ...gl.shaders import compute_program
 from ...gpu.buffers import buffer_pool, mesh_buffers, read_grid_words
 from ...gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set_uniforms
-from ...gpu.transform import SNAP_DEFINES, gpu_vertices_voxel
+from ...gpu.transform import SHADERS as TRANSFORM_SHADERS, SNAP_DEFINES, gpu_vertices_voxel
 from ...reference.scanline import (ILV_BOUNDARY_SNAP, ILV_COORD_LIMIT, RLV_BOUNDARY_SNAP, SCANLINE_SLACK,
                                   TUNNELS)
 from ...results.voxels import VoxelGrid
@@ -62,7 +62,8 @@ from ..base import Method, MethodInfo, Option, Requirements, register
 _PAPER = "Zhang et al. 2018"
 _LOCAL = 64
 _MODES = {"rlv": 0, "slv": 1, "ilv": 2}
-_REQUIRES = Requirements(gl_version=450, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 5})
+_REQUIRES = Requirements(gl_version=450, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 5},
+                         compute=(("scanline/voxelize.comp", {"LOCAL_SIZE": _LOCAL}),) + TRANSFORM_SHADERS)
 
 #: Loop iterations kept back from LOOP_BUDGET per SIMD batch: the shader
 #: charges the entries of its outermost loops and its final partial loop

@@ -57,9 +57,9 @@ import numpy as np
 from ...errors import LimitError
 from ...gl.shaders import compute_program
 from ...gpu.buffers import buffer_pool, read_grid_words
-from ...gpu.sort import exclusive_scan, sort_pairs
+from ...gpu.sort import SHADERS as SORT_SHADERS, exclusive_scan, sort_pairs
 from ...gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set_uniforms
-from ...gpu.transform import transform_vertices
+from ...gpu.transform import SHADERS as TRANSFORM_SHADERS, transform_vertices
 from ...grid import GridSpec
 from ...results.voxels import VoxelGrid
 from ..base import Method, MethodInfo, Requirements, register
@@ -67,8 +67,6 @@ from .solid_tuning import fill_defines, fill_rows, voxelize_faces
 
 _PAPER = "Schwarz & Seidel 2010"
 _LOCAL = 64  # local_size_x of ss/solid_classify.comp, ss/solid.comp, ss/tile_pairs.comp
-_REQUIRES = Requirements(gl_version=430, extensions=("GL_ARB_gpu_shader_fp64",),
-                         limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 9})
 
 #: Tile edge in columns (Sec. 4.2: 4 x 4 voxel columns per tile).
 TILE = 4
@@ -176,6 +174,13 @@ def _classify(ctx, spec, timer, bufs, vox, pool, unit, chunk):
 
 #: Defines of the tiled passes.
 _TILE_DEFINES = {"TILE": TILE, "SOLID_CHUNK": TILE_CHUNK}
+#: The compute shaders the solid passes compile (what a method reusing them adds
+#: to its requirements).
+COMPUTE = tuple((f"ss/{name}.comp", {}) for name in (
+    "dispatch_args", "solid", "solid_big_args", "solid_classify", "solid_fill", "solid_fill_axis",
+    "tile_compact", "tile_pairs")) + (("ss/tile_process.comp", _TILE_DEFINES),) + SORT_SHADERS + TRANSFORM_SHADERS
+_REQUIRES = Requirements(gl_version=430, extensions=("GL_ARB_gpu_shader_fp64",),
+                         limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 9}, compute=COMPUTE)
 
 
 def _tile_pairs(ctx, pool, bufs, vox, tri_chunks, stats, common, max_groups):

@@ -30,9 +30,9 @@ import numpy as np
 from ...errors import LimitError
 from ...gl.shaders import compute_program
 from ...gpu.buffers import buffer_pool, read_grid_words
-from ...gpu.sort import sort_pairs
+from ...gpu.sort import SHADERS as SORT_SHADERS, sort_pairs
 from ...gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set_uniforms
-from ...gpu.transform import transform_vertices
+from ...gpu.transform import SHADERS as TRANSFORM_SHADERS, transform_vertices
 from ...results.voxels import VoxelGrid
 from ...tolerances import SLIVER_EPS
 from ..base import Method, MethodInfo, Option, Requirements, register
@@ -57,8 +57,11 @@ VARIANTS = {"simple": 0, "specialized": 1, "sorted": 2}
 #: stanford_armadillo_libigl_86k.obj -r 256 512 1024 --check-max 0 --against
 #: b7fd10f --repeat 15``).
 WORK_BITS = 12
-_REQUIRES = Requirements(gl_version=430, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 7,
-                                                 "GL_MAX_COMPUTE_WORK_GROUP_SIZE": 256})
+#: The compute shaders the surface compiles (what a method reusing
+#: :func:`surface_on_gpu` adds to its requirements).
+COMPUTE = tuple((f"ss/{name}.comp", {}) for name in ("classify", "dispatch_args", "ranges", "surface")) \
+    + SORT_SHADERS + TRANSFORM_SHADERS
+_REQUIRES = Requirements(gl_version=430, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 7}, compute=COMPUTE)
 
 #: ``ss-conservative``'s variant ``auto`` (the default) runs ``simple`` where a
 #: grid face has at most 1 / AUTO_SIMPLE_DENSITY voxels per triangle

@@ -58,9 +58,9 @@ import numpy as np
 from ...errors import LimitError
 from ...gl.shaders import compute_program
 from ...gpu.buffers import buffer_pool
-from ...gpu.sort import exclusive_scan
+from ...gpu.sort import SHADERS as SORT_SHADERS, exclusive_scan
 from ...gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set_uniforms
-from ...gpu.transform import transform_vertices
+from ...gpu.transform import SHADERS as TRANSFORM_SHADERS, transform_vertices
 from ...results.octree import MAX_OCTREE_DIM, NONE, OctreeLevel, SparseOctree, top_level
 from ..base import Method, MethodInfo, Option, Requirements, register
 
@@ -88,7 +88,8 @@ assert MAX_OCTREE_DIM // 4 < LOOP_BUDGET  # string walks: at most the level-0 ex
 assert top_level((MAX_OCTREE_DIM,) * 3) < MAX_LEVELS
 
 _REQUIRES = Requirements(gl_version=430, extensions=("GL_ARB_gpu_shader_fp64",),
-                         limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 20})
+                         limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 20},
+                         compute=(("ss_octree/*.comp", {}),) + SORT_SHADERS + TRANSFORM_SHADERS)
 
 _BOUNDARY_EDGES: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 

@@ -28,11 +28,12 @@ from ...gpu.buffers import buffer_pool, read_grid_words
 from ...gpu.dispatch import barrier, dispatch_1d, grid_uniforms, set_uniforms
 from ...results.voxels import VoxelGrid
 from ..base import Method, MethodInfo, Requirements, register
-from ..ss.solid import parity_on_gpu
+from ..ss.solid import COMPUTE as SOLID_COMPUTE, parity_on_gpu
 
 _LOCAL = 64  # local_size_x of vote/vote.comp
 _REQUIRES = Requirements(gl_version=430, extensions=("GL_ARB_gpu_shader_fp64",),
-                         limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 9})
+                         limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 9},
+                         compute=(("vote/*.comp", {}),) + SOLID_COMPUTE)
 
 
 @register
