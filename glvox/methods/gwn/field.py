@@ -278,7 +278,8 @@ class _Run:
         for prog in (first, rest):
             set_uniforms(prog, {**common, "u_triangles": n})
         with self.timer.stage("crossings"):
-            crossing_passes(ctx, (first, rest), n, self.max_groups, (self.vox, self.bufs.faces, cells, big, args))
+            crossing_passes(ctx, (first, rest), n, self.max_groups,
+                            {"VoxVerts": self.vox, "Faces": self.bufs.faces, "Counts": cells}, big, args)
 
     def _field(self, cells, common, s0, s1, rows):
         ctx, spec, pool, t = self.ctx, self.spec, self.pool, self.gpu_tree
