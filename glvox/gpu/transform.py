@@ -15,7 +15,7 @@ from ..gl.shaders import compute_program
 from ..grid import snap_to_planes
 from ..tolerances import SNAP_EPS
 from .buffers import mesh_buffers
-from .dispatch import barrier, dispatch_1d, set_uniforms
+from .dispatch import barrier, bind, dispatch_1d, set_uniforms
 
 #: Defines of every program that includes ``common/snap.glsl`` (it refuses
 #: to compile without them): the snap distance named once in glvox.tolerances.
@@ -49,8 +49,7 @@ def transform_vertices(ctx, mesh, spec, timer, pool, *, double: bool = False, st
                         "u_stretch_d": tuple(float(x) for x in stretch), "u_shift_d": tuple(float(x) for x in shift),
                         "u_vertices": bufs.n_vertices, "u_axes": tuple(int(a) for a in axes)})
     with timer.stage(stage):
-        bufs.vertices.bind_to_storage_buffer(0)
-        vox.bind_to_storage_buffer(1)
+        bind(prog, Verts=bufs.vertices, VoxVerts=vox)
         dispatch_1d(ctx, prog, bufs.n_vertices, 256)
         barrier(ctx)
     return bufs, vox

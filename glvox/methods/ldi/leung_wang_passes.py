@@ -26,7 +26,7 @@ from ...errors import CapabilityError, MethodError
 from ...gl import raw as rawgl
 from ...gl.shaders import compute_program, render_program
 from ...gpu.buffers import check_buffer_size, object_cache, release_object_cache
-from ...gpu.dispatch import barrier, dispatch_1d, set_uniforms
+from ...gpu.dispatch import barrier, bind, dispatch_1d, set_uniforms
 from ...gpu.transform import transform_vertices
 from ..eisemann import passes as eisemann_passes
 from .common import Rays, read_chunks
@@ -189,10 +189,9 @@ class OnGrid:
     vox: Any
     setup: Any
 
-    def bind(self) -> None:
-        self.vox.bind_to_storage_buffer(0)
-        self.bufs.faces.bind_to_storage_buffer(1)
-        self.setup.bind_to_storage_buffer(3)
+    def bind(self, prog) -> None:
+        """Bind the mesh's buffers to ``prog``'s blocks ``EisVox``, ``EisFaces``, ``EisSetups``."""
+        bind(prog, EisVox=self.vox, EisFaces=self.bufs.faces, EisSetups=self.setup)
 
 
 def prepare(ctx, mesh, frame: Frame, pool, tag: str, timer, suffix: str = "") -> OnGrid:
@@ -212,9 +211,7 @@ def prepare(ctx, mesh, frame: Frame, pool, tag: str, timer, suffix: str = "") ->
     dims[a] = frame.cells
     set_uniforms(prog, {"u_triangles": bufs.n_triangles, "u_dims": tuple(dims)})
     with timer.stage(f"setup{suffix}"):
-        vox.bind_to_storage_buffer(0)
-        bufs.faces.bind_to_storage_buffer(1)
-        setup.bind_to_storage_buffer(3)
+        bind(prog, EisVox=vox, EisFaces=bufs.faces, EisSetups=setup)
         dispatch_1d(ctx, prog, bufs.n_triangles, _LOCAL)
         barrier(ctx)
     return OnGrid(bufs, vox, setup)
@@ -263,15 +260,15 @@ def render_mask(ctx, frame: Frame, mesh: OnGrid, op: str, out, t1, timer, stage:
                         _clear_targets(ctx, tg, n_targets, "u4")
                         tg.fbo.viewport = (0, 0, tw, th)
                         set_uniforms(prog, tile)
-                        mesh.bind()
+                        mesh.bind(prog)
                         if t1 is not None:
-                            t1.bind_to_storage_buffer(4)
+                            bind(prog, LdiT1=t1)
                         with ctx.logic_op(op):
                             vao.render(moderngl.TRIANGLES, vertices=3 * n_tri)
                     with timer.stage(f"{stage}_store"):
                         for t, tex in enumerate(tg.textures):
                             tex.bind_to_image(t, read=True, write=False)
-                        out.bind_to_storage_buffer(2)
+                        bind(store, Masks=out)
                         count = tw * th
                         set_uniforms(store, {**tile, "u_invocations": count})
                         dispatch_1d(ctx, store, count, _LOCAL)
@@ -294,10 +291,7 @@ def count_samples(ctx, frame: Frame, t1, t2, counts, stats_buf, timer) -> tuple[
     prog = compute_program(ctx, "ldi/count.comp", {"EIS_AXIS": frame.axis})
     set_uniforms(prog, frame.column_uniforms())
     with timer.stage("count"):
-        t1.bind_to_storage_buffer(4)
-        t2.bind_to_storage_buffer(5)
-        counts.bind_to_storage_buffer(6)
-        stats_buf.bind_to_storage_buffer(7)
+        bind(prog, LdiT1=t1, LdiT2=t2, Counts=counts, Stats=stats_buf)
         dispatch_1d(ctx, prog, frame.n_rays, _LOCAL)
         barrier(ctx)
         n_max, samples = (int(x) for x in np.frombuffer(stats_buf.read(size=8), dtype="<u4"))
@@ -353,18 +347,15 @@ def phase2(ctx, frame: Frame, meshes: list[OnGrid], t1, t2, counts, n_max: int, 
                         _clear_targets(ctx, tg, n_targets, "f4")
                         tg.fbo.viewport = (0, 0, tw, th)
                         set_uniforms(prog, tile)
-                        t1.bind_to_storage_buffer(4)
-                        t2.bind_to_storage_buffer(5)
+                        bind(prog, LdiT1=t1, LdiT2=t2)
                         for m in meshes:
-                            m.bind()
+                            m.bind(prog)
                             vao.render(moderngl.TRIANGLES, vertices=3 * m.bufs.n_triangles)
                             stats["draws"] += 1
                     with timer.stage("store"):
                         for t, tex in enumerate(tg.textures):
                             tex.bind_to_image(t, read=True, write=False)
-                        t1.bind_to_storage_buffer(4)
-                        counts.bind_to_storage_buffer(6)
-                        bufs[chunk].bind_to_storage_buffer(2)
+                        bind(store, LdiT1=t1, LdiT2=t2, Counts=counts, Depths=bufs[chunk])
                         count = tw * th
                         set_uniforms(store, {**tile, "u_chunk_lo": chunks[chunk][0],
                                              "u_chunk_layers": chunks[chunk][1], "u_invocations": count})
