@@ -131,7 +131,12 @@ def test_every_marked_function_in_every_shader_is_precise():
     for p in sorted(root.rglob("*")):
         if p.suffix not in (".glsl", ".comp", ".frag", ".vert", ".geom"):
             continue
-        for name, body in exact_functions(p.read_text()):
+        text = p.read_text()
+        funcs = exact_functions(text)
+        markers = len(re.findall(r"(?m)^[ \t]*// exact:", text))
+        if markers != len(funcs):  # a marker the scan cannot attach to a function checks nothing
+            bad[str(p.relative_to(root))] = [f"{markers} '// exact:' markers, {len(funcs)} marked functions found"]
+        for name, body in funcs:
             if v := violations(body):
                 bad[f"{p.relative_to(root)}:{name}"] = v
     assert not bad, bad
