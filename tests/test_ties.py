@@ -374,7 +374,19 @@ def assert_same(name: str, case: Case, got: np.ndarray, want: np.ndarray, what: 
 @example(case=issue_box(1), axis=2)
 def test_mirror(gl_context, case, axis):
     """The mesh mirrored along ``axis`` about the grid's center, faces flipped back, gives
-    the mirrored grid (surfaces whose definition is symmetric here; solids off the surface)."""
+    the mirrored grid (surfaces whose definition is symmetric here; solids off the surface).
+
+    What GL guarantees and what the raster methods use of it: GL 4.6 Sec. 14.6.1 produces a
+    fragment for every pixel center inside a drawn polygon but leaves free which of two
+    polygons sharing an edge gets a center on it (no top-left rule), and Appendix A makes
+    no promise across viewports or transforms, so a mirrored or moved mesh may rasterize
+    differently.  The raster methods therefore never let GL decide a column: they draw
+    proxies grown by 1/16 pixel (eisemann/setup.comp, depth/raster.geom), more than GL's
+    vertex snap can take (SUBPIXEL_BITS >= 4, Table 23.53), so every center the exact test
+    covers gets a fragment, and decide coverage and crossings in the fragment shader with
+    the reference's edge functions and top-left rule, in double, with ``precise``
+    (GLSL 4.50 Sec. 4.9: no fma contraction, tests/test_precise.py).  The invariance rests
+    on those two guarantees only."""
     center = case.spec.origin[axis] + 0.5 * case.dims[axis] * case.spec.voxel_size
     vm = case.v.copy()
     vm[:, axis] = 2.0 * center - vm[:, axis]
@@ -388,7 +400,8 @@ def test_mirror(gl_context, case, axis):
 @given(case=cases(max_n=48 if SLOW else 24), axis=st.integers(0, 2), k=st.sampled_from([-3, -1, 1, 2]))
 def test_translation_by_whole_voxels(gl_context, case, axis, k):
     """Moving the mesh by k voxels in a grid that holds it in both places moves the result
-    by k voxels, for every method."""
+    by k voxels, for every method.  Rests on GL 4.6 Sec. 14.6.1 (centers inside a drawn
+    proxy produce fragments) and GLSL 4.50 Sec. 4.9 (``precise``), as test_mirror states."""
     h = case.spec.voxel_size
     margin = abs(k) + 2
     dims = list(case.dims)
