@@ -47,7 +47,16 @@ _COMMENT = re.compile(r"//[^\n]*|/\*.*?\*/", re.S)
 
 
 def builtin_shader_dir() -> Path:
-    """The folder holding glvox's own shaders (checkout or installed wheel)."""
+    """The folder holding glvox's own shaders (checkout or installed wheel).
+
+    A source checkout's own ``shaders/`` comes first: an editable install maps
+    ``glvox._shaders`` to the checkout it was installed from, so another checkout
+    (a git worktree run with PYTHONPATH) would otherwise run its own Python with
+    that checkout's shaders.
+    """
+    here = Path(__file__).resolve().parents[2]
+    if (here / "pyproject.toml").is_file() and (here / "shaders" / "common").is_dir():
+        return here / "shaders"
     try:
         root = resources.files("glvox._shaders")
         path = Path(str(root))

@@ -25,7 +25,7 @@ import numpy as np
 from ...errors import CapabilityError, MethodError
 from ...gl import raw as rawgl
 from ...gl.shaders import compute_program, render_program
-from ...gpu.buffers import check_buffer_size, object_cache, release_object_cache
+from ...gpu.buffers import check_buffer_size, mesh_buffers, object_cache, release_object_cache
 from ...gpu.dispatch import barrier, bind, dispatch_1d, set_uniforms
 from ...gpu.transform import transform_vertices
 from ..eisemann import passes as eisemann_passes
@@ -188,10 +188,30 @@ class OnGrid:
     bufs: Any
     vox: Any
     setup: Any
+    motion: float = 0.0  # voxels, per coordinate: :func:`mesh_motion`
+    snap_motion: Any = None  # float32 per vertex: the snap's move (common/transform.comp)
 
     def bind(self, prog) -> None:
-        """Bind the mesh's buffers to ``prog``'s blocks ``EisVox``, ``EisFaces``, ``EisSetups``."""
+        """Bind the mesh's buffers to ``prog``'s blocks ``EisVox``, ``EisFaces``, ``EisSetups``,
+        and the snap's per-vertex motion to ``Motion`` where there is one."""
         bind(prog, EisVox=self.vox, EisFaces=self.bufs.faces, EisSetups=self.setup)
+        if self.snap_motion is not None:
+            bind(prog, Motion=self.snap_motion)
+
+
+def mesh_motion(mesh, spec) -> float:
+    """How far the float32 upload can move the mesh the GPU sees, per coordinate, in voxels.
+
+    The upload relative to the anchor rounds a coordinate by at most 2^-24 of its distance
+    from the anchor (half an ulp, doubled for safety).  The plane snap
+    (:func:`glvox.grid.snap_to_planes`) then moves a vertex by up to ``SNAP_EPS`` more;
+    ``common/transform.comp`` measures that per vertex.  Phase 2 widens every sample by
+    what the sum can do to its crossing (``ldi/depths.frag``), so the LDI encloses the true
+    mesh's intervals, not only those of the snapped one.  An upper bound for tests:
+    this plus ``SNAP_EPS``.
+    """
+    reach = float(np.abs(mesh.vertices - mesh.anchor).max()) if len(mesh.vertices) else 0.0
+    return 2.0 ** -24 * reach / float(spec.voxel_size)
 
 
 def prepare(ctx, mesh, frame: Frame, pool, tag: str, timer, suffix: str = "") -> OnGrid:
@@ -203,8 +223,10 @@ def prepare(ctx, mesh, frame: Frame, pool, tag: str, timer, suffix: str = "") ->
     stretch[a] = frame.cells / frame.n_a
     shift = [0.0] * 3
     shift[a] = 0.5
+    snap_motion = pool.get(f"snap_motion_{tag}", max(mesh_buffers(ctx, mesh).n_vertices, 1) * 4,
+                           what="the snap's move per vertex", clear=False)
     bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool, double=True, stretch=stretch, shift=shift,
-                                   name=f"vox_{tag}", stage=f"transform{suffix}")
+                                   name=f"vox_{tag}", stage=f"transform{suffix}", motion=snap_motion)
     setup = pool.get(f"setup_{tag}", bufs.n_triangles * 48, what="per-triangle setup", clear=False)
     prog = compute_program(ctx, "eisemann/setup.comp", {"EIS_AXIS": a, "EIS_OP": 0, "EIS_COVERAGE": 0})
     dims = list(spec.dims)
@@ -214,7 +236,7 @@ def prepare(ctx, mesh, frame: Frame, pool, tag: str, timer, suffix: str = "") ->
         bind(prog, EisVox=vox, EisFaces=bufs.faces, EisSetups=setup)
         dispatch_1d(ctx, prog, bufs.n_triangles, _LOCAL)
         barrier(ctx)
-    return OnGrid(bufs, vox, setup)
+    return OnGrid(bufs, vox, setup, mesh_motion(mesh, spec), snap_motion)
 
 
 def _draw_defines(frame: Frame, n_targets: int, **extra) -> dict[str, Any]:
@@ -350,6 +372,7 @@ def phase2(ctx, frame: Frame, meshes: list[OnGrid], t1, t2, counts, n_max: int, 
                         bind(prog, LdiT1=t1, LdiT2=t2)
                         for m in meshes:
                             m.bind(prog)
+                            set_uniforms(prog, {"u_motion": m.motion, "u_cells_per_voxel": frame.cells / frame.n_a})
                             vao.render(moderngl.TRIANGLES, vertices=3 * m.bufs.n_triangles)
                             stats["draws"] += 1
                     with timer.stage("store"):
@@ -372,6 +395,11 @@ def read_result(frame: Frame, chunks: list, counts, n_max: int, timer) -> tuple[
     """Stage ``readback``: the depths (n_p, n_q, n_max) float32 and counts (n_p, n_q) int32."""
     with timer.stage("readback", gpu=False):
         depths = read_chunks(chunks, frame.n_rays, n_max, frame.out_shape())
+        # samples widened by the mesh's motion (ldi/depths.frag) can pass those of a
+        # neighbouring cell; the running maximum keeps them sorted and the union of the
+        # intervals unchanged (an entering sample raised to the leaving one before it)
+        valid = ~np.isnan(depths)
+        depths = np.where(valid, np.fmax.accumulate(depths, axis=2), np.float32(np.nan)).astype(np.float32)
         cnt = np.frombuffer(counts.read(size=frame.n_rays * 4), dtype="<u4").reshape(frame.out_shape())
     return depths, cnt.astype(np.int32)
 
