@@ -191,11 +191,11 @@ class OnGrid:
     motion: float = 0.0  # voxels, per coordinate: :func:`mesh_motion`
     snap_motion: Any = None  # float32 per vertex: the snap's move (common/transform.comp)
 
-    def bind(self, prog) -> None:
-        """Bind the mesh's buffers to ``prog``'s blocks ``EisVox``, ``EisFaces``, ``EisSetups``,
-        and the snap's per-vertex motion to ``Motion`` where there is one."""
+    def bind(self, prog, motion: bool = False) -> None:
+        """Bind the mesh's buffers to ``prog``'s blocks ``EisVox``, ``EisFaces``, ``EisSetups``;
+        ``motion``: the snap's per-vertex motion to ``Motion`` too (Phase 2's depths widen by it)."""
         bind(prog, EisVox=self.vox, EisFaces=self.bufs.faces, EisSetups=self.setup)
-        if self.snap_motion is not None:
+        if motion and self.snap_motion is not None:
             bind(prog, Motion=self.snap_motion)
 
 
@@ -371,7 +371,7 @@ def phase2(ctx, frame: Frame, meshes: list[OnGrid], t1, t2, counts, n_max: int, 
                         set_uniforms(prog, tile)
                         bind(prog, LdiT1=t1, LdiT2=t2)
                         for m in meshes:
-                            m.bind(prog)
+                            m.bind(prog, motion=True)
                             set_uniforms(prog, {"u_motion": m.motion, "u_cells_per_voxel": frame.cells / frame.n_a})
                             vao.render(moderngl.TRIANGLES, vertices=3 * m.bufs.n_triangles)
                             stats["draws"] += 1
