@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import glvox.traits
-from glvox.mesh import load_mesh
+from glvox.mesh import clean_twin, load_mesh
 from glvox.methods import method_names
 from glvox.testing import defects
 from glvox.testing.defects import DEFECTS
@@ -145,3 +145,17 @@ def test_doctests():
     assert doctest.testmod(glvox.traits).failed == 0
     assert doctest.testmod(defects).failed == 0
     assert isinstance(mesh_traits(load_mesh(defects.cube())), MeshTraits)
+
+
+@pytest.mark.parametrize("name, double, inconsistent", [("gen:double-sided-torus", True, False),
+                                                         ("gen:double-sided-bunny-like", True, False),
+                                                         ("gen:flipped-half-sphere", False, True)])
+def test_generated_defective_meshes_have_their_defect(name, double, inconsistent):
+    """The open-mesh study's generated dataset-style meshes carry the defect they are named for,
+    on the vertices of their clean twin (whose solid is their true one)."""
+    mesh, twin = load_mesh(name), load_mesh(clean_twin(name))
+    t = mesh_traits(mesh)
+    assert np.array_equal(mesh.vertices, twin.vertices)
+    assert (t.opposite_share == 1.0) is double and (t.inconsistent_parts == 1) is inconsistent
+    assert mesh.n_triangles == twin.n_triangles * (2 if double else 1)
+    assert clean_twin("gen:torus") is None and clean_twin("bunny.ply") is None
