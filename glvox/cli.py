@@ -1,5 +1,5 @@
 """Command line: ``glvox info | methods | voxelize | convert | batch | ldi | volume | compare | bench | data | inspect
-| render``.
+| render | selftest``.
 
 Errors glvox raises on purpose print one line ``glvox: error: ...`` and exit
 with status 1 (2 for wrong usage, as argparse does, in the same one-line
@@ -21,7 +21,7 @@ from typing import Sequence
 from . import preflight
 from ._version import __version__
 from .commands import (cmd_batch, cmd_bench, cmd_compare, cmd_convert, cmd_data, cmd_info, cmd_inspect, cmd_ldi,
-                       cmd_methods, cmd_render, cmd_voxelize, cmd_volume)
+                       cmd_methods, cmd_render, cmd_selftest, cmd_voxelize, cmd_volume)
 from .errors import GlvoxError
 from .grid import DEFAULT_RESOLUTION
 from .methods import DEFAULT_METHOD, FAMILIES, PIPELINES
@@ -289,10 +289,22 @@ def _add_data_parser(sub) -> None:
     pd.set_defaults(func=cmd_data, validate=preflight.validate_data)
 
 
+def _add_selftest_parser(sub) -> None:
+    ps = sub.add_parser(
+        "selftest", help="every method on this GPU against the CPU references (under a minute)",
+        description="Every registered method (or --methods) on small generated meshes (and a shared mesh when "
+                    "it is on this machine) at 16^3-32^3, checked against its exact CPU reference up to proven "
+                    "ties, or against its paper's bound for approximate methods; prints the GL renderer, then "
+                    "a table.  Exit status 1 when any method mismatches or fails.")
+    ps.add_argument("--methods", nargs="+", metavar="METHOD", help="only these registered methods")
+    _add_output_arguments(ps, "print the report as JSON", "no per-case progress lines")
+    ps.set_defaults(func=cmd_selftest, validate=preflight.validate_selftest)
+
+
 #: One function per command, each adding its subparser.
 _COMMANDS = (_add_info_parser, _add_methods_parser, _add_voxelize_parser, _add_convert_parser, _add_batch_parser,
              _add_ldi_parser, _add_volume_parser, _add_compare_parser, _add_bench_parser, _add_data_parser,
-             _add_inspect_parser, _add_render_parser)
+             _add_inspect_parser, _add_render_parser, _add_selftest_parser)
 
 
 def build_parser() -> argparse.ArgumentParser:

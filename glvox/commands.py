@@ -157,6 +157,10 @@ def cmd_render(args) -> int:
         raise GlvoxError(f"glvox render draws voxel grids; {args.input} holds an LDI (depths per ray)")
     grid = result.to_grid() if isinstance(result, SparseOctree) else result
     say(f"read {args.input}: {grid!r}")
+    if grid.count == 0:  # a blank picture would pass for a drawing of nothing in particular
+        dims = "x".join(map(str, grid.spec.dims))
+        raise GlvoxError(f"{args.input} holds no voxels (its {dims} grid is empty): nothing to draw; an empty solid "
+                         f"usually means its method cannot read the mesh (`glvox inspect MESH` says which can)")
     img = render_voxels(get_context(args.backend), grid, size=tuple(args.size), direction=tuple(args.direction),
                         up=tuple(args.up), own_colors=not args.single_color, flat=args.flat)
     save_png(img, Path(args.output))
@@ -268,6 +272,13 @@ def cmd_bench(args) -> int:
     from .study.bench import main as bench_main  # for start-up time, as in cmd_compare
 
     return bench_main(args)
+
+
+def cmd_selftest(args) -> int:
+    """``glvox selftest``: exit 0, or 1 when a method mismatches its check or fails."""
+    from .study.selftest import main as selftest_main  # for start-up time, as in cmd_compare
+
+    return selftest_main(args)
 
 
 def cmd_data(args) -> int:

@@ -54,6 +54,12 @@ class NotWatertightWarning(UserWarning):
     the result is the parity of crossings along the method's rays."""
 
 
+class SuspiciousResultWarning(UserWarning):
+    """A solid method's result is empty, or its mesh's traits (doubled faces,
+    orientation, holes: :mod:`glvox.traits`) say the method gets it wrong: the
+    one-line message names the cause and the method to use instead."""
+
+
 class GridError(GlvoxError, ValueError):
     """The grid specification is invalid (resolution, bounds, dims)."""
 

@@ -16,15 +16,18 @@ are undirected pairs of merged vertices; a face's edges are its three sides.
 from __future__ import annotations
 
 import os
+import warnings
 from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
 
 from .datasets import resolve_mesh
+from .errors import SuspiciousResultWarning
 from .grid import grid_for
 from .mesh import Mesh, load_mesh
 from .methods import run_method
+from .traits import ALL_SHARE, MeshTraits, mesh_traits, solid_outlook
 
 #: ``uncertain_share`` counts voxels whose winding number lies within this of
 #: the threshold: the issue's definition of an ambiguous solid.
@@ -73,8 +76,23 @@ class MeshReport:
         World units cubed: the volume the faces enclose, positive when they
         face outward; on an open mesh, the volume of the surface closed by
         cones to its bounding-box center, only indicative.
-    orientation : {'outward', 'inward', 'flat'}
-        The sign of ``signed_volume``.
+    orientation : {'outward', 'inward', 'double-sided', 'mixed', 'flat'}
+        ``'double-sided'`` when every face has a coincident reversed twin (the
+        volume cancels: neither way round), ``'mixed'`` when some closed parts
+        face outward and some inward, ``'flat'`` when the faces enclose no
+        volume, else the sign of ``signed_volume``.
+    opposite_face_pairs : int
+        Coincident faces with opposite winding, in pairs (:class:`glvox.traits.MeshTraits`).
+    opposite_share, same_winding_duplicate_share : float
+        Share of the faces in such pairs; coincident with a same-winding copy.
+    inconsistent_parts, inverted_parts : int
+        Parts whose faces disagree on orientation; closed parts inside out.
+    signed_volume_ratio : float
+        ``signed_volume`` / the bounding box's volume: about 1 for a box, 0
+        when doubled faces or inside-out parts cancel.
+    solid_methods : dict of str to str
+        What each solid method makes of this mesh (:func:`glvox.traits.solid_outlook`):
+        ``'ok'`` or the consequence and its cause.
     self_intersections : int
         Edges that cross a triangle they do not share a vertex with (a screen
         of float64 segment/triangle tests; coplanar overlaps are not counted),
@@ -88,7 +106,9 @@ class MeshReport:
         With a grid: voxels whose winding number w lies within
         :data:`UNCERTAIN_BAND` of the threshold, as a share of the voxels
         with ``w >= threshold - UNCERTAIN_BAND`` (the solid and its band): 0
-        for a closed, consistently oriented mesh, 1 when nothing is sure.
+        for a closed, consistently oriented mesh, 1 when nothing is sure
+        (also when no voxel comes near the threshold: the winding solid is
+        empty, as for a double-sided mesh).
     uncertain_voxels : int or None
     """
 
@@ -107,6 +127,13 @@ class MeshReport:
     orientation: str
     self_intersections: int
     self_intersection_edges_tested: int
+    opposite_face_pairs: int = 0
+    opposite_share: float = 0.0
+    same_winding_duplicate_share: float = 0.0
+    inconsistent_parts: int = 0
+    inverted_parts: int = 0
+    signed_volume_ratio: float = 0.0
+    solid_methods: dict[str, str] | None = None
     resolution: int | None = None
     uncertain_share: float | None = None
     uncertain_voxels: int | None = None
@@ -120,6 +147,11 @@ class MeshReport:
         w = max(len(k) for k, _ in rows)
         out = []
         for k, v in rows:
+            if isinstance(v, dict):  # one indented line per entry, problems first
+                out.append(f"{k}:")
+                for name, verdict in sorted(v.items(), key=lambda kv: (kv[1] == "ok", kv[0])):
+                    out.append(f"  {name + ':':<{w - 1}} {verdict}")
+                continue
             if isinstance(v, float):
                 v = f"{v:.6g}"
             elif isinstance(v, bool):
@@ -364,6 +396,7 @@ def inspect_mesh(mesh: Any, resolution: int | None = None, *, backend: str | Non
     edges, uses, balance, face_edge = edge_table(faces)
     two = uses == 2
     vol = signed_volume(positions, faces)
+    traits = mesh_traits(m)
     key = np.sort(faces, axis=1)
     crossing, tested = self_intersecting_edges(positions, faces, edges, SELF_INTERSECTION_SAMPLE)
     report = MeshReport(
@@ -373,12 +406,28 @@ def inspect_mesh(mesh: Any, resolution: int | None = None, *, backend: str | Non
         boundary_edges=int((uses == 1).sum()), nonmanifold_edges=int((uses > 2).sum()),
         inconsistent_edges=int((two & (balance != 0)).sum()),
         winding_consistent=bool(not (two & (balance != 0)).any()), watertight=m.watertight,
-        signed_volume=vol, orientation="outward" if vol > 0 else "inward" if vol < 0 else "flat",
-        self_intersections=crossing, self_intersection_edges_tested=tested)
+        signed_volume=vol if traits.signed_volume_ratio != 0.0 else 0.0, orientation=orientation(traits),
+        self_intersections=crossing, self_intersection_edges_tested=tested,
+        opposite_face_pairs=traits.opposite_pairs, opposite_share=traits.opposite_share,
+        same_winding_duplicate_share=traits.duplicate_share, inconsistent_parts=traits.inconsistent_parts,
+        inverted_parts=traits.inverted_parts, signed_volume_ratio=traits.signed_volume_ratio,
+        solid_methods=solid_outlook(traits))
     if resolution is not None:
         report.resolution = int(resolution)
         report.uncertain_voxels, report.uncertain_share = uncertain(m, resolution, backend=backend)
     return report
+
+
+def orientation(traits: MeshTraits) -> str:
+    """Which way the faces point, for :class:`MeshReport` (see ``orientation`` there)."""
+    if traits.opposite_share >= ALL_SHARE:
+        return "double-sided"
+    if traits.part_volume_ratio == 0.0:
+        return "flat"
+    if traits.inverted_parts and traits.signed_volume_ratio > 0 or (traits.inverted_parts
+                                                                     and traits.signed_volume_ratio == 0.0):
+        return "mixed"
+    return "outward" if traits.signed_volume_ratio > 0 else "inward" if traits.signed_volume_ratio < 0 else "flat"
 
 
 def uncertain_share(winding: np.ndarray, threshold: float = 0.5) -> tuple[int, float]:
@@ -397,13 +446,13 @@ def uncertain_share(winding: np.ndarray, threshold: float = 0.5) -> tuple[int, f
         Voxels with ``|w - threshold| < UNCERTAIN_BAND``.
     share : float
         ``uncertain`` over the voxels with ``w > threshold - UNCERTAIN_BAND``
-        (the solid and its band); 0.0 when there are none.
+        (the solid and its band); 1.0 when there are none (no voxel is surely inside).
     """
     w = np.asarray(winding)
     band = np.abs(w - threshold) < UNCERTAIN_BAND
     n = int(np.count_nonzero(band))
     region = int(np.count_nonzero(w > threshold - UNCERTAIN_BAND))
-    return n, (n / region if region else 0.0)
+    return n, (n / region if region else 1.0)  # no voxel near inside: nothing is sure
 
 
 def uncertain(mesh: Mesh, resolution: int, *, backend: str | None = None) -> tuple[int, float]:
@@ -411,5 +460,7 @@ def uncertain(mesh: Mesh, resolution: int, *, backend: str | None = None) -> tup
     ``gwn-solid``'s winding numbers (on the GPU; within its expansion's error, a few 1e-3
     at the default accuracy, of the exact ones: only voxels that close to the band's edges
     can be counted differently)."""
-    g = run_method("gwn-solid", mesh, grid_for(mesh, resolution), backend=backend, winding=True)
+    with warnings.catch_warnings():  # the report says what the traits mean for gwn-solid itself
+        warnings.simplefilter("ignore", SuspiciousResultWarning)
+        g = run_method("gwn-solid", mesh, grid_for(mesh, resolution), backend=backend, winding=True)
     return uncertain_share(g.fields["winding"])

@@ -432,18 +432,47 @@ def _row_labels(keys: np.ndarray) -> np.ndarray:
     return labels
 
 
+#: Generated meshes with the defects of dataset meshes (ShapeNet and its kin), each made
+#: from a clean closed one, its *clean twin*, whose solid is the defective mesh's true one:
+#: ``double-sided-*`` holds every face twice, the copy reversed (signed volume 0: winding
+#: numbers and parities cancel); ``flipped-half-*`` has the faces of its x > 0 half wound
+#: inward (closed, inconsistently oriented).
+DEFECTIVE = {"double-sided-torus": ("torus", "double-sided"),
+             "double-sided-bunny-like": ("bunny-like", "double-sided"),
+             "flipped-half-sphere": ("sphere", "flipped-half")}
+
 #: Meshes that need no file, for the README's first command and quick tries:
 #: ``gen:NAME`` wherever a mesh path is accepted.
-GENERATED = ("torus", "sphere", "box", "bunny-like")
+GENERATED = ("torus", "sphere", "box", "bunny-like") + tuple(DEFECTIVE)
+
+
+def clean_twin(name: str) -> str | None:
+    """The clean closed mesh a defective generated mesh was made from (``'gen:torus'`` for
+    ``'gen:double-sided-torus'``): its solid is the defective one's true solid.  None otherwise."""
+    base = DEFECTIVE.get(name[4:]) if name.startswith("gen:") else None
+    return f"gen:{base[0]}" if base else None
 
 
 def generated_mesh(name: str) -> Mesh:
-    """A closed mesh made by trimesh: ``torus``, ``sphere``, ``box`` or ``bunny-like``.
+    """A mesh made by trimesh: ``torus``, ``sphere``, ``box`` or ``bunny-like`` (closed), or
+    one of :data:`DEFECTIVE` (a clean one broken as dataset meshes are).
 
     ``bunny-like`` is a union-free blob (a subdivided, displaced icosphere)
     with concave parts, for methods that are wrong on concavities.
     """
     import trimesh
+
+    if name in DEFECTIVE:
+        base, defect = DEFECTIVE[name]
+        clean = generated_mesh(base)
+        v, f = clean.vertices, clean.faces
+        if defect == "double-sided":
+            f = np.vstack([f, f[:, ::-1]])
+        else:  # flipped-half
+            f = f.copy()
+            half = v[f].mean(axis=1)[:, 0] > 0
+            f[half] = f[half, ::-1]
+        return _validate(v, f, f"gen:{name}")
 
     if name == "torus":
         m = trimesh.creation.torus(major_radius=1.0, minor_radius=0.35, major_sections=96,

@@ -424,6 +424,11 @@ def validate_bench(args) -> None:
         positive("--budget", args.budget, integer=False)
 
 
+def validate_selftest(args) -> None:
+    for m in args.methods or []:
+        get_method(m)  # an unknown name: one line listing the known ones
+
+
 def validate_data(args) -> None:
     for n in args.names:
         datasets.source(n)  # an unknown name: one line pointing at `glvox data list`

@@ -188,3 +188,13 @@ MIN_WARM_RUNS = 3
 #: merged for the watertight check (glvox.mesh.is_watertight): trimesh's
 #: tol.merge = 1e-8, so glvox's answer is trimesh's on every mesh.
 MERGE_DIGITS = 8
+
+#: (relative to the bounding box's longest side) Vertices of the mesh traits
+#: (glvox.traits) are welded when their positions, as multiples of this
+#: fraction of the longest side from the box's minimum corner, round to the
+#: same integers.  Coincident faces in dataset meshes repeat the very same
+#: vertex positions (ShapeNet's doubled faces are exact copies), so any tiny
+#: value finds them; 1e-9 is far above float64 rounding of coordinates (2e-16
+#: relative) and far below any real feature (a 2^20-voxel grid's voxel is 1e-6),
+#: and keeps the integer keys below 2^31.
+WELD_RTOL = 1e-9

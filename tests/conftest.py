@@ -31,3 +31,16 @@ def shared_mesh(glvox_mesh):
     """shared_mesh(name) -> path of a shared mesh, through glvox.datasets (the plugin's glvox_mesh:
     found or downloaded; skipped with one line when not available, failed with GLVOX_REQUIRE_MESHES=1)."""
     return glvox_mesh
+
+
+@pytest.fixture
+def ssbo_limit(gl_context, monkeypatch):
+    """GL_MAX_SHADER_STORAGE_BLOCK_SIZE of the context, capped at GL's guaranteed
+    2**27 bytes (GL 4.5 core, Table 23.64) and the cap forced on the context for
+    the test: llvmpipe and iris report 2**27, NVIDIA 2**31 - 1, where no dense grid
+    glvox holds exceeds one block, so a test of the refusal reads this instead."""
+    limits = gl_context.limits()
+    real = int(limits["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"])
+    if real > 2**27:
+        monkeypatch.setattr(gl_context, "limits", lambda: {**limits, "GL_MAX_SHADER_STORAGE_BLOCK_SIZE": 2**27})
+    return min(real, 2**27)

@@ -608,3 +608,27 @@ def test_inspect_columns_and_robust_solids_on_open_meshes(dataset, tmp_path, gl_
     # without --inspect the columns stay empty
     s = run_batch(lst, tmp_path / "plain", BatchSettings("carve-solid", resolution=R), workers=0, quiet=True)
     assert all(r["components"] == r["inspect_s"] == "" for r in manifest_rows(tmp_path / "plain/manifest.csv").values())
+
+
+def test_suspicious_solids_are_in_the_manifest_and_counted(tmp_path):
+    """A double-sided cube's parity solid is empty: the manifest's warnings column names
+    the cause and the method to use, and the summary counts the mesh as warned and empty."""
+    from glvox.testing.defects import cube, double_sided_cube, write_obj
+
+    src = tmp_path / "in"
+    src.mkdir()
+    write_obj(src / "plain.obj", cube())
+    write_obj(src / "two_faced.obj", double_sided_cube())
+    out = tmp_path / "o"
+    p = glvox("batch", src, "-o", out, "-r", 8, "-m", "reference-solid", "--allow-open", "--workers", 0)
+    assert p.returncode == 0, p.stderr
+    rows = manifest_rows(out / "manifest.csv")
+    assert rows["two_faced.obj"]["status"] == "done" and rows["two_faced.obj"]["voxels"] == "0"
+    assert "0 voxels (empty) from reference-solid: double-sided faces cancel" in rows["two_faced.obj"]["warnings"]
+    assert "use -m binvox-solid or -m carve-solid" in rows["two_faced.obj"]["warnings"]
+    assert rows["plain.obj"]["warnings"] == "" and int(rows["plain.obj"]["voxels"]) > 0
+    assert "with warnings 1, empty results 1: see the manifest's warnings column" in p.stdout
+    j = glvox("batch", src, "-o", out, "-r", 8, "-m", "reference-solid", "--allow-open", "--workers", 0,
+              "--overwrite", "--json")
+    assert j.returncode == 0, j.stderr
+    assert {k: json.loads(j.stdout)[k] for k in ("warned", "empty")} == {"warned": 1, "empty": 1}

@@ -474,8 +474,8 @@ def test_tile_larger_than_the_context_limit_is_clamped(gl_context):
         run_method("passalis-peel", mesh, spec, tile=-3)
 
 
-def test_grid_over_the_ssbo_limit_is_refused(gl_context):
-    limit = gl_context.limits()["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"]
+def test_grid_over_the_ssbo_limit_is_refused(ssbo_limit):
+    limit = ssbo_limit
     nz = limit // (32 * 1024 * 4) + 1  # one slice more than the packed grid may hold
     spec = GridSpec((1024, 1024, nz), (0.0, 0.0, 0.0), 1.0)
     mesh = load_mesh("gen:sphere")

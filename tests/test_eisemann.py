@@ -399,8 +399,8 @@ def test_tiling_at_a_forced_limit_gives_identical_results(gl_context, axis):
         run_method("eisemann-solid", mesh, specs[0], axis=axis, tile=16)
 
 
-def test_grid_over_the_ssbo_limit_is_refused(gl_context):
-    limit = gl_context.limits()["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"]
+def test_grid_over_the_ssbo_limit_is_refused(ssbo_limit):
+    limit = ssbo_limit
     nz = (limit * 8 // (1024 * 1024)) + 1
     spec = GridSpec((1024, 1024, nz), (0, 0, 0), 1.0)
     if spec.n_voxels > glvox.grid.MAX_VOXELS:
@@ -445,7 +445,16 @@ def test_raster_coverage_misplaces_faces_within_a_snap_step(gl_context):
     triangle covers, on vertices snapped to 1/2^GL_SUBPIXEL_BITS pixel: a face a
     quarter step beyond a column center is snapped onto it and the fill rule
     takes the column.  Those voxels are 4e-4 voxel from the surface, not ties;
-    the exact coverage (the default) gets them right."""
+    the exact coverage (the default) gets them right.
+
+    What is asserted is what GL guarantees: vertices may be snapped to 2^-SUBPIXEL_BITS
+    pixel (GL 4.6 Sec. 14.6.1, Table 23.53), and a center on a polygon edge that no other
+    polygon of the draw shares (here the box's projected outline x = 2.5, its side face
+    being edge-on) may or may not be produced -- GL has no top-left rule.  So the raster
+    coverage may differ from the exact set only in the column of centers within a snap
+    step of that edge (i = 2), and there in whole voxels of it.  llvmpipe (8 subpixel
+    bits) takes the column for both the bottom and the top face: 12 extra voxels, i = 2,
+    j 1..3, k 1..4 (measured); another rasterizer may take none."""
     bits = gl_context.raw.get_integer(0x0D50)  # GL_SUBPIXEL_BITS
     offset = 0.25 / 2**bits
     mesh = box_mesh((2.5 + offset, 1.2, 1.3), (5.3, 4.4, 5.4))
@@ -455,11 +464,11 @@ def test_raster_coverage_misplaces_faces_within_a_snap_step(gl_context):
     expected[3:5, 1:4, 1:5] = True  # centers 3.5, 4.5 in x: 2.5 is outside
     assert np.array_equal(exact.dense(), expected)
     assert check_against_reference(exact, mesh).ok
-    extra = raster.dense() & ~expected
-    assert np.array_equal(np.argwhere(extra)[:, 0], np.full(12, 2))  # the column i = 2, j 1..3, k 1..4
+    diff = raster.dense() ^ expected
+    assert not diff[:2].any() and not diff[3:].any()  # only the column within a snap step of the edge
     assert not (expected & ~raster.dense()).any()
     c = check_against_reference(raster, mesh)
-    assert not c.ok and len(c.unexplained) == 12
+    assert len(c.unexplained) == int(diff.sum()) and set(c.unexplained[:, 0].tolist()) <= {2}
 
 
 def test_raster_coverage_on_the_shared_meshes_is_measured(gl_context, shared_mesh):

@@ -137,7 +137,7 @@ def test_uncertain_share_definition():
     w[3, 0] = 0.39      # 4 outside the band and the region
     assert gi.uncertain_share(w) == (12, 12 / 28)
     assert gi.uncertain_share(w, threshold=0.95) == (16, 16 / 16)
-    assert gi.uncertain_share(np.zeros((2, 2, 2))) == (0, 0.0)
+    assert gi.uncertain_share(np.zeros((2, 2, 2))) == (0, 1.0)  # nothing near inside: an empty solid, not a sure one
 
 
 def test_uncertain_share_on_a_grid(gl_context, shared_mesh):
@@ -152,3 +152,37 @@ def test_uncertain_share_on_a_grid(gl_context, shared_mesh):
         n, share = gi.uncertain_share(exact)
         assert r.resolution == 48 and abs(r.uncertain_voxels - n) <= 2 and r.uncertain_share > 0
         assert r.uncertain_share == pytest.approx(share, abs=2 / 1000)
+
+
+def test_double_sided_and_misoriented_meshes_are_told(capsys, tmp_path):
+    """The defects of ShapeNet-style meshes, in words and in --json: a double-sided cube is
+    not 'inward' with a sure solid, it is double-sided, every parity and winding method
+    finds it empty, and its winding solid is all uncertain."""
+    from glvox.testing import defects
+
+    path = defects.write_obj(tmp_path / "two_faced.obj", defects.double_sided_cube())
+    assert main(["inspect", str(path), "--json", "-r", "8"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert (d["orientation"], d["opposite_face_pairs"], d["opposite_share"], d["signed_volume_ratio"]) == \
+        ("double-sided", 12, 1.0, 0.0)
+    assert d["signed_volume"] == 0.0 and d["uncertain_share"] == 1.0
+    assert d["solid_methods"]["ss-solid"] == d["solid_methods"]["gwn-solid"] == "empty (double-sided faces cancel)"
+    assert d["solid_methods"]["carve-solid"] == d["solid_methods"]["binvox-solid"] == "ok"
+    assert main(["inspect", str(path)]) == 0
+    out = capsys.readouterr()
+    assert "orientation:" in out.out and "double-sided\n" in out.out and out.err == ""
+    lines = out.out.splitlines()
+    methods = lines[lines.index("solid_methods:") + 1:]
+    assert methods[0].split() == ["eisemann-solid:", "empty", "(double-sided", "faces", "cancel)"]  # problems first
+    assert [ln.split()[0] for ln in methods if ln.endswith(" ok")] == \
+        ["binvox-solid:", "carve-solid:", "karabassi:", "reference-carve:"]
+
+    flipped = inspect_mesh(defects.flipped_face_cube())
+    assert (flipped.inconsistent_parts, flipped.orientation) == (1, "outward")
+    assert flipped.solid_methods["gwn-solid"] == "unreliable (inconsistent orientation)"
+    assert flipped.solid_methods["ss-solid"] == "ok"
+    mixed = inspect_mesh(defects.two_cubes_one_inside_out())
+    assert (mixed.orientation, mixed.inverted_parts, mixed.signed_volume_ratio) == ("mixed", 1, 0.0)
+    assert mixed.solid_methods["reference-gwn"] == "partly empty (1 of 2 parts inside out)"
+    box = inspect_mesh(defects.open_box())
+    assert box.solid_methods["carve-solid"] == "may leak (open boundary)" and box.orientation == "outward"

@@ -73,8 +73,70 @@ def test_binvox_tool_convention_round_trip(tmp_path):
     g = random_grid(seed=5)
     p = io.save(g, tmp_path / "tool.binvox", convention="binvox")
     header = p.read_bytes().split(b"data\n")[0].decode()
-    assert "translate 1.0 -2.0 0.5" in header and "scale 2.25" in header  # min corner, n * h
+    assert "translate 1 -2 0.5" in header and "scale 2.25" in header  # min corner, n * h, as %g
     assert io.load(p, convention="binvox").spec.same_placement(g.spec)
+
+
+def test_binvox_header_is_byte_for_byte_what_binvox_writes(tmp_path):
+    """binvox (C++ ostream defaults, %g) wrote this header for a ShapeNet chair's placement:
+    translate = the mesh's box minimum, scale = its longest side.  glvox writes the same
+    bytes for that placement, and runs split at 255 as binvox splits them."""
+    spec = GridSpec((4, 4, 4), (-0.42806, -0.038727, -0.241275), 0.85617 / 4)
+    occ = np.zeros((4, 4, 4), bool)
+    occ[1:3, 1:3, 1:3] = True
+    data = io.save(VoxelGrid(occ, spec), tmp_path / "chair.binvox", convention="binvox").read_bytes()
+    assert data.startswith(b"#binvox 1\ndim 4 4 4\ntranslate -0.42806 -0.038727 -0.241275\nscale 0.85617\ndata\n")
+    with open(tmp_path / "chair.binvox", "rb") as f:  # trimesh's reader: the same voxels
+        np.testing.assert_array_equal(trimesh.exchange.binvox.load_binvox(f).matrix, occ)
+    full = VoxelGrid(np.ones((8, 8, 8), bool), GridSpec((8, 8, 8), (0.0, 0.0, 0.0), 0.125))
+    data = io.save(full, tmp_path / "full.binvox", convention="binvox").read_bytes()
+    assert data == b"#binvox 1\ndim 8 8 8\ntranslate 0 0 0\nscale 1\ndata\n" + bytes([1, 255, 1, 255, 1, 2])
+
+
+def test_binvox_header_numbers_keep_the_placement_where_g_would_move_it(tmp_path):
+    """%g keeps 6 digits: an origin of 1234.56789 would move by 0.00011 (a tenth of a voxel
+    here); glvox then writes the shortest exact number instead."""
+    g = VoxelGrid(np.ones((4, 4, 4), bool), GridSpec((4, 4, 4), (1234.56789, 0.0, 0.0), 0.001))
+    p = io.save(g, tmp_path / "far.binvox", convention="binvox")
+    assert b"translate 1234.56789 0 0\n" in p.read_bytes()
+    assert io.load(p, convention="binvox").spec.same_placement(g.spec)
+
+
+def test_binvox_header_read_as_binvox_reads_it(tmp_path):
+    """binvox's reference reader takes keywords in any order and skips comments, blank lines
+    and keywords it does not know (files from ShapeNet pipelines carry such lines)."""
+    occ = np.zeros((3, 3, 3), bool)
+    occ[0, 1, 2] = occ[2, 2, 0] = True
+    rle = io.save(VoxelGrid(occ, GridSpec((3, 3, 3), (0, 0, 0), 1.0)), tmp_path / "a.binvox").read_bytes()
+    rle = rle[rle.index(b"data\n") + 5:]
+    p = tmp_path / "commented.binvox"
+    p.write_bytes(b"#binvox 1\n# written by a ShapeNet script\n\nscale 0.9\n  # indented comment\n"
+                  b"source chair.obj 12 3\ntranslate -0.5 0.25  1\ndim 3 3 3\n\ndata\n" + rle)
+    g = io.load(p, convention="binvox")
+    assert g.equal(VoxelGrid(occ, g.spec))
+    np.testing.assert_array_equal(g.origin, [-0.5, 0.25, 1.0])
+    assert g.voxel_size == pytest.approx(0.3, rel=1e-15)
+    t = io.load(p)  # trimesh's reading of the same numbers: scale spans the first to the last center
+    assert t.voxel_size == pytest.approx(0.45) and t.equal(VoxelGrid(occ, t.spec))
+    # without translate and scale the reference reader places the grid in the unit cube
+    p.write_bytes(b"#binvox 1\ndim 3 3 3\ndata\n" + rle + b"trailing bytes are ignored")
+    g = io.load(p, convention="binvox")
+    assert g.equal(VoxelGrid(occ, g.spec)) and g.spec.same_placement(GridSpec((3, 3, 3), (0, 0, 0), 1 / 3))
+
+
+@pytest.mark.parametrize("head, data, message", [
+    (b"#binvox 1\ntranslate 0 0 0\nscale 1\ndata\n", bytes([0, 27]), r"no 'dim' line before 'data'"),
+    (b"#binvox\ndim 3 3 3\ndata\n", bytes([0, 27]), r"'#binvox' must be followed by an integer version"),
+    (b"#binvox 1\ndim 3 3 3\nscale x\ndata\n", bytes([0, 27]), r"'scale' takes numbers, got 'x'"),
+    (b"#binvox 1\ndim 3 3 3\n", b"", r"the header ends without 'data'"),
+    (b"#binvox 1\ndim 3 3 3\ndata\n", bytes([0, 20]), r"truncated binvox data: 20 voxels, header says 3x3x3"),
+    (b"#binvox 1\ndim 3 3 3\ndata\n", bytes([0, 20, 1, 9]), r"overrun: a run ends at voxel 29, past the 3x3x3"),
+])
+def test_binvox_bad_headers_and_data(tmp_path, head, data, message):
+    p = tmp_path / "bad.binvox"
+    p.write_bytes(head + data)
+    with pytest.raises(FormatError, match=message):
+        io.load(p, convention="binvox")
 
 
 def test_binvox_runs_longer_than_255(tmp_path):

@@ -21,8 +21,8 @@ from glvox.methods.base import PASS_FAMILIES, SHARED_SHADERS
 ROOT = Path(__file__).resolve().parents[1] / "glvox"
 
 #: The README's Layout order, lowest first.
-LAYERS = ["_version", "errors", "tolerances", "progress", "grid", "meshfiles", "mesh", "visuals", "datasets", "results",
-          "formats", "io", "gl", "gpu", "reference", "methods", "inspect", "metrics", "batch", "study", "testing",
+LAYERS = ["_version", "errors", "tolerances", "progress", "grid", "meshfiles", "mesh", "traits", "visuals", "datasets",
+          "results", "formats", "io", "gl", "gpu", "reference", "methods", "inspect", "metrics", "batch", "study", "testing",
           "preflight", "commands", "cli", "__main__"]
 
 
@@ -149,3 +149,28 @@ def test_every_family_has_a_docs_page(family):
     assert (TOP / "docs" / "methods" / f"{family}.md").is_file(), f"document {family} in docs/methods/{family}.md"
     pages = sorted(p.stem for p in (TOP / "docs" / "methods").glob("*.md"))
     assert set(pages) <= set(FAMILIES + PASS_FAMILIES), f"pages named like no family: {pages}"
+
+
+# ---------------------------------------------------------------------------
+# one vocabulary for GPU bindings: the shader's block names, never numbers by hand
+# ---------------------------------------------------------------------------
+
+#: The only modules that may call ``bind_to_storage_buffer`` themselves: the helper that binds by
+#: block name, and the test harness whose public ``buffers=`` may still be keyed by binding number.
+BINDS_BY_NUMBER = {"glvox/gpu/dispatch.py", "glvox/testing/harness.py"}
+
+
+def test_storage_buffers_are_bound_by_block_name():
+    """A pass binds its buffers with ``glvox.gpu.dispatch.bind(prog, Block=buf)``, which reads
+    each binding from the program: a number written by hand next to the GLSL's can drift from it."""
+    bad = []
+    for path in MODULES:
+        rel = path.relative_to(TOP).as_posix()
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if not (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                    and node.func.attr == "bind_to_storage_buffer"):
+                continue
+            literal = any(isinstance(n, ast.Constant) for a in node.args for n in ast.walk(a))
+            if rel not in BINDS_BY_NUMBER or literal:
+                bad.append(f"{rel}:{node.lineno}")
+    assert not bad, f"bind storage buffers by block name (glvox.gpu.dispatch.bind): {bad}"

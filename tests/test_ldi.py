@@ -35,10 +35,12 @@ from glvox.grid import GridSpec, ldi_axes
 from glvox.mesh import load_mesh
 from glvox.methods import run_method
 from glvox.methods.depth import raster as depth_raster
+from glvox.methods.ldi.leung_wang_passes import mesh_motion
 from glvox.metrics import check_against_reference, tie_set
 from glvox.reference.ldi import crossing_tolerance, crossings, ray_ties
 from glvox.results.ldi import LDI, close_odd
 from glvox.testing.leaks import live_gl_objects
+from glvox.tolerances import SNAP_EPS
 
 WATERTIGHT = ("cad_fandisk.off", "cad_featuretype.stl", "cad_rocker_arm.obj", "cad_wingnut.obj",
               "depth_reduced_diamond_lattice.stl", "stanford_armadillo_libigl_86k.obj")
@@ -62,6 +64,15 @@ class Exact:
         self.rc = crossings(tris, spec.dims, axis)
         self.ties = ray_ties(tris, spec.dims, axis)
         self.n_axis = spec.dims[axis]
+        # leung-wang-ldi widens each sample outwards by what the mesh's motion on the GPU
+        # (float32 upload, plane snap) can do to its crossing: m (1 + (|n_u| + |n_v|) / |n_a|)
+        # <= m (1 + sqrt(2 (slope^2 - 1))) voxels (ldi/depths.frag), on top of the tie tolerance
+        # (the running maximum that keeps the samples sorted can pass a neighbour's widening
+        # on: the ray's largest is allowed on each of its samples)
+        slope = self.rc.slopes
+        w = (mesh_motion(mesh, spec) + SNAP_EPS) * (1.0 + np.sqrt(2.0 * np.maximum(slope * slope - 1.0, 0.0)))
+        w = np.where(np.isnan(w), 0.0, w)
+        self.widening = np.broadcast_to(w.max(axis=2, initial=0.0)[:, :, None], w.shape)
         assert np.all(self.rc.counts[~self.ties] % 2 == 0), "a closed mesh crosses a non-tie ray an odd number of times"
 
     def intervals(self):
@@ -139,7 +150,7 @@ def eligible_for_equality(ex: Exact, lod_c: int) -> np.ndarray:
     tolerance from an inner cell boundary (the far and near faces are not ambiguous)."""
     q = ex.rc.depths
     valid = ~np.isnan(q)
-    tol = crossing_tolerance(ex.rc.slopes) + depth_rounding(ex.n_axis)
+    tol = crossing_tolerance(ex.rc.slopes) + depth_rounding(ex.n_axis)  # the cell is the unwidened crossing's
     c = np.where(valid, q, 0.0) * lod_c / ex.n_axis
     cell = np.clip(np.floor(c), 0, lod_c - 1)
     b = np.round(c)
@@ -157,7 +168,7 @@ def assert_equal_on(ldi: LDI, ex: Exact, rays: np.ndarray):
         f"counts differ on {np.argwhere(rays & (ldi.counts != c))[:5].tolist()}"
     n = ex.rc.depths.shape[2]
     valid = (np.arange(n) < c[:, :, None]) & rays[:, :, None]
-    tol = crossing_tolerance(ex.rc.slopes) + depth_rounding(ex.n_axis)
+    tol = crossing_tolerance(ex.rc.slopes) + depth_rounding(ex.n_axis) + ex.widening
     got = np.full(ex.rc.depths.shape, np.nan)
     k = min(n, ldi.n_max)  # rays with fewer samples than the exact ones are not in ``rays``
     got[:, :, :k] = ldi.depths[:, :, :k]
@@ -220,6 +231,36 @@ def close_to(actual, expected, n_axis):
 
 
 # -- hand-worked -----------------------------------------------------------------
+
+
+def test_encloses_the_true_mesh_where_the_snap_moves_steep_faces(gl_context):
+    """Leung & Wang's claim is per ray: the sampled intervals contain the exact ones, of the
+    mesh as given, not only of the snapped mesh every method sees.  A tall thin tetrahedron
+    (side faces about 20 times steeper than flat) with every coordinate 3e-4 voxel off a
+    voxel or center plane: the snap (SNAP_EPS = 2^-11) moves them all, and on the side faces
+    a move of 3e-4 across the ray moves the crossing by about 6e-3 along it.  Checked with
+    no tolerance on every ray that the motion cannot uncover or cover (ray_ties with the
+    motion as eps), at a LOD-C where the samples are the crossings themselves."""
+    d = 3e-4
+    v = np.array([[1.5 + d, 1.5 - d, 1.0 + d], [6.5 - d, 2.0 + d, 1.5 - d], [3.0 + d, 6.5 - d, 1.0 - d],
+                  [3.5 - d, 3.5 + d, 60.5 - d]])
+    f = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]])
+    mesh = load_mesh((v, f), name="steep")
+    spec = GridSpec((8, 8, 64), (0.0, 0.0, 0.0), 1.0)
+    tris = v[f]  # the true mesh in voxel space (unit voxels at the origin), unsnapped
+    assert np.abs(tris - mesh.triangles_voxel(spec)).max() == pytest.approx(d)  # the snap moved them
+    exact = crossings(tris, spec.dims, 2)
+    ties = ray_ties(tris, spec.dims, 2, eps=2 * SNAP_EPS)
+    ldi = run_method("leung-wang-ldi", mesh, spec, lod_c=8192)
+    assert_well_formed(ldi)
+    checked = 0
+    for p, q in zip(*np.nonzero((exact.counts > 0) & ~ties)):
+        e = exact.depths[p, q, :exact.counts[p, q]]
+        s = ldi.ray(p, q).astype(np.float64)
+        assert len(s) == len(e) and np.all(s[0::2] <= e[0::2]) and np.all(s[1::2] >= e[1::2]), \
+            f"ray {(int(p), int(q))}: exact {e.tolist()}, LDI {s.tolist()}"
+        checked += 1
+    assert checked >= 8
 
 
 def test_a_box_is_sampled_at_its_faces(gl_context):

@@ -137,3 +137,21 @@ def test_render_command_refuses_an_ldi(tmp_path):
     assert p.returncode == 0, p.stderr
     p = glvox("render", tmp_path / "l.npz", "-o", tmp_path / "l.png")
     assert p.returncode == 1 and "glvox render draws voxel grids" in p.stderr, p.stderr
+
+
+def test_render_command_refuses_an_empty_grid(tmp_path):
+    """A double-sided cube's parity solid is empty: voxelize warns with the cause, and render
+    says there is nothing to draw (exit 1) instead of writing a blank picture."""
+    from glvox.testing.defects import double_sided_cube, write_obj
+
+    write_obj(tmp_path / "two_faced.obj", double_sided_cube())
+    p = glvox("voxelize", tmp_path / "two_faced.obj", "-r", 8, "-m", "reference-solid", "--allow-open",
+              "-o", tmp_path / "s.npz", "-q")
+    assert p.returncode == 0, p.stderr
+    assert re.search(r"glvox: warning: two_faced\.obj: 0 voxels \(empty\) from reference-solid: double-sided "
+                     r"faces cancel .*; use -m binvox-solid or -m carve-solid", p.stderr), p.stderr
+    p = glvox("render", tmp_path / "s.npz", "-o", tmp_path / "s.png", "-q")
+    assert p.returncode == 1 and p.stderr.count("\n") == 1, p.stderr
+    assert re.match(r"glvox: error: .*s\.npz holds no voxels \(its \d+x\d+x\d+ grid is empty\): nothing to draw",
+                    p.stderr), p.stderr
+    assert not (tmp_path / "s.png").exists()

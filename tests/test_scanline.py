@@ -411,7 +411,13 @@ def test_variants_are_tunnel_free_and_nested(name, res, gl_context, shared_mesh)
     """26 blocks 26-paths, 18 blocks 18-paths, 6 blocks 6-paths; each variant is
     a subset of the one before.  RLV and SLV against the mesh's solid, ILV
     against the solid of its lattice mesh (the vertices snapped to voxel
-    centres, which is what ILV voxelizes, Sec. 4.1)."""
+    centres, which is what ILV voxelizes, Sec. 4.1).
+
+    The variants are separate compilations (TUNNEL is a define), so nesting needs
+    every variant to round the float path alike: the scanline and clipping
+    arithmetic keeps its product-sums in ``precise`` variables (GLSL 4.50 Sec. 4.9
+    forbids fusing them into fma there; Sec. 4.7.1 allows it otherwise, and a
+    compiler may then decide differently per variant).  No rasterizer is used."""
     mesh = _mesh(name, shared_mesh)
     spec = glvox.grid_for(mesh, res)
     inside = run_method("reference-solid", mesh, spec).dense()

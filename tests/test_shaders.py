@@ -8,6 +8,7 @@ import pytest
 from glvox.errors import ShaderError
 from glvox.gl.shaders import (LINE_BASE, MAX_INCLUDE_DEPTH, builtin_shader_dir, compute_program, preprocess,
                               render_program)
+from glvox.gpu.dispatch import bind
 from glvox.grid import GridSpec, pack_bits
 from glvox.results.voxels import VoxelGrid
 from glvox.testing import run_compute
@@ -199,3 +200,67 @@ def test_top_left_fill_rule_owns_every_point_once(gl_context):
                              uniforms={"u_points": len(pts), "u_tris": len(tri) // 3})[2]
         assert np.all(owners[interior] == 1), (name, pts[interior][owners[interior] != 1])
         assert np.all(owners <= 1), name
+
+
+# -- storage buffers bound by block name ------------------------------------------
+
+
+def test_bind_by_block_name(gl_context):
+    prog = compute_program(gl_context, "testing/bind.comp")
+    n = 100
+    target = gl_context.mgl.buffer(reserve=n * 4)
+    decoy = gl_context.mgl.buffer(reserve=n * 4)
+    try:
+        target.clear()
+        decoy.clear()
+        # keyword order opposite to the declaration and to the binding numbers
+        bind(prog, Decoy=decoy, Target=target)
+        prog["u_count"].value = n
+        prog.run((n + 63) // 64)
+        got_target = np.frombuffer(target.read(), np.uint32)
+        got_decoy = np.frombuffer(decoy.read(), np.uint32)
+    finally:
+        target.release()
+        decoy.release()
+    np.testing.assert_array_equal(got_target, 1000 + np.arange(n))
+    np.testing.assert_array_equal(got_decoy, 2000 + np.arange(n))
+
+
+def test_bind_refuses_an_undeclared_block_naming_the_file(gl_context):
+    prog = compute_program(gl_context, "testing/bind.comp")
+    buf = gl_context.mgl.buffer(reserve=4)
+    try:
+        with pytest.raises(ShaderError, match=r"shaders/testing/bind\.comp declares no storage block 'Targets'"):
+            bind(prog, Targets=buf)
+        # named in comments only: not declared
+        for name in ("Ghost", "Phantom"):
+            with pytest.raises(ShaderError, match=rf"bind\.comp declares no storage block '{name}'"):
+                bind(prog, **{name: buf})
+        # a uniform is no storage block
+        with pytest.raises(ShaderError, match=r"declares no storage block 'u_count'"):
+            bind(prog, u_count=buf)
+    finally:
+        buf.release()
+
+
+def test_bind_skips_a_declared_but_inactive_block(gl_context):
+    prog = compute_program(gl_context, "testing/bind.comp")
+    assert "Unused" in preprocess("testing/bind.comp").storage_blocks
+    if "Unused" in prog:
+        pytest.skip("this driver keeps the unused storage block active (legal); nothing to skip")
+    buf = gl_context.mgl.buffer(reserve=4)
+    try:
+        bind(prog, Unused=buf)  # no error: the GLSL declares it, the compiler dropped it
+    finally:
+        buf.release()
+
+
+def test_bind_needs_a_program_from_the_loader(gl_context):
+    prog = gl_context.mgl.compute_shader(preprocess("testing/bind.comp").text)
+    buf = gl_context.mgl.buffer(reserve=4)
+    try:
+        with pytest.raises(ShaderError, match=r"bind\(\) needs a program built by glvox\.gl\.shaders"):
+            bind(prog, Target=buf)
+    finally:
+        buf.release()
+        prog.release()

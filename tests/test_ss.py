@@ -216,8 +216,8 @@ def test_runs_are_deterministic_and_reuse_buffers(gl_context, shared_mesh):
     assert {k: b.glo for k, b in pool._bufs.items()} == ids  # no reallocation when warm
 
 
-def test_grid_over_the_ssbo_limit_is_refused(gl_context):
-    limit = gl_context.limits()["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"]
+def test_grid_over_the_ssbo_limit_is_refused(ssbo_limit):
+    limit = ssbo_limit
     # a grid whose bit array is just over the limit
     nx = 1024
     rows = limit * 8 // nx + 1
@@ -497,12 +497,12 @@ def test_open_mesh_is_refused_then_warned_and_parity(gl_context):
     assert out["ss-solid"].equal(run_method("ss-solid", closed, spec))
 
 
-def test_limits_are_refused_clearly(gl_context):
+def test_limits_are_refused_clearly(gl_context, ssbo_limit):
     mesh = load_mesh("gen:sphere")
     with pytest.raises(LimitError, match="rows of 4096 voxels; this grid has nx = 4100: use ss-solid"):
         run_method("ss-solid-tiled", mesh, glvox.grid_for(mesh, dims=(4100, 4, 4)))
     # a dense grid glvox holds whose bits exceed one storage block (128 MiB on llvmpipe)
-    limit = int(gl_context.limits()["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"])
+    limit = ssbo_limit
     nz = 8 * limit // (2048 * 1024) + 8
     if 2048 * 1024 * nz > 2**31 - 1:
         pytest.skip(f"GL_MAX_SHADER_STORAGE_BLOCK_SIZE is {limit}: no dense grid exceeds it")

@@ -60,11 +60,12 @@ from glvox.gpu.buffers import buffer_pool
 from glvox.gpu.transform import gpu_vertices_voxel, transform_vertices
 from glvox.grid import GridSpec, snap_to_planes
 from glvox.methods import get_method, method_names, run_method
-from glvox.metrics import tie_set
+from glvox.metrics import check_against_reference, tie_set
 from glvox.reference import conservative_surface, snap_ambiguous, solid_ties, surface_ties
 from glvox.testing.cells import (SHAPES, boundary_faces, cells_mesh, conservative_expected, occupancy,
                                  on_surface, solid_expected)
-from glvox.tolerances import SNAP_EPS
+from glvox.results.voxels import VoxelGrid
+from glvox.tolerances import SNAP_EPS, TIE_EPS
 
 def registered_runs(kinds) -> list[tuple[str, dict]]:
     """(method, options) of every registered method of these kinds, with each choice of its
@@ -384,7 +385,19 @@ def assert_same(name: str, case: Case, got: np.ndarray, want: np.ndarray, what: 
 @example(case=issue_box(1), axis=2)
 def test_mirror(gl_context, case, axis):
     """The mesh mirrored along ``axis`` about the grid's center, faces flipped back, gives
-    the mirrored grid (surfaces whose definition is symmetric here; solids off the surface)."""
+    the mirrored grid (surfaces whose definition is symmetric here; solids off the surface).
+
+    What GL guarantees and what the raster methods use of it: GL 4.6 Sec. 14.6.1 produces a
+    fragment for every pixel center inside a drawn polygon but leaves free which of two
+    polygons sharing an edge gets a center on it (no top-left rule), and Appendix A makes
+    no promise across viewports or transforms, so a mirrored or moved mesh may rasterize
+    differently.  The raster methods therefore never let GL decide a column: they draw
+    proxies grown by 1/16 pixel (eisemann/setup.comp, depth/raster.geom), more than GL's
+    vertex snap can take (SUBPIXEL_BITS >= 4, Table 23.53), so every center the exact test
+    covers gets a fragment, and decide coverage and crossings in the fragment shader with
+    the reference's edge functions and top-left rule, in double, with ``precise``
+    (GLSL 4.50 Sec. 4.9: no fma contraction, tests/test_precise.py).  The invariance rests
+    on those two guarantees only."""
     center = case.spec.origin[axis] + 0.5 * case.dims[axis] * case.spec.voxel_size
     vm = case.v.copy()
     vm[:, axis] = 2.0 * center - vm[:, axis]
@@ -398,7 +411,8 @@ def test_mirror(gl_context, case, axis):
 @given(case=cases(max_n=48 if SLOW else 24), axis=st.integers(0, 2), k=st.sampled_from([-3, -1, 1, 2]))
 def test_translation_by_whole_voxels(gl_context, case, axis, k):
     """Moving the mesh by k voxels in a grid that holds it in both places moves the result
-    by k voxels, for every method."""
+    by k voxels, for every method.  Rests on GL 4.6 Sec. 14.6.1 (centers inside a drawn
+    proxy produce fragments) and GLSL 4.50 Sec. 4.9 (``precise``), as test_mirror states."""
     h = case.spec.voxel_size
     margin = abs(k) + 2
     dims = list(case.dims)
@@ -499,3 +513,34 @@ def test_a_coordinate_at_the_snap_distance_is_a_tie():
     assert solid_ties(snapped, dims, unsnapped=raw)[4, 2, 1]  # center (4.5, 2.5, 1.5) under the face
     mesh = glvox.load_mesh((raw[0], np.array([[0, 1, 2]])))
     assert tie_set("reference-solid", mesh, GridSpec(dims, (0.0, 0.0, 0.0), 1.0))[4, 2, 1]
+
+
+@pytest.mark.parametrize("kind,reference,method,z0,wrong", [
+    # the box's bottom face 7e-4 above the face plane z = 3: the voxels below it (k = 2)
+    # are not touched, robustly under TIE_EPS, but touched with half-size 0.5 + 10 TIE_EPS
+    ("surface", "reference-conservative", "ss-conservative", 3.0 + 7e-4, (2, 2, 2)),
+    # the bottom face 7e-4 above the center plane z = 3.5: the centers of k = 3 are outside
+    ("solid", "reference-solid", "ss-solid", 3.5 + 7e-4, (2, 2, 3)),
+])
+def test_the_tie_tolerance_is_sharp(gl_context, kind, reference, method, z0, wrong):
+    """A voxel 7 TIE_EPS from the surface is no tie: a result that flips it fails the
+    check.  The same flip is excused once the tolerance is ten times larger (asserted
+    below with eps = 10 TIE_EPS): a tenfold TIE_EPS in glvox.tolerances makes the first
+    assertion fail, so the tolerance cannot grow unnoticed.  7e-4 is above SNAP_EPS
+    (2^-11 = 4.9e-4), so the snap leaves the face where it is."""
+    assert z0 % 0.5 == pytest.approx(7e-4) and SNAP_EPS < 7e-4  # the case as designed
+    b = trimesh.creation.box(bounds=[(1.3, 1.2, z0), (4.6, 4.7, 5.4)])
+    v, f = b.vertices, b.faces
+    mesh = glvox.load_mesh((v, f), name="box")
+    spec = GridSpec((8, 8, 8), (0.0, 0.0, 0.0), 1.0)
+    ref = run_method(reference, mesh, spec)
+    got = run_method(method, mesh, spec)
+    assert np.array_equal(got.dense(), ref.dense())  # the GPU's verdict is robust here
+    assert not ref.dense()[wrong]
+    flipped = got.dense().copy()
+    flipped[wrong] = True
+    bad = VoxelGrid(flipped, spec)
+    c = check_against_reference(bad, mesh, reference)
+    assert not c.ok and c.unexplained.tolist() == [list(wrong)], c.describe()
+    loose = tie_set(reference, mesh, spec, eps=10 * TIE_EPS)
+    assert check_against_reference(bad, mesh, reference, ties=loose).ok  # sharp: 10x would excuse it

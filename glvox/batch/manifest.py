@@ -119,6 +119,11 @@ class BatchSummary:
         ``'in-process'``, ``'local cluster (K workers)'`` or ``'scheduler ADDRESS'``.
     startup_s : float
         Seconds to get the workers (cluster start or connection).
+    warned : int
+        Meshes done with warnings (the manifest's ``warnings`` column: an
+        open mesh let through, a suspicious solid...).
+    empty : int
+        Meshes done with 0 voxels.
     rows : list of dict
         The manifest rows.
     """
@@ -134,6 +139,8 @@ class BatchSummary:
     manifest: str
     mode: str
     startup_s: float = 0.0
+    warned: int = 0
+    empty: int = 0
     rows: list[dict[str, Any]] = field(default_factory=list, repr=False)
 
     @classmethod
@@ -147,13 +154,16 @@ class BatchSummary:
             pending=status["pending"],
             failed_by_reason=dict(Counter(r["reason"] for r in rows if r["status"] == "failed")),
             elapsed_s=elapsed_s, processed_per_s=processed / elapsed_s if elapsed_s > 0 else 0.0,
-            manifest=manifest, mode=mode, startup_s=startup_s, rows=rows)
+            manifest=manifest, mode=mode, startup_s=startup_s,
+            warned=sum(1 for r in rows if r["status"] == "done" and r.get("warnings")),
+            empty=sum(1 for r in rows if r["status"] == "done" and str(r.get("voxels", "")) == "0"),
+            rows=rows)
 
     def to_dict(self) -> dict[str, Any]:
         """Every attribute but ``rows`` (what ``glvox batch --json`` prints)."""
         return {k: getattr(self, k) for k in ("total", "done", "skipped", "failed", "pending",
                                               "failed_by_reason", "elapsed_s", "processed_per_s",
-                                              "manifest", "mode", "startup_s")}
+                                              "manifest", "mode", "startup_s", "warned", "empty")}
 
     def format(self) -> str:
         """The summary lines ``glvox batch`` prints at the end."""
@@ -169,5 +179,8 @@ class BatchSummary:
         if self.failed_by_reason:
             lines.append("  failed by reason: " + ", ".join(
                 f"{k} {v}" for k, v in sorted(self.failed_by_reason.items(), key=lambda kv: (-kv[1], kv[0]))))
+        if self.warned or self.empty:
+            lines.append(f"  with warnings {self.warned}, empty results {self.empty}: see the manifest's "
+                         f"warnings column")
         lines.append(f"  manifest: {self.manifest}")
         return "\n".join(lines)

@@ -11,7 +11,16 @@ The binvox header has ``translate`` and ``scale``.  Two readings exist:
   minimum corner and ``scale`` its full length, n h.
 
 glvox writes the trimesh reading so trimesh loads the same occupancy and
-placement; pass ``convention='binvox'`` for files made by the binvox tool.
+placement; pass ``convention='binvox'`` for files made by the binvox tool (or
+read by its viewers).
+
+Files are written as binvox writes them: ``#binvox 1``, ``dim``,
+``translate``, ``scale``, ``data`` in this order, LF line ends, numbers in
+``%g`` (binvox's C++ default; where ``%g``'s 6 digits would move the
+placement, the shortest exact repr instead), runs of at most 255.  They are
+read as binvox's reference reader reads them (:func:`parse_header`):
+comments, blank lines and unknown keywords are skipped, keywords come in
+any order.
 binvox stores cubic grids only (one scale for all axes), so non-cubic grids
 are refused: save them as npz.  A sparse octree is decoded
 (:meth:`SparseOctree.to_grid`) when it fits, and refused otherwise; an LDI
@@ -66,11 +75,20 @@ def binvox_bytes(grid: VoxelGrid, *, convention: str = "trimesh") -> bytes:
     header = (
         "#binvox 1\n"
         f"dim {nx} {ny} {nz}\n"
-        f"translate {float(translate[0])!r} {float(translate[1])!r} {float(translate[2])!r}\n"
-        f"scale {float(scale)!r}\n"
+        f"translate {_num(translate[0])} {_num(translate[1])} {_num(translate[2])}\n"
+        f"scale {_num(scale)}\n"
         "data\n"
     )
     return header.encode("ascii") + rle
+
+
+def _num(x) -> str:
+    """A header number as binvox writes it (C++ ostream's default, ``%g``: 6 significant
+    digits), or, where ``%g`` would move the placement, the shortest repr that reads back exactly."""
+    x = float(x)
+    g = "%g" % x
+    # a few ulps: n * (scale / n) need not give back scale's own bits
+    return g if abs(float(g) - x) <= 4 * np.spacing(abs(x)) else repr(x)
 
 
 def _xzy(dense: np.ndarray) -> np.ndarray:
@@ -103,30 +121,110 @@ def _rle(flat: np.ndarray) -> bytes:
     return np.stack([v, c.astype(np.uint8)], axis=1).tobytes()
 
 
+def parse_header(data: bytes) -> tuple[tuple[int, int, int], np.ndarray, float, int, int]:
+    """dims, translate (3,) float64, scale, version and the offset of the first data byte.
+
+    As binvox's reference reader (``read_binvox.cc``) reads a header: the
+    first token ``#binvox`` and an integer version, then keywords in any
+    order, separated by any whitespace, until the token ``data``, which one
+    byte (the line feed) ends; ``dim`` takes three integers, ``translate``
+    three numbers and ``scale`` one; every other line (comments ``#...``,
+    unknown keywords) is skipped to its end.  ``dim`` is required;
+    ``translate`` and ``scale`` default to 0 and 1 (the unit cube), as the
+    reference reader, which ignores them, places every file.
+
+    Raises
+    ------
+    ValueError
+        Naming what is wrong (the caller adds the file).
+    """
+    pos, n = 0, len(data)
+
+    def token() -> bytes:
+        nonlocal pos
+        while pos < n and data[pos:pos + 1].isspace():
+            pos += 1
+        start = pos
+        while pos < n and not data[pos:pos + 1].isspace():
+            pos += 1
+        return data[start:pos]
+
+    def skip_line() -> None:
+        nonlocal pos
+        end = data.find(b"\n", pos)
+        pos = n if end < 0 else end + 1
+
+    def number(kind, keyword: str):
+        word = token()
+        try:
+            return kind(word.decode("ascii"))
+        except (ValueError, UnicodeDecodeError):
+            raise ValueError(f"'{keyword}' takes {'integers' if kind is int else 'numbers'}, "
+                             f"got {word[:20].decode('ascii', 'replace')!r}") from None
+
+    magic = token()
+    if magic != b"#binvox":
+        raise ValueError("missing '#binvox' magic" if not magic.startswith(b"#binvox") else
+                         f"the magic '#binvox' must be followed by a space and a version, got {magic[:20]!r}")
+    version = token()
+    if not version.isdigit():
+        raise ValueError(f"'#binvox' must be followed by an integer version, got {version[:20]!r}")
+    skip_line()
+    dims, translate, scale = None, np.zeros(3), 1.0
+    while True:
+        word = token()
+        if word == b"":
+            raise ValueError("the header ends without 'data'")
+        if word == b"data":
+            if data[pos:pos + 1] != b"\n":
+                raise ValueError("'data' must end its line with a line feed (LF)")
+            pos += 1
+            break
+        if word == b"dim":
+            dims = tuple(number(int, "dim") for _ in range(3))
+        elif word == b"translate":
+            translate = np.array([number(float, "translate") for _ in range(3)])
+        elif word == b"scale":
+            scale = number(float, "scale")
+        else:  # a comment or a keyword binvox's reader does not know: the rest of the line
+            skip_line()
+    if dims is None:
+        raise ValueError("no 'dim' line before 'data'")
+    if min(dims) < 1:
+        raise ValueError(f"dim must be positive, got {dims}")
+    return dims, translate, scale, int(version), pos
+
+
 def read(path: Path, *, convention: str = "trimesh") -> VoxelGrid:
-    """Read a binvox file in ``convention``'s placement (see the module docstring)."""
+    """Read a binvox file in ``convention``'s placement (see the module docstring).
+
+    The header as binvox's reference reader takes it (:func:`parse_header`);
+    the data: (value, count) byte pairs until the grid is full (a run past
+    its end, or data that stop short, is an error; bytes after it are
+    ignored, as binvox's reader ignores them); any nonzero value is set
+    (version 2 files carry values 1..255).
+    """
     data = path.read_bytes()
     if convention not in CONVENTIONS:
         raise FormatError(f"convention must be one of {CONVENTIONS}, got {convention!r}")
     try:
-        end = data.index(b"data\n") + 5
-        header = data[:end].decode("ascii").splitlines()
-        if not header[0].startswith("#binvox"):
-            raise ValueError("missing '#binvox' magic")
-        fields = {ln.split()[0]: ln.split()[1:] for ln in header[1:] if ln.strip()}
-        dims = tuple(int(x) for x in fields["dim"])
-        translate = np.array([float(x) for x in fields["translate"]])
-        scale = float(fields["scale"][0])
-    except (ValueError, KeyError, IndexError, UnicodeDecodeError) as exc:
+        dims, translate, scale, _, end = parse_header(data)
+    except (ValueError, UnicodeDecodeError) as exc:
         raise FormatError(f"{path} is not a valid binvox file ({exc})") from None
-    pairs = np.frombuffer(data[end:], dtype=np.uint8)
-    if pairs.size % 2:
-        raise FormatError(f"{path}: truncated binvox data (odd byte count)")
-    pairs = pairs.reshape(-1, 2)
-    flat = np.repeat(pairs[:, 0].astype(bool), pairs[:, 1].astype(np.int64))
     nx, ny, nz = dims
-    if flat.size != nx * ny * nz:
-        raise FormatError(f"{path}: binvox data holds {flat.size} voxels, header says {nx}x{ny}x{nz}")
+    total = nx * ny * nz
+    raw = np.frombuffer(data, dtype=np.uint8, offset=end)
+    pairs = raw[: raw.size // 2 * 2].reshape(-1, 2)
+    filled = np.cumsum(pairs[:, 1], dtype=np.int64)
+    used = int(np.searchsorted(filled, total)) + 1  # pairs up to the one that fills the grid
+    if used > len(pairs):
+        raise FormatError(f"{path}: truncated binvox data: {int(filled[-1]) if len(filled) else 0} voxels, "
+                          f"header says {nx}x{ny}x{nz}")
+    if filled[used - 1] != total:
+        raise FormatError(f"{path}: binvox data overrun: a run ends at voxel {int(filled[used - 1])}, "
+                          f"past the {nx}x{ny}x{nz} grid")
+    pairs = pairs[:used]
+    flat = np.repeat(pairs[:, 0] != 0, pairs[:, 1].astype(np.int64))
     occ = flat.reshape(nx, nz, ny).transpose(0, 2, 1)
     n = nx
     if convention == "trimesh":

@@ -25,12 +25,14 @@ from __future__ import annotations
 import os
 import re
 import time
+import weakref
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
 from ..errors import ShaderError
+from .compiler_log import map_log
 
 MAX_INCLUDE_DEPTH = 16
 LINE_BASE = 100000
@@ -38,13 +40,23 @@ LINE_BASE = 100000
 _INCLUDE = re.compile(r'^\s*#\s*include\s+[<"]([^">]+)[">]\s*(//.*)?$')
 _VERSION = re.compile(r"^\s*#\s*version\b")
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
-# Mesa: "0:12(3): error: ...", NVIDIA: "0(12) : error C0000: ...", AMD: "ERROR: 0:12: ..."
-_LOC = re.compile(r"(\d+):(\d+)\((\d+)\)|(\d+)\((\d+)\)|\b(\d+):(\d+):")
+# a storage block's declaration: `... buffer Name {` (comments stripped first)
+_STORAGE_BLOCK = re.compile(r"\bbuffer\s+([A-Za-z_][A-Za-z0-9_]*)\s*\{")
+_COMMENT = re.compile(r"//[^\n]*|/\*.*?\*/", re.S)
 
 
 
 def builtin_shader_dir() -> Path:
-    """The folder holding glvox's own shaders (checkout or installed wheel)."""
+    """The folder holding glvox's own shaders (checkout or installed wheel).
+
+    A source checkout's own ``shaders/`` comes first: an editable install maps
+    ``glvox._shaders`` to the checkout it was installed from, so another checkout
+    (a git worktree run with PYTHONPATH) would otherwise run its own Python with
+    that checkout's shaders.
+    """
+    here = Path(__file__).resolve().parents[2]
+    if (here / "pyproject.toml").is_file() and (here / "shaders" / "common").is_dir():
+        return here / "shaders"
     try:
         root = resources.files("glvox._shaders")
         path = Path(str(root))
@@ -127,17 +139,23 @@ class Source:
                 pass
         return str(path)
 
+    @property
+    def storage_blocks(self) -> frozenset[str]:
+        """Names of the storage blocks (``buffer Name { ... }``) the source declares.
+
+        Parsed from the preprocessed text (includes expanded, comments
+        stripped).  Conditional compilation is not evaluated: a block inside
+        an ``#if`` branch that is not taken counts as declared, which is the
+        safe side (:func:`glvox.gpu.dispatch.bind` skips a declared block the
+        program does not have).
+        """
+        return frozenset(_STORAGE_BLOCK.findall(_COMMENT.sub(" ", self.text)))
+
     def map_log(self, log: str) -> str:
-        """Rewrite the compiler's locations in ``log`` to ``file:line``."""
-
-        def repl(m: re.Match) -> str:
-            if m.group(2) is not None:
-                return f"{self.location(int(m.group(2)))}({m.group(3)})"
-            if m.group(5) is not None:
-                return self.location(int(m.group(5)))
-            return self.location(int(m.group(7))) + ":"
-
-        return _LOC.sub(repl, log)
+        """``log`` with each located line (Mesa, NVIDIA, AMD or glslang shape,
+        :mod:`glvox.gl.compiler_log`) rewritten to ``file:line[:column]:
+        severity: message``; lines without a location are kept as they are."""
+        return map_log(log, self.location)
 
 
 def resolve(path: str | os.PathLike, dirs: Sequence[Path], relative_to: Path | None = None) -> Path:
@@ -225,6 +243,49 @@ def preprocess(path: str | os.PathLike, defines: Mapping[str, Any] | None = None
 # ---------------------------------------------------------------------------
 
 
+@dataclass(frozen=True)
+class ProgramSource:
+    """What the loader knows of a program it built: its files and declared storage blocks.
+
+    Attributes
+    ----------
+    files : tuple of str
+        The top file of each stage, as messages name them (``shaders/ss/fill.comp``).
+    storage_blocks : frozenset of str
+        Storage block names the stages' sources declare, active or not.
+    """
+
+    files: tuple[str, ...]
+    storage_blocks: frozenset[str]
+
+    @property
+    def name(self) -> str:
+        """The files, as one message names them."""
+        return " + ".join(self.files)
+
+
+# program -> ProgramSource, for the programs compute_program / render_program built.  A side
+# table rather than an attribute on the moderngl object: moderngl's objects are not ours, and
+# the entry goes away with the program.
+_SOURCES: "weakref.WeakKeyDictionary[Any, ProgramSource]" = weakref.WeakKeyDictionary()
+
+
+def program_source(prog) -> ProgramSource | None:
+    """The :class:`ProgramSource` of a program built by this module, else None."""
+    try:
+        return _SOURCES.get(prog)
+    except TypeError:  # not weak-referenceable: not one of ours
+        return None
+
+
+def _remember(prog, sources: Iterable[Source]) -> None:
+    sources = list(sources)
+    _SOURCES[prog] = ProgramSource(
+        files=tuple(s.name for s in sources),
+        storage_blocks=frozenset().union(*(s.storage_blocks for s in sources)),
+    )
+
+
 def _cache_key(kind: str, paths: Sequence[str], defines: Mapping[str, Any] | None,
                extra: Any = ()) -> tuple:
     d = tuple(sorted((k, repr(v)) for k, v in (defines or {}).items()))
@@ -268,6 +329,7 @@ def compute_program(ctx, path: str, defines: Mapping[str, Any] | None = None,
     except Exception as exc:  # moderngl.Error
         raise _compile_error(exc, {"compute": src}) from None
     ctx.compile_seconds += time.perf_counter() - t0
+    _remember(prog, [src])
     ctx.programs[key] = prog
     return prog
 
@@ -298,5 +360,6 @@ def render_program(ctx, vertex: str, fragment: str | None = None, geometry: str 
     except Exception as exc:
         raise _compile_error(exc, srcs) from None
     ctx.compile_seconds += time.perf_counter() - t0
+    _remember(prog, srcs.values())
     ctx.programs[key] = prog
     return prog

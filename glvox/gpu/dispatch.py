@@ -1,4 +1,5 @@
-"""Dispatching compute work: loop budget, uniforms, 1D dispatch, barriers."""
+"""Dispatching GPU work: loop budget, uniforms, storage buffers by block name, 1D dispatch,
+barriers."""
 
 from __future__ import annotations
 
@@ -6,6 +7,9 @@ from typing import Any
 
 import moderngl
 import numpy as np
+
+from ..errors import ShaderError
+from ..gl.shaders import program_source
 
 #: Loop iterations one shader invocation may run, all loops together, on the
 #: software renderer.  Mesa's llvmpipe (gallivm's loop limiter,
@@ -33,6 +37,50 @@ def set_uniforms(prog, values: dict[str, Any]) -> None:
     for name, value in values.items():
         if name in prog:
             prog[name].value = value
+
+
+def bind(prog, /, **buffers) -> None:
+    """Bind each buffer to the binding of ``prog``'s storage block of that name.
+
+    ``bind(prog, Verts=vertices, Grid=grid)`` binds ``vertices`` where the
+    shader declares ``layout(std430, binding = N) buffer Verts {...}``: the
+    binding numbers live in the GLSL alone.  Bindings are context state, not
+    program state, so bind right before each program's dispatch or draw (it
+    is a cheap call and moves no data).
+
+    Parameters
+    ----------
+    prog : moderngl.ComputeShader or moderngl.Program
+        Built by :func:`glvox.gl.shaders.compute_program` or
+        :func:`~glvox.gl.shaders.render_program` (which record the storage
+        blocks each source declares).
+    **buffers : moderngl.Buffer
+        Storage block name -> buffer.
+
+    Raises
+    ------
+    ShaderError
+        A name that no source of the program declares (a typo or a stale
+        name: a programming error, named with the shader file), or a name
+        that is not a storage block.  A block the source declares but the
+        compiler optimized out (it is legal for a driver to drop a block the
+        shader does not use) is skipped silently, like an inactive uniform in
+        :func:`set_uniforms`.
+    """
+    src = program_source(prog)
+    if src is None:
+        raise ShaderError("bind() needs a program built by glvox.gl.shaders "
+                          "(compute_program / render_program), which records its storage blocks")
+    for name, buf in buffers.items():
+        if name not in src.storage_blocks:
+            declared = ", ".join(sorted(src.storage_blocks)) or "none"
+            raise ShaderError(f"{src.name} declares no storage block {name!r} (it declares: {declared})")
+        if name not in prog:
+            continue  # declared, optimized out
+        block = prog[name]
+        if not isinstance(block, moderngl.StorageBlock):
+            raise ShaderError(f"{src.name}: {name!r} is a {type(block).__name__}, not a storage block")
+        buf.bind_to_storage_buffer(block.binding)
 
 
 def dispatch_1d(ctx, prog, n: int, local_size: int) -> None:

@@ -35,7 +35,7 @@ from typing import Any
 
 from ..gl.shaders import compute_program
 from .buffers import buffer_pool, check_buffer_size
-from .dispatch import dispatch_1d
+from .dispatch import bind, dispatch_1d
 
 #: Pool owner name of the scratch buffers (``buffer_pool(ctx, POOL)``).
 POOL = "gpu_sort"
@@ -65,6 +65,13 @@ DIGIT_BITS = 8
 #: for 8-bit digits); the tile (wg * items keys) must stay below 65536 for its
 #: 16-bit counters.
 RADIX_CONFIGS = {4: (64, 64), 8: (32, 256)}
+#: Every ``(shader, defines)`` the scan and the sort compile: what a method that
+#: scans or sorts adds to its ``Requirements(compute=...)`` (the work group
+#: sizes and shared memory are read from these, glvox.gl.workgroups).
+SHADERS = tuple(("sort/scan_block.comp", {"WG_SIZE": SCAN_WG, "ITEMS": SCAN_ITEMS, "HAS_OFFSETS": h}) for h in (0, 1)) + (
+    ("sort/scan_reduce.comp", {"WG_SIZE": SCAN_WG, "ITEMS": SCAN_ITEMS}),) + tuple(
+    (f"sort/{k}.comp", {"WG_SIZE": wg, "ITEMS": items, "DIGIT_BITS": bits})
+    for bits, (wg, items) in RADIX_CONFIGS.items() for k in ("radix_count", "radix_scatter"))
 
 
 def _u32_count(n: Any, name: str = "n") -> int:
@@ -143,7 +150,7 @@ def exclusive_scan(ctx, src, dst, n: int, *, total=None) -> None:
     _barrier(ctx)  # the caller's writes to src are visible to the first dispatch
     pool = buffer_pool(ctx, POOL)
     write_total = total is not None
-    if total is None:  # binding 3 still needs a buffer
+    if total is None:  # the Total block still needs a buffer
         total = pool.get("scan.total", 4, what="scan total", clear=False)
     _scan_level(ctx, pool, src, dst, n, total, write_total, level=0)
 
@@ -154,25 +161,19 @@ def _scan_level(ctx, pool, src, dst, n: int, total, write_total: bool, level: in
     if groups <= 1:
         prog = compute_program(ctx, "sort/scan_block.comp", {**defines, "HAS_OFFSETS": 0})
         _set(prog, u_n=n, u_write_total=int(write_total))
-        src.bind_to_storage_buffer(0)
-        dst.bind_to_storage_buffer(1)
-        total.bind_to_storage_buffer(3)
+        bind(prog, Src=src, Dst=dst, Total=total)
         _run(ctx, prog, 1)  # one group even for n = 0, so that the total is written
         return
     # every block writes its sum, so the level buffer needs no clearing
     sums = pool.get(f"scan.sums{level}", 4 * groups, what=f"scan level {level + 1} sums", clear=False)
     reduce = compute_program(ctx, "sort/scan_reduce.comp", defines)
     _set(reduce, u_n=n)
-    src.bind_to_storage_buffer(0)
-    sums.bind_to_storage_buffer(2)
+    bind(reduce, Src=src, Sums=sums)
     _run(ctx, reduce, groups)
     _scan_level(ctx, pool, sums, sums, groups, total, write_total, level + 1)
     prog = compute_program(ctx, "sort/scan_block.comp", {**defines, "HAS_OFFSETS": 1})
     _set(prog, u_n=n, u_write_total=0)
-    src.bind_to_storage_buffer(0)
-    dst.bind_to_storage_buffer(1)
-    sums.bind_to_storage_buffer(2)
-    total.bind_to_storage_buffer(3)
+    bind(prog, Src=src, Dst=dst, Offsets=sums, Total=total)
     _run(ctx, prog, groups)
 
 
@@ -261,16 +262,11 @@ def _radix_passes(ctx, keys, values, n: int, bits: int, passes: int) -> None:
     for p in range(passes):
         shift = p * bits
         _set(count, u_n=n, u_shift=shift)
-        src[0].bind_to_storage_buffer(0)
-        counts.bind_to_storage_buffer(4)
+        bind(count, KeysIn=src[0], Counts=counts)
         _run(ctx, count, groups)
         exclusive_scan(ctx, counts, counts, n_counts)
         _set(scatter, u_n=n, u_shift=shift)
-        src[0].bind_to_storage_buffer(0)
-        src[1].bind_to_storage_buffer(1)
-        dst[0].bind_to_storage_buffer(2)
-        dst[1].bind_to_storage_buffer(3)
-        counts.bind_to_storage_buffer(4)
+        bind(scatter, KeysIn=src[0], ValuesIn=src[1], KeysOut=dst[0], ValuesOut=dst[1], Offsets=counts)
         _run(ctx, scatter, groups)
         src, dst = dst, src
     if src[0] is not keys:

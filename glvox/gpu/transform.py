@@ -15,15 +15,18 @@ from ..gl.shaders import compute_program
 from ..grid import snap_to_planes
 from ..tolerances import SNAP_EPS
 from .buffers import mesh_buffers
-from .dispatch import barrier, dispatch_1d, set_uniforms
+from .dispatch import barrier, bind, dispatch_1d, set_uniforms
 
 #: Defines of every program that includes ``common/snap.glsl`` (it refuses
 #: to compile without them): the snap distance named once in glvox.tolerances.
 SNAP_DEFINES = {"SNAP_EPS": float(SNAP_EPS)}
+#: The ``(shader, defines)`` :func:`transform_vertices` compiles, for ``Requirements(compute=...)``.
+SHADERS = (("common/transform.comp", {"VOX_DOUBLE": 0, **SNAP_DEFINES}),)
 
 
 def transform_vertices(ctx, mesh, spec, timer, pool, *, double: bool = False, stretch=(1.0, 1.0, 1.0),
-                       shift=(0.0, 0.0, 0.0), name: str | None = None, stage: str = "transform", axes=(0, 1, 2)):
+                       shift=(0.0, 0.0, 0.0), name: str | None = None, stage: str = "transform", axes=(0, 1, 2),
+                       motion=None):
     """Stage ``transform`` (S&S Sec. 6): the mesh's vertices in voxel space,
     ``snap((v - origin) / h) * stretch - shift`` computed in double
     (``common/transform.comp``; ``snap`` is :func:`glvox.grid.snap_to_planes`).
@@ -33,7 +36,9 @@ def transform_vertices(ctx, mesh, spec, timer, pool, *, double: bool = False, st
     float32 once.  ``axes``: output coordinate c is voxel-space coordinate
     ``axes[c]``, so ``(1, 2, 0)`` gives the mesh in a frame whose x is the
     grid's y (``spec`` stays the unpermuted grid; snap, stretch and shift
-    apply before the permutation).  Returns ``(bufs, vox)``: the mesh's
+    apply before the permutation).  ``motion``: a buffer of one float32 per
+    vertex that receives how far the plane snap moved it (its largest
+    coordinate move, voxels, rounded up), or None.  Returns ``(bufs, vox)``: the mesh's
     :class:`MeshBuffers` and a pooled buffer (``name``) of x, y, z per
     vertex, ready for the next stage.
     """
@@ -41,14 +46,16 @@ def transform_vertices(ctx, mesh, spec, timer, pool, *, double: bool = False, st
     size = 8 if double else 4
     vox = pool.get(name or ("vox_vertices_d" if double else "vox_vertices"), bufs.n_vertices * 3 * size,
                    what="voxel-space vertices" + (" (double)" if double else ""), clear=False)
-    prog = compute_program(ctx, "common/transform.comp", {"VOX_DOUBLE": int(double), **SNAP_DEFINES})
+    prog = compute_program(ctx, "common/transform.comp",
+                           {"VOX_DOUBLE": int(double), "VOX_MOTION": int(motion is not None), **SNAP_DEFINES})
     set_uniforms(prog, {"u_origin_d": tuple(float(x) for x in spec.origin - bufs.anchor),
                         "u_inv_h_d": 1.0 / spec.voxel_size,
                         "u_stretch_d": tuple(float(x) for x in stretch), "u_shift_d": tuple(float(x) for x in shift),
                         "u_vertices": bufs.n_vertices, "u_axes": tuple(int(a) for a in axes)})
     with timer.stage(stage):
-        bufs.vertices.bind_to_storage_buffer(0)
-        vox.bind_to_storage_buffer(1)
+        bind(prog, Verts=bufs.vertices, VoxVerts=vox)
+        if motion is not None:
+            bind(prog, Motion=motion)
         dispatch_1d(ctx, prog, bufs.n_vertices, 256)
         barrier(ctx)
     return bufs, vox

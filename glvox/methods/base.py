@@ -11,11 +11,13 @@ method is adding one module (and its shader folder).
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from typing import Any, ClassVar, Mapping
 
 import numpy as np
 
 from ..errors import MethodError
+from ..gl.workgroups import ComputeNeeds, needs_of
 from ..gpu.buffers import buffer_pool
 
 KINDS = ("surface", "solid", "ldi", "sparse")
@@ -61,32 +63,124 @@ class Option:
         return value
 
 
+#: Limits whose value is one number per component (x, y, z of compute work
+#: groups; width, height of the viewport): a need for them is a tuple of as
+#: many numbers, compared component by component.
+ARRAY_LIMITS = {"GL_MAX_COMPUTE_WORK_GROUP_SIZE": 3, "GL_MAX_COMPUTE_WORK_GROUP_COUNT": 3,
+                "GL_MAX_VIEWPORT_DIMS": 2}
+_AXES = "xyz"
+#: Extensions promoted to core, by the GL version (``version_code``) that made
+#: them core: a core context of that version has the feature whether or not its
+#: driver still lists the extension string (GL 4.6 core, Appendix F).
+CORE_SINCE = {"GL_ARB_gpu_shader_fp64": 400, "GL_ARB_compute_shader": 430,
+              "GL_ARB_shader_storage_buffer_object": 430, "GL_ARB_direct_state_access": 450}
+
+
 @dataclass(frozen=True)
 class Requirements:
     """What a GL method needs of the context.
 
-    ``limits`` maps GL limit names to the minimum value needed (for array
-    limits such as work group counts, the minimum of every component).
+    Attributes
+    ----------
+    gl_version : int
+        ``major * 100 + minor * 10``, as moderngl's ``version_code``.
+    extensions : tuple of str
+    limits : mapping of str to int or tuple of int
+        GL limit name -> the least value needed.  Array limits
+        (:data:`ARRAY_LIMITS`) take a tuple compared per component: a work
+        group of 256 x 1 x 1 needs ``(256, 1, 1)``, which NVIDIA's
+        ``(1024, 1024, 64)`` meets.
+    compute : tuple of (str, mapping)
+        The compute shaders the method compiles, as ``(path, defines)`` (a path
+        may be a glob, ``"ss/*.comp"``).  Their declared ``local_size`` per
+        dimension, invocations per group, ``shared`` bytes and storage blocks
+        and bindings (:func:`glvox.gl.workgroups.needs_of`) are checked against
+        GL_MAX_COMPUTE_WORK_GROUP_SIZE, GL_MAX_COMPUTE_WORK_GROUP_INVOCATIONS,
+        GL_MAX_COMPUTE_SHARED_MEMORY_SIZE, GL_MAX_COMPUTE_SHADER_STORAGE_BLOCKS
+        and GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS, so no number is written by hand.
     """
 
     gl_version: int = 450
     extensions: tuple[str, ...] = ()
-    limits: Mapping[str, int] = field(default_factory=dict)
+    limits: Mapping[str, Any] = field(default_factory=dict)
+    compute: tuple[tuple[str, Mapping[str, Any]], ...] = ()
+
+    def __post_init__(self) -> None:
+        for name, need in self.limits.items():
+            n = ARRAY_LIMITS.get(name)
+            if n is not None and not (isinstance(need, tuple) and len(need) == n):
+                raise ValueError(f"{name} is a {n}-component limit: give the need per component "
+                                 f"as a tuple of {n}, got {need!r}")
+
+    @cached_property
+    def compute_needs(self) -> ComputeNeeds:
+        """The joined :class:`~glvox.gl.workgroups.ComputeNeeds` of :attr:`compute`."""
+        return needs_of(self.compute)
+
+    def all_limits(self) -> dict[str, Any]:
+        """:attr:`limits` with the needs derived from :attr:`compute` merged in
+        (the larger of both per limit and component)."""
+        out = dict(self.limits)
+        if self.compute:
+            need = self.compute_needs
+            derived = {"GL_MAX_COMPUTE_WORK_GROUP_SIZE": need.local_size,
+                       "GL_MAX_COMPUTE_WORK_GROUP_INVOCATIONS": need.invocations,
+                       "GL_MAX_COMPUTE_SHADER_STORAGE_BLOCKS": need.storage_blocks,
+                       "GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": need.storage_bindings}
+            if need.shared_bytes:
+                derived["GL_MAX_COMPUTE_SHARED_MEMORY_SIZE"] = need.shared_bytes
+            for name, v in derived.items():
+                old = out.get(name)
+                if old is None:
+                    out[name] = v
+                elif isinstance(v, tuple):
+                    out[name] = tuple(max(a, b) for a, b in zip(old, v))
+                else:
+                    out[name] = max(old, v)
+        return out
 
     def missing(self, ctx) -> list[str]:
-        """Human-readable list of what ``ctx`` lacks (empty when all is there)."""
+        """Human-readable list of what ``ctx`` lacks (empty when all is there).
+
+        ``ctx`` needs ``.mgl.version_code``, ``.mgl.extensions`` and
+        ``.limits()`` only (tests pass published limit tables as fake contexts).
+        """
         out = []
         if ctx.mgl.version_code < self.gl_version:
             out.append(f"OpenGL {self.gl_version / 100:.1f} (context has {ctx.mgl.version_code / 100:.1f})")
         exts = ctx.mgl.extensions
-        out += [f"extension {e}" for e in self.extensions if e not in exts]
+        out += [f"extension {e}" for e in self.extensions
+                if e not in exts and ctx.mgl.version_code < CORE_SINCE.get(e, 10 ** 6)]
         lim = ctx.limits()
-        for name, need in self.limits.items():
+        for name, need in self.all_limits().items():
             have = lim.get(name)
-            have_min = min(have) if isinstance(have, (tuple, list)) else have
-            if have_min is None or have_min < need:
+            if isinstance(need, tuple):
+                if not isinstance(have, (tuple, list)) or len(have) != len(need):
+                    out.append(f"{name} >= {need} (context has {have})")
+                    continue
+                for axis, n, h in zip(_AXES, need, have):
+                    if h < n:
+                        out.append(f"{name} {axis} >= {n} (context has {tuple(have)})")
+            elif isinstance(have, (tuple, list)):
+                raise ValueError(f"{name} has {len(have)} components: give the need as a tuple")
+            elif have is None or have < need:
                 out.append(f"{name} >= {need} (context has {have})")
         return out
+
+
+def alternative(info: "MethodInfo", ctx) -> str | None:
+    """What runs on ``ctx`` instead of ``info``: a registered GL method of the
+    same kind checked against the same reference whose requirements ``ctx``
+    meets (exact before approximate), else the CPU reference ``info.reference``
+    (the same definition, on the CPU); None when there is neither."""
+    cands = [m.info for m in _REGISTRY.values()
+             if m.info.kind == info.kind and m.info.reference == info.reference and m.info.name != info.name
+             and m.info.uses_gl and m.info.family != "solid"]
+    cands.sort(key=lambda i: (not i.exact, i.name))
+    for cand in cands:
+        if not cand.requires.missing(ctx):
+            return cand.name
+    return info.reference if info.reference in _REGISTRY and info.reference != info.name else None
 
 
 @dataclass(frozen=True)
@@ -150,7 +244,8 @@ class MethodInfo:
             "any_mesh": self.any_mesh,
             "requires": {"gl_version": self.requires.gl_version,
                          "extensions": list(self.requires.extensions),
-                         "limits": dict(self.requires.limits)},
+                         "limits": {k: list(v) if isinstance(v, tuple) else v
+                                    for k, v in self.requires.all_limits().items()}},
             "options": {k: {"default": o.default, "help": o.help,
                             "choices": list(o.choices) if o.choices else None}
                         for k, o in self.options.items()},

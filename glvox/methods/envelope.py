@@ -15,12 +15,15 @@ import os
 import warnings
 from typing import Any, Callable, Sequence
 
-from ..errors import CapabilityError, LimitError, NotWatertightError, NotWatertightWarning
+import numpy as np
+
+from ..errors import CapabilityError, LimitError, NotWatertightError, NotWatertightWarning, SuspiciousResultWarning
 from ..gl.context import get_context
 from ..gl.timing import StageTimer
 from ..grid import MAX_VOXELS, GridSpec
 from ..results.base import Result, RunInfo
-from .base import MethodInfo
+from ..traits import ALL_SHARE, ROBUST, SOLID_MECHANISMS, mesh_traits, solid_warning
+from .base import MethodInfo, alternative
 
 #: Kinds whose result depends on an inside: undefined for an open mesh.
 INSIDE_KINDS = ("solid", "sparse", "ldi")
@@ -45,6 +48,12 @@ def check_inputs(info: MethodInfo, meshes: Sequence[Any], spec: GridSpec, allow_
         if mesh.watertight:
             continue
         if not allow_open:
+            traits = mesh_traits(mesh)  # on the way to an error only: name the likely cause
+            if traits.opposite_share + traits.duplicate_share >= ALL_SHARE:
+                raise NotWatertightError(
+                    f"{mesh.name} is double-sided (every face twice, coincident), so the {_what(info)} "
+                    f"{info.name!r} would find it empty (the crossings cancel); use {ROBUST}"
+                )
             raise NotWatertightError(
                 f"{mesh.name} is not watertight, so 'inside' is undefined for the {_what(info)} "
                 f"{info.name!r}; repair the mesh, use a surface method, or pass allow_open=True "
@@ -88,7 +97,9 @@ def run_in_envelope(info: MethodInfo, meshes: Sequence[Any], spec: GridSpec,
         ctx.make_current()
         missing = info.requires.missing(ctx)
         if missing:
-            raise CapabilityError(f"method {info.name!r} needs {'; '.join(missing)} ({ctx.renderer})")
+            other = alternative(info, ctx)
+            instead = f"; {other!r} runs on this context instead" if other else ""
+            raise CapabilityError(f"method {info.name!r} needs {'; '.join(missing)} ({ctx.renderer}){instead}")
         if debug:
             ctx.check_error(f"method {info.name!r}, before the first stage")
     else:
@@ -105,4 +116,25 @@ def run_in_envelope(info: MethodInfo, meshes: Sequence[Any], spec: GridSpec,
         stats["voxels"] = count
     result.run = RunInfo(method=info.name, kind=info.kind, spec=spec, timings=timings,
                          stats=stats, options=options)
+    if info.kind == "solid" and count is not None and len(meshes) == 1:
+        line = suspicious_solid(info.name, meshes[0], spec, count)
+        if line:
+            stats["suspicious"] = line
+            warnings.warn(f"{meshes[0].name}: {line}", SuspiciousResultWarning, stacklevel=3)
     return result
+
+
+def suspicious_solid(method: str, mesh, spec: GridSpec, count: int) -> str | None:
+    """The warning line a solid result of ``count`` voxels deserves (:func:`glvox.traits.solid_warning`), or None.
+
+    Cheap on the common path: a watertight mesh (no doubled faces, no hole)
+    run by a parity method with a non-empty result needs no traits; else
+    the traits (cached per mesh, ~0.1 s per 100k triangles) and a count
+    compared with the grid voxels in the mesh's bounding box.
+    """
+    if count > 0 and mesh.watertight and SOLID_MECHANISMS.get(method) not in ("winding", None):
+        return None
+    lo, hi = spec.world_to_voxel(mesh.bounds)
+    dims = np.asarray(spec.dims)
+    span = np.clip(np.ceil(hi), 0, dims) - np.clip(np.floor(lo), 0, dims)
+    return solid_warning(mesh_traits(mesh), method, count, int(np.prod(np.maximum(span, 0))))

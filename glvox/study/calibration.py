@@ -11,6 +11,7 @@ machine factor of the regression check (:mod:`glvox.study.regression`).
 from __future__ import annotations
 
 from glvox.gl.shaders import compute_program
+from glvox.gpu.dispatch import bind
 
 #: ``shaders/testing/busy.comp`` (a fixed chain of sines per invocation) over
 #: this many work groups of 64, this many iterations each: well under a
@@ -29,7 +30,7 @@ class Calibration:
     def run(self) -> None:
         """One dispatch, waited for."""
         self.ctx.make_current()
-        self.buf.bind_to_storage_buffer(0)
+        bind(self.prog, Out=self.buf)
         self.prog["u_iterations"].value = CALIBRATION_ITERATIONS
         self.prog.run(CALIBRATION_GROUPS)
         self.ctx.mgl.finish()

@@ -52,7 +52,7 @@ from glvox.errors import GlvoxError, NotWatertightWarning
 from glvox.gl.context import get_context
 from glvox.gpu.buffers import gpu_bytes
 from glvox.grid import GridSpec, grid_for, pack_bits
-from glvox.mesh import load_mesh
+from glvox.mesh import clean_twin, load_mesh
 from glvox.methods import get_method, run_method
 from glvox.methods.envelope import INSIDE_KINDS
 from glvox.metrics import agreement, popcount, tie_set
@@ -182,10 +182,17 @@ def timed(method: str, mesh, spec: GridSpec, repeat: int, **options: Any) -> Tim
 
 
 class References:
-    """Exact references and their tie sets for one mesh and grid, computed once, kept packed."""
+    """Exact references and their tie sets for one mesh and grid, computed once, kept packed.
 
-    def __init__(self, mesh, spec: GridSpec):
-        self.mesh, self.spec = mesh, spec
+    For a generated defective mesh (``gen:double-sided-torus``: :data:`glvox.mesh.DEFECTIVE`)
+    the references run on its clean twin (``twin``, the same vertices closed and consistently
+    wound), whose solid is the defective mesh's true one: a winding number or a parity of
+    the defective mesh itself cancels to nothing there.
+    """
+
+    def __init__(self, mesh, spec: GridSpec, twin: str | None = None):
+        self.twin = twin
+        self.mesh, self.spec = (load_mesh(twin) if twin else mesh), spec
         self._refs: dict[tuple, np.ndarray] = {}
         self._fields: dict[tuple, dict[str, np.ndarray]] = {}
         self._ties: dict[str, np.ndarray] = {}
@@ -406,6 +413,7 @@ def _finish_row(plan: Plan, row: dict[str, Any], r: _Contestant, refs: Reference
     if ref is not None and plan.checks(row["n"]):
         progress(f"{row['mesh']} {row['n']}^3: checking {r.c.label} against {ref}")
         row["reference"] = ref + (f"[{','.join(f'{k}={v}' for k, v in ref_opts)}]" if ref_opts else "")
+        row["reference_mesh"] = refs.twin or row["mesh"]
         ties = refs.ties(ref, ref_opts) if get_method(ref).has_ties else None
         row.update(agreement(words, refs.words(ref, ref_opts), ties))
     for analyse in analyses:
@@ -436,7 +444,7 @@ def run_cell(plan: Plan, mesh, mesh_path: str, n: int, contenders: Sequence[Cont
         r.cold()
     progress(f"{name} {n}^3: timed runs of {len(runners)} contenders")
     _rounds(plan, list(runners.values()))
-    refs = References(mesh, spec)
+    refs = References(mesh, spec, clean_twin(mesh_path))
     for row in rows:
         if row["key"] in runners and row["status"] == "ok":
             _finish_row(plan, row, runners[row["key"]], refs, analyses, progress)

@@ -31,13 +31,16 @@ COMPARE_PRESETS: dict[str, dict[str, Any]] = {
                          "cad_rocker_arm.obj", "cad_fandisk.off", "depth_reduced_diamond_lattice.stl",
                          "depth_gyroid_tpms_sheet.stl"],
               "sizes": [128, 256, 512, 1024], "repeat": 3, "check_max": 256, "cpu_max": 256},
-    # the open-mesh study (issue 19): every solid method on the shared meshes that are not
-    # watertight, each checked against the winding-number solid, which any mesh has
+    # the open-mesh study: every solid method on the shared meshes that are not watertight,
+    # each checked against the winding-number solid, which any mesh has; and on generated
+    # meshes broken as dataset meshes are (double-sided, inconsistently wound), checked
+    # against the winding-number solid of their clean twin (glvox.mesh.DEFECTIVE)
     "open": {"meshes": ["stanford_bunny_bun_zipper.ply", "stanford_dragon_vrip_res2.ply",
                         "stanford_dragon_vrip_res3.ply", "stanford_happy_buddha_113k.obj",
                         "depth_cycloidal_drive.ply", "depth_gyroid_tpms_sheet.stl", "messy_teapot_newell.obj",
                         "messy_tower_holes.obj", "messy_soup_synthetic.stl", "messy_not_convex.obj",
-                        "messy_wallhole.obj"],
+                        "messy_wallhole.obj", "gen:double-sided-torus", "gen:double-sided-bunny-like",
+                        "gen:flipped-half-sphere"],
              "kinds": ["solid", "sparse"], "reference": "reference-gwn", "open_solids": True,
              "sizes": [64, 128], "repeat": 3, "check_max": 128},
 }

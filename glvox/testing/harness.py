@@ -11,6 +11,7 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from ..gl.shaders import compute_program, render_program
+from ..gpu.dispatch import bind
 
 
 def _from_caller(search: Iterable[os.PathLike | str], frame) -> list[Path]:
@@ -35,10 +36,10 @@ def set_uniforms(prog, uniforms: Mapping[str, Any]) -> None:
 
 
 def run_compute(ctx, shader: str, groups: int | Sequence[int], *,
-                buffers: Mapping[int, np.ndarray | tuple[int, Any]],
-                read: Iterable[int] = (), uniforms: Mapping[str, Any] | None = None,
+                buffers: Mapping[str | int, np.ndarray | tuple[int, Any]],
+                read: Iterable[str | int] = (), uniforms: Mapping[str, Any] | None = None,
                 defines: Mapping[str, Any] | None = None,
-                search: Iterable[os.PathLike | str] = ()) -> dict[int, np.ndarray]:
+                search: Iterable[os.PathLike | str] = ()) -> dict[str | int, np.ndarray]:
     """Dispatch a compute shader on SSBOs and read some back.
 
     Parameters
@@ -51,11 +52,14 @@ def run_compute(ctx, shader: str, groups: int | Sequence[int], *,
         Work groups to dispatch; each runs the shader's ``local_size``
         invocations, so ``gl_GlobalInvocationID.x`` goes up to
         ``groups * local_size_x - 1``.
-    buffers : {binding: array or (count, dtype)}
+    buffers : {block name or binding: array or (count, dtype)}
         An array is uploaded as is; ``(count, dtype)`` makes a zero-filled
-        buffer of that many elements.
-    read : iterable of int
-        Bindings to read back after the dispatch.
+        buffer of that many elements.  A key is the storage block's name
+        (``"Output"`` for ``buffer Output {...}``), bound as glvox's own
+        passes bind (:func:`glvox.gpu.dispatch.bind`: a name the shader does
+        not declare raises ShaderError), or its binding number.
+    read : iterable of str or int
+        Keys of ``buffers`` to read back after the dispatch.
     uniforms, defines : mapping, optional
         Uniforms by name (int, float, or a tuple for vectors; a uniform the
         shader does not use is optimized out and raises KeyError); defines
@@ -67,7 +71,7 @@ def run_compute(ctx, shader: str, groups: int | Sequence[int], *,
 
     Returns
     -------
-    {binding: array} for each binding in ``read``, with the dtype (and, for
+    {key: array} for each key in ``read``, with the dtype (and, for
     uploaded arrays, the shape) it was given.
     """
     search = _from_caller(search, inspect.currentframe().f_back)
@@ -87,7 +91,10 @@ def run_compute(ctx, shader: str, groups: int | Sequence[int], *,
                 arr = np.ascontiguousarray(spec)
                 buf = ctx.mgl.buffer(arr.tobytes() if arr.nbytes else b"\0" * 4)
                 meta[binding] = (arr.dtype, arr.shape)
-            buf.bind_to_storage_buffer(binding)
+            if isinstance(binding, str):
+                bind(prog, **{binding: buf})
+            else:
+                buf.bind_to_storage_buffer(binding)
             made[binding] = buf
         g = (int(groups), 1, 1) if np.isscalar(groups) else tuple(int(x) for x in groups)
         prog.run(*g)

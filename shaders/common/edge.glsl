@@ -1,11 +1,22 @@
 // 2D edge functions of a triangle's projection (Schwarz & Seidel 2010, Eq. 2-3,
 // Sec. 3.4 and 4.1).  Points are 2D coordinates in a coordinate plane; `orient`
 // is +1 or -1 so that the edge normals point into the triangle.
+//
+// Exactness convention (every shader): a function whose result is claimed
+// exact, or bit-identical to a CPU reference or to another pass, carries a
+// `// exact:` comment line right above it, and every arithmetic result in it
+// lands in a `precise` variable.  GLSL 4.50 Sec. 4.9 then forbids the compiler
+// to fuse a*b+c into fma, reassociate or reorder those operations; Sec. 4.7.1
+// allows all of that otherwise, and `precise` covers only the r-values that a
+// precise l-value consumes in the same function, so a helper returns a precise
+// local, never an expression (tests/test_shaders.py checks this statically).
 
 // Inward edge normal of the edge vi -> vj.
+// exact: negation and a product by +-1
 vec2 edge_normal(vec2 vi, vec2 vj, float orient) {
-    vec2 e = vj - vi;
-    return vec2(-e.y, e.x) * orient;
+    precise vec2 e = vj - vi;
+    precise vec2 n = vec2(-e.y, e.x) * orient;
+    return n;
 }
 
 // The edge functions are evaluated relative to the edge's start vertex,
@@ -16,17 +27,22 @@ vec2 edge_normal(vec2 vi, vec2 vj, float orient) {
 // Conservative corner term (Eq. 2): added to dot(n, p - vi) at a box's
 // minimum corner p, it gives the value at the box corner most interior to
 // the edge, for a box of extent dp.
+// exact: S&S's offsets, shared by the GPU and its CPU mirror
 float edge_box_term_conservative(vec2 n, vec2 dp) {
-    return max(0.0, dp.x * n.x) + max(0.0, dp.y * n.y);
+    precise float r = max(0.0, dp.x * n.x) + max(0.0, dp.y * n.y);
+    return r;
 }
 
 // 6-separating term (Sec. 3.4, Huang et al.'s 4-separating line criterion):
 // the value at the box center plus half the extent along the dominant axis
 // of the edge normal.
+// exact: S&S's offsets, shared by the GPU and its CPU mirror
 float edge_box_term_6sep(vec2 n, vec2 dp) {
     vec2 a = abs(n);
-    float half_dominant = a.x >= a.y ? 0.5 * dp.x * a.x : 0.5 * dp.y * a.y;
-    return dot(n, 0.5 * dp) + half_dominant;
+    precise float half_dominant = a.x >= a.y ? 0.5 * dp.x * a.x : 0.5 * dp.y * a.y;
+    precise vec2 h = 0.5 * dp;
+    precise float r = (n.x * h.x + n.y * h.y) + half_dominant;
+    return r;
 }
 
 // Top-left fill rule (Sec. 4.1): an edge owns the points exactly on it only

@@ -12,9 +12,11 @@
 #error "SNAP_EPS is not defined: pass glvox.gpu.transform.SNAP_DEFINES to the program"
 #endif
 
+// exact: bit for bit glvox.grid.snap_to_planes
 dvec3 snap_to_planes(dvec3 p) {
     precise dvec3 r = floor(2.0lf * p + 0.5lf) * 0.5lf;
-    return mix(p, r, lessThanEqual(abs(p - r), dvec3(SNAP_EPS)));
+    precise dvec3 gap = p - r;
+    return mix(p, r, lessThanEqual(abs(gap), dvec3(SNAP_EPS)));
 }
 
 // A vertex uploaded as float32 relative to the mesh's anchor, in voxel space:
@@ -22,6 +24,7 @@ dvec3 snap_to_planes(dvec3 p) {
 // snapped.  Double, not float32: the float32 upload is then the only rounding
 // before the snap (2^-25 N voxel at most for a grid of N voxels fitted to the
 // mesh), well inside SNAP_EPS.
+// exact: bit for bit glvox.gpu.transform.gpu_vertices_voxel
 dvec3 vertex_to_voxel(vec3 p, dvec3 origin, double inv_h) {
     precise dvec3 v = (dvec3(p) - origin) * inv_h;
     return snap_to_planes(v);

@@ -29,13 +29,29 @@ layout(local_size_x = 256) in;
 #endif
 layout(std430, binding = 0) readonly buffer Verts { float verts[]; };  // world, relative to the anchor
 layout(std430, binding = 1) writeonly buffer VoxVerts { VOX_T vox[]; };
+#ifndef VOX_MOTION
+#define VOX_MOTION 0
+#endif
+#if VOX_MOTION
+// VOX_MOTION 1: how far the snap moved the vertex (largest coordinate, voxels, rounded
+// up to float32): the LDI widens its samples by what that can do (ldi/depths.frag)
+layout(std430, binding = 2) writeonly buffer Motion { float motion[]; };
+#endif
 uniform uint u_vertices;
+// exact: bit for bit glvox.gpu.transform (p * stretch - shift must not fuse)
 void main() {
     uint i = global_index_1d();
     if (i >= u_vertices) return;
     vec3 w = vec3(verts[3u * i], verts[3u * i + 1u], verts[3u * i + 2u]);
-    dvec3 p = vertex_to_voxel(w, u_origin_d, u_inv_h_d) * u_stretch_d - u_shift_d;
+    precise dvec3 p = vertex_to_voxel(w, u_origin_d, u_inv_h_d) * u_stretch_d - u_shift_d;
     vox[3u * i] = VOX_T(p[u_axes.x]);
     vox[3u * i + 1u] = VOX_T(p[u_axes.y]);
     vox[3u * i + 2u] = VOX_T(p[u_axes.z]);
+#if VOX_MOTION
+    precise dvec3 raw = (dvec3(w) - u_origin_d) * u_inv_h_d;  // vertex_to_voxel before the snap
+    precise dvec3 moved = abs(vertex_to_voxel(w, u_origin_d, u_inv_h_d) - raw);
+    double m = max(moved.x, max(moved.y, moved.z));
+    float f = float(m);
+    motion[i] = double(f) < m ? uintBitsToFloat(floatBitsToUint(f) + 1u) : f;
+#endif
 }

@@ -12,7 +12,11 @@ uniform vec3 u_origin;
 uniform float u_inv_h;
 uniform ivec3 u_dims;
 
-vec3 world_to_voxel(vec3 p) { return (p - u_origin) * u_inv_h; }
+// exact: one subtraction and one product, in this order
+vec3 world_to_voxel(vec3 p) {
+    precise vec3 v = (p - u_origin) * u_inv_h;
+    return v;
+}
 
 uint words_per_row() { return (uint(u_dims.x) + 31u) >> 5; }
 

@@ -37,23 +37,34 @@ layout(location = 0) out uvec4 o_layer;
 // Edge function of p -> q at c, evaluated from the lexicographically smaller end point and
 // negated when the edge runs the other way, so the two triangles of a shared edge get
 // exactly opposite values (as glvox.reference.solid does).
+// exact: opposite values for the two triangles of an edge (the reference's)
 double edge_function(dvec2 p, dvec2 q, dvec2 c) {
     bool swap = p.x > q.x || (p.x == q.x && p.y > q.y);
     dvec2 s = swap ? q : p;
     dvec2 t = swap ? p : q;
-    double f = (t.x - s.x) * (c.y - s.y) - (t.y - s.y) * (c.x - s.x);
+    precise double f = (t.x - s.x) * (c.y - s.y) - (t.y - s.y) * (c.x - s.x);
     return swap ? -f : f;
 }
 
 // Center c belongs to the projected triangle on the inner side of edge p -> q, with the
 // top-left rule for centers exactly on it (sgn orients the triangle counter-clockwise).
+// exact: the reference's coverage test with the top-left rule
 bool owns(dvec2 p, dvec2 q, dvec2 c, double sgn) {
-    double f = edge_function(p, q, c) * sgn;
-    dvec2 e = q - p;
-    double neu = -e.y * sgn;
-    double nev = e.x * sgn;
+    precise double f = edge_function(p, q, c) * sgn;
+    precise dvec2 e = q - p;
+    precise double neu = -e.y * sgn;
+    precise double nev = e.x * sgn;
     bool top_left = neu > 0.0 || (neu == 0.0 && nev < 0.0);
     return f > 0.0 || (f == 0.0 && top_left);
+}
+
+// exact: the crossing, in the reference's order; clamped to the triangle's extent
+// (the exact crossing lies within it; this only removes rounding)
+double crossing(dvec3 a, dvec3 b, dvec3 d, dvec2 c) {
+    precise dvec3 e0 = b - a, e1 = d - a;
+    precise dvec3 n = dvec3(e0.y * e1.z - e0.z * e1.y, e0.z * e1.x - e0.x * e1.z, e0.x * e1.y - e0.y * e1.x);
+    precise double q = a.z + (n.x * (a.x - c.x) + n.y * (a.y - c.y)) / g_na;
+    return clamp(q, min(a.z, min(b.z, d.z)), max(a.z, max(b.z, d.z)));
 }
 
 void main() {
@@ -64,11 +75,9 @@ void main() {
     if (!(owns(a.xy, b.xy, c, sgn) && owns(b.xy, d.xy, c, sgn) && owns(d.xy, a.xy, c, sgn))) {
         discard;
     }
-    dvec3 n = cross(b - a, d - a);
-    double q = a.z + (n.x * (a.x - c.x) + n.y * (a.y - c.y)) / g_na;
-    // the exact crossing lies within the triangle's extent; this only removes rounding
-    q = clamp(q, min(a.z, min(b.z, d.z)), max(a.z, max(b.z, d.z)));
-    float key = float((q - u_key_lo) * u_key_scale);
+    double q = crossing(a, b, d, c);
+    precise double kd = (q - u_key_lo) * u_key_scale;
+    float key = float(kd);
     if (u_far) key = 1.0 - key;
     if (u_peel) {
         uvec4 prev = texelFetch(u_prev, pix, 0);
@@ -76,7 +85,7 @@ void main() {
         float kp = uintBitsToFloat(prev.x);
         if (!(key > kp || (key == kp && g_id > prev.y))) discard;
     }
-    double first = floor(q + 0.5);
+    precise double first = floor(q + 0.5);
     uint slot = first >= double(u_depth_n) ? uint(u_depth_n) : uint(max(first, 0.0lf));
     gl_FragDepth = key;
     uint holder = uint(clamp(floor(q), -1.0lf, double(u_depth_n)) + 2.0lf);

@@ -40,15 +40,18 @@ void eis_triangle(uint t, out dvec3 p0, out dvec3 p1, out dvec3 p2) {
 }
 
 // The triangle's normal (cross(p1 - p0, p2 - p0)) in (u, v, a) order.
+// exact: as the reference's normal
 dvec3 eis_normal(dvec3 p0, dvec3 p1, dvec3 p2) {
-    dvec3 e0 = p1 - p0;
-    dvec3 e1 = p2 - p0;
-    return dvec3(e0.y * e1.z - e0.z * e1.y, e0.z * e1.x - e0.x * e1.z, e0.x * e1.y - e0.y * e1.x);
+    precise dvec3 e0 = p1 - p0;
+    precise dvec3 e1 = p2 - p0;
+    precise dvec3 n = dvec3(e0.y * e1.z - e0.z * e1.y, e0.z * e1.x - e0.x * e1.z, e0.x * e1.y - e0.y * e1.x);
+    return n;
 }
 
 // Edge function of p -> q at c, evaluated from the lexicographically smaller
 // end point (see the precision note above); `precise` keeps the compiler from
 // contracting it differently in two places.
+// exact: opposite values for the two triangles of an edge
 double eis_edge(dvec2 p, dvec2 q, dvec2 c) {
     bool swap = p.x > q.x || (p.x == q.x && p.y > q.y);
     dvec2 a = swap ? q : p;
@@ -61,15 +64,16 @@ double eis_edge(dvec2 p, dvec2 q, dvec2 c) {
 // orientation by the sign of the normal's a component; a center on an edge
 // counts only for a left edge (inward normal n_u > 0) or a top edge
 // (n_u == 0, n_v < 0): each center on a shared edge counts exactly once.
+// exact: the reference's coverage test
 bool eis_covers(dvec3 p0, dvec3 p1, dvec3 p2, double n_a, dvec2 c) {
     double sgn = n_a > 0.0 ? 1.0 : -1.0;
     dvec2 p[3] = dvec2[3](p0.xy, p1.xy, p2.xy);
     for (int i = 0; i < 3; ++i) {
         dvec2 s = p[i];
-        dvec2 e = p[(i + 1) % 3] - s;
-        double f = eis_edge(s, p[(i + 1) % 3], c) * sgn;
-        double nu = -e.y * sgn;
-        double nv = e.x * sgn;
+        precise dvec2 e = p[(i + 1) % 3] - s;
+        precise double f = eis_edge(s, p[(i + 1) % 3], c) * sgn;
+        precise double nu = -e.y * sgn;
+        precise double nv = e.x * sgn;
         bool top_left = nu > 0.0 || (nu == 0.0 && nv < 0.0);
         if (!(f > 0.0 || (f == 0.0 && top_left))) return false;
     }
@@ -79,8 +83,9 @@ bool eis_covers(dvec3 p0, dvec3 p1, dvec3 p2, double n_a, dvec2 c) {
 // Where the column through c crosses the triangle's plane, along a (voxel
 // units), clamped to the triangle's extent along a as the reference does
 // (it only removes rounding on nearly edge-on triangles).
+// exact: the reference's crossing formula, in its order
 double eis_crossing(dvec3 p0, dvec3 p1, dvec3 p2, dvec3 n, dvec2 c) {
-    double q = p0.z + (n.x * (p0.x - c.x) + n.y * (p0.y - c.y)) / n.z;
+    precise double q = p0.z + (n.x * (p0.x - c.x) + n.y * (p0.y - c.y)) / n.z;
     return clamp(q, min(min(p0.z, p1.z), p2.z), max(max(p0.z, p1.z), p2.z));
 }
 
@@ -89,7 +94,11 @@ double eis_crossing(dvec3 p0, dvec3 p1, dvec3 p2, dvec3 n, dvec2 c) {
 int eis_to_int(double x) { return int(clamp(x, -2.0, 1073741824.0)); }
 
 // First slice a crossing at q flips: voxel k flips iff its center k + 0.5 > q.
-int eis_first_flipped(double q) { return eis_to_int(floor(q + 0.5)); }
+// exact: one rounding-free addition
+int eis_first_flipped(double q) {
+    precise double f = floor(q + 0.5);
+    return eis_to_int(f);
+}
 
 // The slice holding the crossing point (the voxel whose [k, k+1] contains q;
 // a crossing on the face k belongs to slice k).  On the grid's far face (q = n,

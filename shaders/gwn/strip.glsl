@@ -17,10 +17,12 @@ const float GWN_PI = 3.14159265358979;
 // the lexicographically smaller end point, negated when the edge runs the
 // other way.  A strip of this edge jumps exactly where its sign changes, and
 // the owning triangle's crossing of the row starts or stops there too.
+// exact: ss/solid.glsl's edge function
 double gwn_edge(vec2 u, vec2 v, vec2 c) {
     dvec2 p = dvec2(u), q = dvec2(v);
     bool swap = p.x > q.x || (p.x == q.x && p.y > q.y);
-    double f = solid_edge_raw(swap ? q : p, swap ? p - q : q - p, dvec2(c));
+    precise dvec2 pq = p - q, qp = q - p;
+    double f = solid_edge_raw(swap ? q : p, swap ? pq : qp, dvec2(c));
     return swap ? -f : f;
 }
 

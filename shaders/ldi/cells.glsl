@@ -12,7 +12,11 @@
 uniform int u_cells;  // LOD-C
 
 // The crossing in cell units (unshifted).
-double ldi_cell_depth(double q_shifted) { return q_shifted + 0.5; }
+// exact: one addition
+double ldi_cell_depth(double q_shifted) {
+    precise double q = q_shifted + 0.5;
+    return q;
+}
 
 // The cell holding a crossing at qc cell units.
 int ldi_cell(double qc) { return int(clamp(floor(qc), 0.0, double(u_cells - 1))); }

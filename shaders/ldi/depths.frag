@@ -11,11 +11,28 @@
 // is the MAX of 1 - d (Eq. 6: entering samples sit at even layers here, counting from 0),
 // the farthest the MAX of d.  Values are rounded up to float32, so after decoding the
 // entering sample is at most and the leaving sample at least the computed crossing.
+//
+// The mesh drawn is the true one moved by at most m voxel per coordinate: u_motion for
+// the float32 upload (glvox.methods.ldi.leung_wang_passes.mesh_motion) plus the largest
+// move of the plane snap among the triangle's vertices (common/transform.comp).
+// Every true vertex lies in the box of that half-side around its drawn one, so the true
+// triangle lies in the drawn one plus that box, and the true crossing of a ray the drawn
+// triangle covers lies within  m_a + m (|n_u| + |n_v|) / |n_a|  of the drawn crossing
+// (m_a = m in cells along the ray; n of the drawn triangle in this frame), and within the
+// drawn triangle's extent along the ray grown by m_a.  The samples are moved outwards by
+// that much (entering earlier, leaving later), so the LDI encloses the true mesh's
+// intervals on every ray whose coverage the motion cannot change (Leung & Wang's claim is
+// per ray), not only the snapped mesh's; on a steep triangle a snap of 2^-11 voxel across
+// the ray moves the crossing by far more.  The cell z stays the drawn crossing's, as in T1
+// and T2.
 #include "eisemann/column.glsl"
 #include "ldi/column.glsl"
 
 uniform ivec2 u_tile_lo;
 uniform int u_layer_lo;
+uniform double u_motion;           // voxels per coordinate: the float32 upload's rounding
+layout(std430, binding = 6) readonly buffer Motion { float motion[]; };  // the snap's, per vertex
+uniform double u_cells_per_voxel;  // LOD-C / n_axis
 
 flat in uint v_tri;
 
@@ -42,9 +59,17 @@ void main() {
     bool first_here = s0 >= 0 && s0 < LDI_LAYERS;
     bool second_here = s1 >= 0 && s1 < LDI_LAYERS;
     if (!(first_here || second_here)) discard;
-    double d = clamp(qc / double(u_cells), 0.0, 1.0);
-    float near_key = ldi_round_up(1.0 - d);  // entering: the MAX of 1 - d is the nearest
-    float far_key = ldi_round_up(d);         // leaving: the MAX of d is the farthest
+    double m = u_motion + double(max(motion[eis_faces[3u * v_tri]],
+                                     max(motion[eis_faces[3u * v_tri + 1u]], motion[eis_faces[3u * v_tri + 2u]])));
+    double ma = m * u_cells_per_voxel;
+    // 2^-30 cell: far above the double rounding of the crossing and of the bound itself
+    double widen = ma + m * (abs(n.x) + abs(n.y)) / abs(n.z) + 1.0 / 1073741824.0;
+    double zlo = ldi_cell_depth(min(p0.z, min(p1.z, p2.z))) - ma;
+    double zhi = ldi_cell_depth(max(p0.z, max(p1.z, p2.z))) + ma;
+    double d_near = clamp(max(qc - widen, zlo) / double(u_cells), 0.0, 1.0);
+    double d_far = clamp(min(qc + widen, zhi) / double(u_cells), 0.0, 1.0);
+    float near_key = ldi_round_up(1.0 - d_near);  // entering: the MAX of 1 - d is the nearest
+    float far_key = ldi_round_up(d_far);          // leaving: the MAX of d is the farthest
     vec4 outv[LDI_TARGETS];
     for (int t = 0; t < LDI_TARGETS; ++t) outv[t] = vec4(0.0);
     if (first_here) outv[s0 >> 2][s0 & 3] = lv ? far_key : near_key;

@@ -31,6 +31,14 @@ vec3 vertex(uint vi) {
     return to_view(vec3(vertex_to_voxel(p, u_origin_d, u_inv_h_d)));
 }
 
+// exact: depth/raster.frag's crossing, in its order (cross() written out)
+double peel_crossing(dvec3 a, dvec3 b, dvec3 d, dvec2 c) {
+    precise dvec3 e0 = b - a, e1 = d - a;
+    precise dvec3 n = dvec3(e0.y * e1.z - e0.z * e1.y, e0.z * e1.x - e0.x * e1.z, e0.x * e1.y - e0.y * e1.x);
+    precise double q = a.z + (n.x * (a.x - c.x) + n.y * (a.y - c.y)) / n.z;
+    return clamp(q, min(a.z, min(b.z, d.z)), max(a.z, max(b.z, d.z)));
+}
+
 void main() {
     ivec2 pix = ivec2(gl_GlobalInvocationID.xy);
     ivec2 uv = pix + u_tile_origin;
@@ -42,10 +50,7 @@ void main() {
     dvec3 b = dvec3(vertex(faces[3u * t + 1u]));
     dvec3 d = dvec3(vertex(faces[3u * t + 2u]));
     dvec2 c = dvec2(uv) + 0.5;
-    dvec3 n = cross(b - a, d - a);
-    double q = a.z + (n.x * (a.x - c.x) + n.y * (a.y - c.y)) / n.z;
-    q = clamp(q, min(a.z, min(b.z, d.z)), max(a.z, max(b.z, d.z)));
-    q = clamp(q, 0.0, double(u_depth_n));
+    double q = clamp(peel_crossing(a, b, d, c), 0.0, double(u_depth_n));
     uint col = ldi_column(uv);
     float v = u_layer_index == 0 ? float(q) : max(float(q), last[col]);
     last[col] = v;

@@ -21,27 +21,30 @@ bool lex_less(vec3 p, vec3 q) {
 // Float lines (RLV, SLV)
 
 // One axis of clip_segment: narrow [t0, t1] to where p + t d lies in [lo, hi].
+// exact: the same rounding in every variant (they are nested, tests/test_scanline.py)
 void clip_axis(float p, float d, float lo, float hi, inout float t0, inout float t1, inout bool ok) {
     if (d == 0.0) {
         if (p < lo || p > hi) ok = false;
     } else {
-        float ta = (lo - p) / d;
-        float tb = (hi - p) / d;
+        precise float ta = (lo - p) / d;
+        precise float tb = (hi - p) / d;
         t0 = max(t0, min(ta, tb));
         t1 = min(t1, max(ta, tb));
     }
 }
 
 // The part of segment p-q inside the closed box [lo, hi]; false if none.
+// exact: p + t d must not fuse differently in the variants
 bool clip_segment(vec3 p, vec3 q, vec3 lo, vec3 hi, out vec3 cp, out vec3 cq) {
     float t0 = 0.0, t1 = 1.0;
     bool ok = true;
-    vec3 d = q - p;
+    precise vec3 d = q - p;
     clip_axis(p.x, d.x, lo.x, hi.x, t0, t1, ok);
     clip_axis(p.y, d.y, lo.y, hi.y, t0, t1, ok);
     clip_axis(p.z, d.z, lo.z, hi.z, t0, t1, ok);
-    cp = t0 == 0.0 ? p : p + t0 * d;
-    cq = t1 == 1.0 ? q : p + t1 * d;
+    precise vec3 c0 = p + t0 * d, c1 = p + t1 * d;
+    cp = t0 == 0.0 ? p : c0;
+    cq = t1 == 1.0 ? q : c1;
     return ok && t0 <= t1;
 }
 
@@ -131,8 +134,9 @@ FLine fline_begin(vec3 p, vec3 q, bool super_cover) {
 }
 
 // Parameters at which the line reaches its next face plane, T_NONE where it has none left.
+// exact: the order of the crossings decides the voxels of every variant alike
 vec3 fline_t(FLine l) {
-    vec3 t = vec3(T_NONE);
+    precise vec3 t = vec3(T_NONE);
     if (l.left.x > 0) t.x = (float(l.plane.x) - l.p.x) / l.v.x;
     if (l.left.y > 0) t.y = (float(l.plane.y) - l.p.y) / l.v.y;
     if (l.left.z > 0) t.z = (float(l.plane.z) - l.p.z) / l.v.z;

@@ -78,6 +78,7 @@ void float_edge(vec3 p, vec3 q) {
 
 bool key_less(float sa, int ia, float sb, int ib) { return sa < sb || (sa == sb && ia < ib); }
 
+// exact: the tunnel variants are nested only if every variant rounds alike
 void float_triangle(vec3 P0, vec3 P1, vec3 P2) {
     vec3 lo = min(P0, min(P1, P2));
     vec3 hi = max(P0, max(P1, P2));
@@ -99,8 +100,9 @@ void float_triangle(vec3 P0, vec3 P1, vec3 P2) {
     if (level_plane) ga = 1.0;
     // sweep coordinate s = g . (p - P0) of the projection; sort the vertices on (s, index)
     vec3 P[3] = vec3[3](P0, P1, P2);
-    float S[3] = float[3](0.0, ga * (P1[a] - P0[a]) + gb * (P1[b] - P0[b]),
-                          ga * (P2[a] - P0[a]) + gb * (P2[b] - P0[b]));
+    precise float S1 = ga * (P1[a] - P0[a]) + gb * (P1[b] - P0[b]);
+    precise float S2 = ga * (P2[a] - P0[a]) + gb * (P2[b] - P0[b]);
+    float S[3] = float[3](0.0, S1, S2);
     int o0 = 0, o1 = 1, o2 = 2, t;
     if (key_less(S[o1], o1, S[o0], o0)) { t = o0; o0 = o1; o1 = t; }
     if (key_less(S[o2], o2, S[o1], o1)) { t = o1; o1 = o2; o2 = t; }
@@ -114,25 +116,25 @@ void float_triangle(vec3 P0, vec3 P1, vec3 P2) {
     int kfirst = LINE_MODE == 1 ? int(ceil(wlo)) - 1 : cell1(wlo, u_dims[w]);
     int klast = LINE_MODE == 1 ? int(floor(whi)) : cell1(whi, u_dims[w]);
     int k0 = max(kfirst, 0), k1 = min(klast, u_dims[w] - 1);
-    float ds_max = (abs(ga) + abs(gb)) * SCANLINE_SLACK;  // Theorem 4.1 in s units
+    precise float ds_max = (abs(ga) + abs(gb)) * SCANLINE_SLACK;  // Theorem 4.1 in s units
     float w0 = P0[w];
     vec2 h = level_plane ? vec2(1.0, 0.0) : (nw > 0.0 ? vec2(-ga, -gb) : vec2(ga, gb));  // towards w + 1
     // s-range of the grid rectangle grown by one voxel: other levels draw nothing
     float ra0 = -1.0 - P0[a], ra1 = float(u_dims[a]) + 1.0 - P0[a];
     float rb0 = -1.0 - P0[b], rb1 = float(u_dims[b]) + 1.0 - P0[b];
-    float r_lo = min(ga * ra0, ga * ra1) + min(gb * rb0, gb * rb1);
-    float r_hi = max(ga * ra0, ga * ra1) + max(gb * rb0, gb * rb1);
-    float s_prev = level_plane ? s0 : clamp(-nw * (float(k0) - w0), s0, s2);
+    precise float r_lo = min(ga * ra0, ga * ra1) + min(gb * rb0, gb * rb1);
+    precise float r_hi = max(ga * ra0, ga * ra1) + max(gb * rb0, gb * rb1);
+    precise float s_prev = level_plane ? s0 : clamp(-nw * (float(k0) - w0), s0, s2);
     for (int k = k0; k <= k1; ++k) {
         if (!tick(3u)) break;  // 1 + the level and draw loops inside
         float s_start = level_plane ? s0 : s_prev;
-        float s_end = level_plane ? s2 : clamp(-nw * (float(k + 1) - w0), s0, s2);
+        precise float s_end = level_plane ? s2 : clamp(-nw * (float(k + 1) - w0), s0, s2);
         s_prev = s_end;
         float span = s_end - s_start;
         float N = span == 0.0 ? 0.0 : ceil(abs(span) / ds_max);
         float m_lo = 0.0, m_hi = N;
         if (N > 0.0) {
-            float u0 = (r_lo - s_start) / span * N, u1 = (r_hi - s_start) / span * N;
+            precise float u0 = (r_lo - s_start) / span * N, u1 = (r_hi - s_start) / span * N;
             m_lo = clamp(floor(min(u0, u1)) - 1.0, 0.0, N);
             m_hi = clamp(ceil(max(u0, u1)) + 1.0, 0.0, N);
         }
@@ -144,10 +146,10 @@ void float_triangle(vec3 P0, vec3 P1, vec3 P2) {
             float m = m_lo + float(i);
             bool base = m == 0.0 && below;  // the bottom copy of the base edge shared with layer k - 1
             if (base && TUNNEL == 6) continue;
-            float s = m == 0.0 ? s_start : (m == N ? s_end : s_start + span * m / N);
+            precise float s = m == 0.0 ? s_start : (m == N ? s_end : s_start + span * m / N);
             float ta = clamp((s - s0) / (s2 - s0), 0.0, 1.0);
-            vec2 A = vec2(q0[a] + ta * (q2[a] - q0[a]), q0[b] + ta * (q2[b] - q0[b]));
-            vec2 B;
+            precise vec2 A = vec2(q0[a] + ta * (q2[a] - q0[a]), q0[b] + ta * (q2[b] - q0[b]));
+            precise vec2 B;
             if (s < s1) {
                 float tb = clamp((s - s0) / (s1 - s0), 0.0, 1.0);
                 B = vec2(q0[a] + tb * (q1[a] - q0[a]), q0[b] + tb * (q1[b] - q0[b]));
@@ -162,7 +164,8 @@ void float_triangle(vec3 P0, vec3 P1, vec3 P2) {
             vec2 side = vec2(0.0);
             if (reduce) {
                 side = vec2(-(B.y - A.y), B.x - A.x);
-                if (dot(side, h) < 0.0) side = -side;
+                precise float sh = side.x * h.x + side.y * h.y;
+                if (sh < 0.0) side = -side;
             }
             float_line(p, q, reduce, a, b, side.x, side.y);
         }
@@ -184,8 +187,10 @@ ivec3 lattice(vec3 x) {
     return ivec3(lattice1(x.x, u_dims.x), lattice1(x.y, u_dims.y), lattice1(x.z, u_dims.z));
 }
 
+// exact: integers (precise for the convention's sake: no fma in ints)
 ivec3 icross(ivec3 u, ivec3 v) {
-    return ivec3(u.y * v.z - u.z * v.y, u.z * v.x - u.x * v.z, u.x * v.y - u.y * v.x);
+    precise ivec3 r = ivec3(u.y * v.z - u.z * v.y, u.z * v.x - u.x * v.z, u.x * v.y - u.y * v.x);
+    return r;
 }
 
 // A side-edge voxel chain: the ILV path p -> m, then m -> q.

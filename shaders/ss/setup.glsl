@@ -20,19 +20,25 @@ struct Tri {
 
 vec3 vox_vertex(uint i) { return vec3(vox[3u * i], vox[3u * i + 1u], vox[3u * i + 2u]); }
 
+// exact: the triangle's normal and sliver bound (Eq. 1), see common/edge.glsl
 Tri setup_triangle(uint t) {
     Tri T;
     vec3 a0 = vox_vertex(faces[3u * t]);
     vec3 a1 = vox_vertex(faces[3u * t + 1u]);
     vec3 a2 = vox_vertex(faces[3u * t + 2u]);
     // clamp before the int conversions so far-away triangles cannot overflow them
-    vec3 lim = vec3(u_dims) + 2.0;
+    precise vec3 lim = vec3(u_dims) + 2.0;
     T.base = ivec3(floor(clamp(a0, vec3(-2.0), lim)));
     vec3 b = vec3(T.base);  // subtracting an integer is exact here
-    T.v0 = a0 - b;
-    T.v1 = a1 - b;
-    T.v2 = a2 - b;
-    T.n = cross(T.v1 - T.v0, T.v2 - T.v0);
+    precise vec3 v0 = a0 - b, v1 = a1 - b, v2 = a2 - b;
+    T.v0 = v0;
+    T.v1 = v1;
+    T.v2 = v2;
+    // cross(v1 - v0, v2 - v0) written out: a built-in's inner operations are not
+    // an l-value's r-values (GLSL 4.50 Sec. 4.9)
+    precise vec3 e0 = v1 - v0, e1 = v2 - v0;
+    precise vec3 n = vec3(e0.y * e1.z - e0.z * e1.y, e0.z * e1.x - e0.x * e1.z, e0.x * e1.y - e0.y * e1.x);
+    T.n = n;
     // A sliver: in each of the three projections the signed area n_c is within what
     // moving the vertices by SS_SLIVER_EPS voxel can change (the bound of
     // glvox.reference.ties.orientation_ambiguous, with half the tie epsilon, so that
@@ -42,17 +48,17 @@ Tri setup_triangle(uint t) {
     // rounding too; such a triangle gets the projection tests alone over its bounding
     // box, as a zero-area one does.  A triangle in a coordinate plane is no sliver
     // (its normal is exact), as in the reference.
-    vec3 e0 = T.v1 - T.v0, e1 = T.v2 - T.v0;
-    vec3 bound = 2.0 * SS_SLIVER_EPS * (abs(e0.yzx) + abs(e0.zxy) + abs(e1.yzx) + abs(e1.zxy))
+    precise vec3 bound = 2.0 * SS_SLIVER_EPS * (abs(e0.yzx) + abs(e0.zxy) + abs(e1.yzx) + abs(e1.zxy))
                + 8.0 * SS_SLIVER_EPS * SS_SLIVER_EPS;
     bvec3 in_plane = bvec3(ivec3(equal(T.v0, T.v1)) * ivec3(equal(T.v1, T.v2)));
     T.no_plane = all(lessThanEqual(abs(T.n), bound)) && !any(in_plane);
     vec3 mn = clamp(min(min(a0, a1), a2), vec3(-2.0), lim);
     vec3 mx = clamp(max(max(a0, a1), a2), vec3(-2.0), lim);
     // voxel i touches [mn, mx] iff i <= mx and i + 1 >= mn
-    ivec3 first = ivec3(ceil(mn)) - 1;
+    precise ivec3 first = ivec3(ceil(mn)) - 1;
     ivec3 last = ivec3(floor(mx));
-    T.ext = last - first + 1;
+    precise ivec3 ext = last - first + 1;
+    T.ext = ext;
     T.lo = max(first, ivec3(0));
     T.hi = min(last, u_dims - 1);
     return T;
@@ -62,7 +68,7 @@ bool outside_grid(Tri T) { return any(greaterThan(T.lo, T.hi)); }
 
 // 0: 1D bounding box (one voxel thick along >= 2 axes), 1: 2D, 2: 3D (Sec. 3.2).
 int bbox_type(Tri T) {
-    int thin = int(T.ext.x == 1) + int(T.ext.y == 1) + int(T.ext.z == 1);
+    precise int thin = int(T.ext.x == 1) + int(T.ext.y == 1) + int(T.ext.z == 1);
     return thin >= 2 ? 0 : (thin == 1 ? 1 : 2);
 }
 
@@ -100,27 +106,43 @@ Proj make_proj(Tri T, int A, int B, int C) {
     return P;
 }
 
+// exact: one edge function of Eq. 3 at r, dot(n, r - p) + o, in this order
+float proj_edge(vec2 n, vec2 r, vec2 p, float o) {
+    precise vec2 d = r - p;
+    precise float f = (n.x * d.x + n.y * d.y) + o;
+    return f;
+}
+
 // Eq. 3 for the box whose projection has minimum corner q (absolute voxel indices).
+// exact: see proj_edge
 bool proj_test(Proj P, ivec2 q) {
-    vec2 r = vec2(q - P.base);
-    return dot(P.n0, r - P.p0) + P.o0 >= 0.0
-        && dot(P.n1, r - P.p1) + P.o1 >= 0.0
-        && dot(P.n2, r - P.p2) + P.o2 >= 0.0;
+    precise ivec2 rq = q - P.base;
+    vec2 r = vec2(rq);
+    return proj_edge(P.n0, r, P.p0, P.o0) >= 0.0
+        && proj_edge(P.n1, r, P.p1, P.o1) >= 0.0
+        && proj_edge(P.n2, r, P.p2, P.o2) >= 0.0;
 }
 
 // Plane overlap (Eq. 1, or Sec. 3.4's 6-separating offsets) for the box with
 // minimum corner p (absolute voxel indices).
+// exact: dot(n, p - v0) and the offsets written out, in this order
 bool plane_test(Tri T, ivec3 voxel) {
     if (T.no_plane) return true;
-    vec3 p = vec3(voxel - T.base);
+    precise ivec3 pv = voxel - T.base;
+    vec3 p = vec3(pv);
 #if SS_CRITERION == 1
-    float s = dot(T.n, p + 0.5 - T.v0);
+    precise vec3 d = p + 0.5 - T.v0;
+    precise float s = T.n.x * d.x + T.n.y * d.y + T.n.z * d.z;
     vec3 a = abs(T.n);
-    return abs(s) <= 0.5 * max(a.x, max(a.y, a.z));
+    precise float lim = 0.5 * max(a.x, max(a.y, a.z));
+    return abs(s) <= lim;
 #else
-    float s = dot(T.n, p - T.v0);
+    precise vec3 d = p - T.v0;
+    precise float s = T.n.x * d.x + T.n.y * d.y + T.n.z * d.z;
     vec3 pos = max(T.n, vec3(0.0));
     vec3 neg = min(T.n, vec3(0.0));
-    return s + (pos.x + pos.y + pos.z) >= 0.0 && s + (neg.x + neg.y + neg.z) <= 0.0;
+    precise float hi = s + (pos.x + pos.y + pos.z);
+    precise float lo = s + (neg.x + neg.y + neg.z);
+    return hi >= 0.0 && lo <= 0.0;
 #endif
 }

@@ -39,9 +39,13 @@ struct SolidTri {
 
 // Set up t from the voxel-space vertices; false when the triangle is parallel
 // to x (zero projected area, including zero-area triangles): it flips nothing.
+// exact: the normal and the edges, bit for bit glvox/reference/solid.py
 bool solid_setup(vec3 p0, vec3 p1, vec3 p2, out SolidTri t) {
     dvec3 q0 = dvec3(p0), q1 = dvec3(p1), q2 = dvec3(p2);
-    t.n = cross(q1 - q0, q2 - q1);
+    // cross(q1 - q0, q2 - q1) written out (a built-in is not covered by precise)
+    precise dvec3 ea = q1 - q0, eb = q2 - q1;
+    precise dvec3 n = dvec3(ea.y * eb.z - ea.z * eb.y, ea.z * eb.x - ea.x * eb.z, ea.x * eb.y - ea.y * eb.x);
+    t.n = n;
     t.v0 = q0;
     t.lo = min(min(p0.yz, p1.yz), p2.yz);
     t.hi = max(max(p0.yz, p1.yz), p2.yz);
@@ -52,13 +56,14 @@ bool solid_setup(vec3 p0, vec3 p1, vec3 p2, out SolidTri t) {
     dvec2 v[3] = dvec2[3](q0.yz, q1.yz, q2.yz);
     for (int i = 0; i < 3; ++i) {
         dvec2 p = v[i], q = v[(i + 1) % 3];
-        dvec2 e = q - p;
+        precise dvec2 e = q - p;
         // inward edge normal (-e_z, e_y) * sgn; only its signs matter
-        double nu = -e.y * sgn, nv = e.x * sgn;
+        precise double nu = -e.y * sgn, nv = e.x * sgn;
         t.tl[i] = nu > 0.0lf || (nu == 0.0lf && nv < 0.0lf);
         bool swap = p.x > q.x || (p.x == q.x && p.y > q.y);
         t.a[i] = swap ? q : p;
-        t.d[i] = swap ? p - q : q - p;
+        precise dvec2 pq = p - q, qp = q - p;
+        t.d[i] = swap ? pq : qp;
         t.s[i] = swap ? -sgn : sgn;
     }
     return true;
@@ -76,13 +81,19 @@ ivec4 solid_columns(SolidTri t, ivec3 dims) {
 // point) along d, at c.  gwn-solid's strips (shaders/gwn/strip.glsl) call it
 // too, so that they change sign on exactly the rows where a triangle's
 // crossing starts or stops.
+// exact: bit for bit glvox/reference/solid.py; opposite for the two triangles of an edge
 double solid_edge_raw(dvec2 a, dvec2 d, dvec2 c) {
-    dvec2 r = c - a;
-    return d.x * r.y - d.y * r.x;
+    precise dvec2 r = c - a;
+    precise double f = d.x * r.y - d.y * r.x;
+    return f;
 }
 
 // Edge function i at c, oriented so that the inside is positive.
-double solid_edge(SolidTri t, int i, dvec2 c) { return solid_edge_raw(t.a[i], t.d[i], c) * t.s[i]; }
+// exact: a product by +-1
+double solid_edge(SolidTri t, int i, dvec2 c) {
+    precise double f = solid_edge_raw(t.a[i], t.d[i], c) * t.s[i];
+    return f;
+}
 
 // Does the column center c = (y, z) lie in t's projection (top-left rule)?
 bool solid_covers(SolidTri t, vec2 c) {
@@ -110,12 +121,14 @@ bool solid_may_cover(SolidTri t, vec2 c0, vec2 c1) {
 
 // The first voxel along x that the crossing at the covered center c flips:
 // floor(q + 1/2); below 0 flips the whole column, at or past dims.x nothing.
+// exact: the crossing, as the reference computes it
 int solid_first_flip(SolidTri t, vec2 c) {
     dvec2 p = dvec2(c);
-    double q = t.v0.x + (t.n.y * (t.v0.y - p.x) + t.n.z * (t.v0.z - p.y)) / t.n.x;
+    precise double q = t.v0.x + (t.n.y * (t.v0.y - p.x) + t.n.z * (t.v0.z - p.y)) / t.n.x;
     // the exact crossing lies within the triangle's x extent; clamping only
     // removes rounding on nearly edge-on triangles (as the reference does)
     q = clamp(q, double(t.xlo), double(t.xhi));
     // far-away triangles (explicit bounds) must not overflow the int
-    return int(clamp(floor(q + 0.5lf), -1.0lf, 1073741824.0lf));
+    precise double first = floor(q + 0.5lf);
+    return int(clamp(first, -1.0lf, 1073741824.0lf));
 }

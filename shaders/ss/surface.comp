@@ -69,16 +69,22 @@ void voxelize_2d(Tri T, uint q0, uint q1) {
 // geometry on a power-of-two grid) the comparisons decide exactly, so a plane that
 // passes exactly through a voxel face or between two centers is not lost to the
 // rounding of a / b (issue 20: it dropped touched voxels of slanted triangles).
+// exact: the comparisons decide exactly
 int ceil_div(float a, float b) {
     int m = int(ceil(a / b));
-    if (float(m - 1) * b >= a) return m - 1;
-    return float(m) * b < a ? m + 1 : m;
+    precise float below = float(m - 1) * b;
+    if (below >= a) return m - 1;
+    precise float at = float(m) * b;
+    return at < a ? m + 1 : m;
 }
 
+// exact: the comparisons decide exactly
 int floor_div(float a, float b) {
     int m = int(floor(a / b));
-    if (float(m + 1) * b <= a) return m + 1;
-    return float(m) * b > a ? m - 1 : m;
+    precise float above = float(m + 1) * b;
+    if (above <= a) return m + 1;
+    precise float at = float(m) * b;
+    return at > a ? m - 1 : m;
 }
 
 // Columns along the dominant axis w of n (3D boxes, and every 6-sep triangle).
@@ -87,12 +93,13 @@ int floor_div(float a, float b) {
 // column center projected onto the plane picks the voxel (two on a face).
 // The plane's w is a / |n_w| with a the products below (no division before
 // the comparisons of ceil_div / floor_div).
+// exact: the plane's w range
 void voxelize_columns(Tri T, uint q0, uint q1) {
     int w = dominant_axis(T.n);
     int u = (w + 1) % 3, v = (w + 2) % 3;
     Proj Pw = make_proj(T, u, v, w), Pu = make_proj(T, v, w, u), Pv = make_proj(T, w, u, v);
     float sw = T.n[w] >= 0.0 ? 1.0 : -1.0, b = abs(T.n[w]);
-    float gu = -sw * T.n[u], gv = -sw * T.n[v];  // a's change per unit step in u and v
+    precise float gu = -sw * T.n[u], gv = -sw * T.n[v];  // a's change per unit step in u and v
     uint su = uint(T.hi[u] - T.lo[u] + 1);
     int iu = T.lo[u] + int(q0 % su), iv = T.lo[v] + int(q0 / su);
     for (uint q = q0; q < q1; ++q) {
@@ -100,15 +107,18 @@ void voxelize_columns(Tri T, uint q0, uint q1) {
             // in the triangle's local frame (relative to T.base)
             float lu = float(iu - T.base[u]), lv = float(iv - T.base[v]);
 #if SS_CRITERION == 1
-            float a = b * T.v0[w] + gu * (lu + 0.5 - T.v0[u]) + gv * (lv + 0.5 - T.v0[v]);
+            precise float a = b * T.v0[w] + gu * (lu + 0.5 - T.v0[u]) + gv * (lv + 0.5 - T.v0[v]);
             int f = floor_div(a, b);
-            int k1 = f + T.base[w], k0 = float(f) * b == a ? k1 - 1 : k1;
+            precise float fb = float(f) * b;
+            int k1 = f + T.base[w], k0 = fb == a ? k1 - 1 : k1;
             bool single = false;
 #else
             // the plane's w range over the closed column cell [iu, iu+1] x [iv, iv+1]
-            float a = b * T.v0[w] + gu * (lu - T.v0[u]) + gv * (lv - T.v0[v]);
-            int k0 = ceil_div(a + min(gu, 0.0) + min(gv, 0.0), b) - 1 + T.base[w];
-            int k1 = floor_div(a + max(gu, 0.0) + max(gv, 0.0), b) + T.base[w];
+            precise float a = b * T.v0[w] + gu * (lu - T.v0[u]) + gv * (lv - T.v0[v]);
+            precise float alo = a + min(gu, 0.0) + min(gv, 0.0);
+            precise float ahi = a + max(gu, 0.0) + max(gv, 0.0);
+            int k0 = ceil_div(alo, b) - 1 + T.base[w];
+            int k1 = floor_div(ahi, b) + T.base[w];
             bool single = k0 == k1;  // unclipped: the one voxel is surely overlapped
 #endif
             for (int k = max(k0, T.lo[w]); k <= min(k1, T.hi[w]); ++k) {

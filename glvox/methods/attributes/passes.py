@@ -38,7 +38,7 @@ import numpy as np
 from ...errors import MethodError
 from ...gl.shaders import compute_program
 from ...gpu.buffers import buffer_pool, check_buffer_size, object_cache
-from ...gpu.dispatch import barrier, dispatch_1d, grid_uniforms, set_uniforms
+from ...gpu.dispatch import barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
 from ...gpu.sort import exclusive_scan
 from ...gpu.transform import transform_vertices
 from ...reference.attributes import index_attribute
@@ -141,7 +141,7 @@ def _face_buffers(ctx, mesh, vertex_normals: bool):
 
 
 def _rank(ctx, spec, grid, count, pool, timer):
-    """Stage ``attr_rank``: each word's first slot (binding 9), by row counts, a scan
+    """Stage ``attr_rank``: each word's first slot (block Offsets), by row counts, a scan
     over the rows and the rows' words (``attributes/rank.comp``)."""
     rows = spec.dims[1] * spec.dims[2]
     offsets = pool.get("attr_offsets", spec.n_words * 4, what="the set voxels' ranks", clear=False)
@@ -149,17 +149,13 @@ def _rank(ctx, spec, grid, count, pool, timer):
     prog = compute_program(ctx, "attributes/rank.comp")
     set_uniforms(prog, {"u_rows": rows, "u_total": count, "u_dims": tuple(int(d) for d in spec.dims)})
     with timer.stage("attr_rank"):
-        grid.bind_to_storage_buffer(3)
-        offsets.bind_to_storage_buffer(9)
-        row_count.bind_to_storage_buffer(10)
+        bind(prog, Grid=grid, Offsets=offsets, Rows=row_count)
         set_uniforms(prog, {"u_mode": 0})
         dispatch_1d(ctx, prog, rows, 64)
         barrier(ctx)
         exclusive_scan(ctx, row_count, row_count, rows)
         barrier(ctx)
-        grid.bind_to_storage_buffer(3)  # the scan may have bound its own buffers
-        offsets.bind_to_storage_buffer(9)
-        row_count.bind_to_storage_buffer(10)
+        bind(prog, Grid=grid, Offsets=offsets, Rows=row_count)  # the scan bound its own buffers
         set_uniforms(prog, {"u_mode": 1})
         dispatch_1d(ctx, prog, rows, 64)
         barrier(ctx)
@@ -167,8 +163,8 @@ def _rank(ctx, spec, grid, count, pool, timer):
 
 
 def _pairs(ctx, mesh, spec, grid, offsets, count, pool, timer):
-    """Stage ``attr_pairs``: the source triangle of every slot (binding 11) and its
-    voxel (binding 12), through ss-conservative's variant ``auto`` picks."""
+    """Stage ``attr_pairs``: the source triangle of every slot (block BestTri) and its
+    voxel (block SlotVoxel), through ss-conservative's variant ``auto`` picks."""
     n = mesh.n_triangles
     max_groups = int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])
     variant = auto_variant(n, spec.dims, max_groups)
@@ -187,25 +183,27 @@ def _pairs(ctx, mesh, spec, grid, offsets, count, pool, timer):
     defines = surface_defines(0, variant)
     common = {**grid_uniforms(spec, bufs.anchor), "u_triangles": n, "u_tri_offset": 0,
               "u_local_size": LOCAL_SIZE, "u_max_groups": max_groups}
-    own = ((9, offsets), (10, best_dist), (11, best_tri), (12, slot_voxel))
-    for binding, buf in ((1, vox), (2, bufs.faces), (3, grid), (4, stats), (5, per_tri), (7, keys), (8, args), *own):
-        buf.bind_to_storage_buffer(binding)
     classify = compute_program(ctx, "ss/classify.comp", defines)
     set_uniforms(classify, common)
     with timer.stage("attr_classify"):
+        bind(classify, VoxVerts=vox, Faces=bufs.faces, Stats=stats, TriChunks=per_tri, Keys=keys)
         dispatch_1d(ctx, classify, n, LOCAL_SIZE)
         barrier(ctx)
+    # ss/surface.comp's blocks with SS_ATTR_PASS defined (attributes/pair.glsl instead of its writes)
+    blocks = {"VoxVerts": vox, "Faces": bufs.faces, "Grid": grid, "Offsets": offsets, "BestDist": best_dist,
+              "BestTri": best_tri, "SlotVoxel": slot_voxel}
     if variant == "sorted":
-        sort_by_case(ctx, timer, pool, n, (stats, per_tri, keys, args), max_groups, prefix="attr_")
+        ranges = sort_by_case(ctx, timer, pool, n, (stats, per_tri, keys, args), max_groups, prefix="attr_")
+        blocks.update(SortedTris=per_tri, Ranges=ranges)
+    else:
+        blocks.update(TriChunks=per_tri)
     for p in (1, 2):
-        for binding, buf in own:  # the sort binds buffers of its own
-            buf.bind_to_storage_buffer(binding)
         pass_defines = {**defines, "SS_ATTR_PASS": p}
         if variant == "sorted":
-            voxelize_sorted(ctx, timer, pass_defines, common, (vox, bufs.faces, grid, per_tri, args),
-                            stage=f"attr_pairs{p}")
+            voxelize_sorted(ctx, timer, pass_defines, common, blocks, args, stage=f"attr_pairs{p}")
         else:
-            voxelize_unsorted(ctx, timer, n, pass_defines, common, args, max_groups, stage=f"attr_pairs{p}")
+            voxelize_unsorted(ctx, timer, n, pass_defines, common, blocks, stats, args, max_groups,
+                              stage=f"attr_pairs{p}")
     return bufs, vox, best_tri, slot_voxel
 
 
@@ -219,9 +217,8 @@ def _evaluate(ctx, mesh, spec, buffers, count, pool, timer, want_color, normals)
     set_uniforms(prog, {"u_slots": count, "u_color": want_color,
                         "u_normal": normals is not None, "u_vertex_normals": normals == "vertex",
                         "u_tex": 0, "u_factor": (1.0, 1.0, 1.0, 1.0)})
-    for binding, buf in ((1, vox), (2, bufs.faces), (11, best_tri), (12, slot_voxel), (7, face[0]),
-                         (13, face[1]), (14, face[2]), (15, face[3]), (5, color), (6, normal)):
-        buf.bind_to_storage_buffer(binding)
+    bind(prog, VoxVerts=vox, Faces=bufs.faces, BestTri=best_tri, SlotVoxel=slot_voxel, FaceInfo=face[0],
+         CornerUV=face[1], CornerColor=face[2], Normals=face[3], OutColor=color, OutNormal=normal)
     textures = mesh.visuals.textures if (want_color and mesh.visuals is not None) else []
     used = sorted(set(np.unique(mesh.visuals.texture[mesh.visuals.color_source == COLOR_TEXTURE]).tolist())
                   if textures else ())
@@ -274,8 +271,6 @@ def _flood(ctx, spec, grid, offsets, best_tri, count, pool, timer):
     seed_slot = pool.get("attr_seed_slot", count * 4, what="the jump flood's seeds", clear=False)
     prog = compute_program(ctx, "attributes/flood.comp")
     set_uniforms(prog, {**grid_uniforms(spec, np.zeros(3)), "u_words": spec.n_words})
-    for binding, buf in ((3, grid), (9, offsets), (11, best_tri), (14, seed_slot)):
-        buf.bind_to_storage_buffer(binding)
     steps = []
     step = 1 << max(int(max(spec.dims)) - 1, 1).bit_length()
     while step > 1:
@@ -285,8 +280,8 @@ def _flood(ctx, spec, grid, offsets, best_tri, count, pool, timer):
     with timer.stage("attr_fill"):
         cur = 0
         for mode, step in [(0, 0)] + [(1, s) for s in steps] + [(2, 0)]:
-            seeds[cur].bind_to_storage_buffer(12)
-            seeds[1 - cur].bind_to_storage_buffer(13)
+            bind(prog, Grid=grid, Offsets=offsets, BestTri=best_tri, SeedSlot=seed_slot,
+                 SeedIn=seeds[cur], SeedOut=seeds[1 - cur])
             set_uniforms(prog, {"u_mode": mode, "u_step": step})
             dispatch_1d(ctx, prog, spec.n_words, 64)
             barrier(ctx)

@@ -35,13 +35,13 @@ import numpy as np
 
 from ...gl.shaders import compute_program
 from ...gpu.buffers import buffer_pool, mesh_buffers, read_grid_words
-from ...gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set_uniforms
+from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
 from ...grid import GridSpec
 from ...reference.carve import close_window
 from ...results.voxels import VoxelGrid
 from ..base import Method, MethodInfo, Requirements, register
 from ..reference.registered import CLOSE_OPTION, check_close
-from ..ss.surface import surface_on_gpu
+from ..ss.surface import COMPUTE as SURFACE_COMPUTE, surface_on_gpu
 
 _LOCAL = 64  # local_size_x of the carve shaders
 
@@ -65,8 +65,8 @@ SIMPLE_MAX_DIM = 512
 #: this only guards against a broken flag.
 MAX_ROUNDS = 10_000
 
-_REQUIRES = Requirements(gl_version=430, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 9,
-                                                 "GL_MAX_COMPUTE_WORK_GROUP_SIZE": 256})
+_REQUIRES = Requirements(gl_version=430, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 9},
+                         compute=(("carve/*.comp", {}),) + SURFACE_COMPUTE)
 
 
 def surface_slices(spec, bufs) -> tuple[int, int]:
@@ -110,8 +110,7 @@ def close_on_gpu(ctx, spec, timer, pool, surface, k: int) -> None:
         set_uniforms(p, {**grid_uniforms(spec, np.zeros(3)), "u_margin": hi})
     uniforms = {**grid_uniforms(pspec, np.zeros(3)), "u_lo": lo, "u_hi": hi}
     with timer.stage("close"):
-        surface.bind_to_storage_buffer(0)
-        a.bind_to_storage_buffer(1)
+        bind(pad[0], Grid=surface, Padded=a)
         dispatch_1d(ctx, pad[0], pspec.n_words, _LOCAL)
         barrier(ctx)
         src, dst = a, b
@@ -119,13 +118,11 @@ def close_on_gpu(ctx, spec, timer, pool, surface, k: int) -> None:
             for axis in range(3):
                 prog = compute_program(ctx, "carve/close.comp", {"AXIS": axis, "ERODE": erode})
                 set_uniforms(prog, uniforms)
-                src.bind_to_storage_buffer(0)
-                dst.bind_to_storage_buffer(1)
+                bind(prog, Src=src, Dst=dst)
                 dispatch_1d(ctx, prog, pspec.n_words, _LOCAL)
                 barrier(ctx)
                 src, dst = dst, src
-        surface.bind_to_storage_buffer(0)
-        src.bind_to_storage_buffer(1)
+        bind(pad[1], Grid=surface, Padded=src)
         dispatch_1d(ctx, pad[1], spec.n_words, _LOCAL)
         barrier(ctx)
 
@@ -148,11 +145,8 @@ def flood_on_gpu(ctx, spec, timer, pool, blocker, ext) -> int:
     flags = pool.get("flags", 4)
     rounds = 0
     with timer.stage("flood"):
-        blocker.bind_to_storage_buffer(0)
-        ext.bind_to_storage_buffer(1)
-        flags.bind_to_storage_buffer(2)
-        for b, buf in enumerate(clean):
-            buf.bind_to_storage_buffer(3 + b)
+        blocks = {"BlockerV": blocker, "ExteriorV": ext, "Flags": flags,
+                  "CleanX": clean[0], "CleanY": clean[1], "CleanZ": clean[2]}
         while True:
             rounds += 1
             if rounds > MAX_ROUNDS:
@@ -160,6 +154,7 @@ def flood_on_gpu(ctx, spec, timer, pool, blocker, ext) -> int:
             flags.write(zero)
             set_uniforms(progs[0], {"u_seed": rounds == 1})
             for axis in range(3):
+                bind(progs[axis], **blocks)
                 dispatch_1d(ctx, progs[axis], work[axis], _LOCAL)
                 barrier(ctx)
             # y and z added nothing: the exterior is closed under every axis
@@ -196,8 +191,7 @@ class CarveSolid(Method):
         set_uniforms(finish, {**grid_uniforms(spec, np.zeros(3)), "u_first_word": k0 * per_slice,
                               "u_words": nk * per_slice})
         with timer.stage("finish"):
-            ext.bind_to_storage_buffer(1)
-            count.bind_to_storage_buffer(2)
+            bind(finish, Exterior=ext, Count=count)
             dispatch_1d(ctx, finish, nk * per_slice, _LOCAL)
             barrier(ctx)
         with timer.stage("readback", gpu=False):

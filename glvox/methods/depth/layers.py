@@ -75,7 +75,7 @@ import numpy as np
 
 from ...gl.shaders import compute_program
 from ...gpu.buffers import buffer_pool, mesh_buffers, read_grid_words
-from ...gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set_uniforms
+from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
 from ...results.voxels import VoxelGrid
 from ..base import Method, MethodInfo, Option, Requirements, register
 from .raster import DepthTarget, RasterPass, depth_target, peel_behind, stencil_layers, tile_origins, tile_side
@@ -94,7 +94,8 @@ assert SCAN_SEGMENT + 64 < LOOP_BUDGET
 
 _AXES = ("xyz", "xy", "xz", "yz", "x", "y", "z")
 _AXIS_NAMES = "xyz"
-_REQUIRES = Requirements(gl_version=450, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 6})
+_REQUIRES = Requirements(gl_version=450, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 6},
+                         compute=(("depth/*.comp", {}),))
 _OPTIONS = {
     "axes": Option("xyz", "directions of projection (the paper uses all three)", _AXES),
     "tile": Option(0, "largest render-target side in pixels; larger views are drawn in tiles "
@@ -212,7 +213,7 @@ class _DepthLayers(Method):
         the ``n_axis``-th of ``n_axes`` directions (the last one's combine counts the result,
         but passalis-stencil's, which :meth:`_finish` finishes and counts)."""
         set_uniforms(scan, {"u_axis": axis})
-        grids.flips.bind_to_storage_buffer(0)
+        bind(scan, Flips=grids.flips)
         wpr = spec.words_per_row
         nx, ny, nz = spec.dims
         if axis == 0:
@@ -230,13 +231,9 @@ class _DepthLayers(Method):
         set_uniforms(combine, {"u_axis": axis, "u_mode": (2 if stencil else 0) + (0 if n_axis == 0 else 1),
                                "u_last": not stencil and n_axis == n_axes - 1})
         acc = grids.acc
-        for i, buf in enumerate(acc):
-            buf.bind_to_storage_buffer(1 + i)
-        # unused bindings of the non-stencil modes still need a buffer bound
-        for i in range(len(acc), 3):
-            acc[0].bind_to_storage_buffer(1 + i)
-        grids.crowded.bind_to_storage_buffer(4)
-        grids.count.bind_to_storage_buffer(5)
+        # Acc0..Acc2; the blocks the non-stencil modes leave unused still need a buffer bound
+        accs = {f"Acc{i}": acc[i] if i < len(acc) else acc[0] for i in range(3)}
+        bind(combine, Flips=grids.flips, **accs, Crowded=grids.crowded, Count=grids.count)
         dispatch_1d(ctx, combine, spec.n_words, 256)
         barrier(ctx)
 
@@ -245,9 +242,7 @@ class _DepthLayers(Method):
         """passalis-stencil: the per-direction verdicts into the result and the unclassifiable voxels."""
         prog = compute_program(ctx, "depth/finish.comp")
         set_uniforms(prog, uniforms)
-        for i, buf in enumerate(grids.acc):
-            buf.bind_to_storage_buffer(1 + i)
-        grids.count.bind_to_storage_buffer(5)
+        bind(prog, **{f"Acc{i}": buf for i, buf in enumerate(grids.acc)}, Count=grids.count)
         dispatch_1d(ctx, prog, spec.n_words, 256)
         barrier(ctx)
 
@@ -273,9 +268,7 @@ class _Run(RasterPass):
         target.layers[dedupe if dedupe is not None else layer].use(1)
         target.stencil.use(2)
         set_uniforms(self.record, {"u_use_dedupe": dedupe is not None, "u_stencil_mode": stencil})
-        grids.flips.bind_to_storage_buffer(0)
-        grids.stats.bind_to_storage_buffer(1)
-        grids.crowded.bind_to_storage_buffer(2)
+        bind(self.record, Flips=grids.flips, Stats=grids.stats, Crowded=grids.crowded)
         if stencil == 1:
             grids.stats.clear(size=4)
         self.record.run((size[0] + 7) // 8, (size[1] + 7) // 8, 1)

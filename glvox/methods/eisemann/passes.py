@@ -22,7 +22,7 @@ import numpy as np
 from ...errors import CapabilityError, LimitError, MethodError
 from ...gl.shaders import compute_program, render_program
 from ...gpu.buffers import buffer_pool, object_cache, release_object_cache
-from ...gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set_uniforms
+from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
 from ...gpu.transform import transform_vertices
 
 #: Render targets per pass (RGBA32UI, 128 slices each): 8 x 128 = 1024 slices.
@@ -274,10 +274,9 @@ class _OnGrid:
     n_triangles: int
     anchor: Any     # (3,) float64, the uploaded vertices' origin
 
-    def bind(self) -> None:
-        self.vox.bind_to_storage_buffer(0)
-        self.faces.bind_to_storage_buffer(1)
-        self.setup.bind_to_storage_buffer(3)
+    def bind(self, prog) -> None:
+        """Bind the mesh's buffers to ``prog``'s blocks ``EisVox``, ``EisFaces``, ``EisSetups``."""
+        bind(prog, EisVox=self.vox, EisFaces=self.faces, EisSetups=self.setup)
 
 
 @dataclass(eq=False)
@@ -306,7 +305,7 @@ def _prepare(ctx, mesh, spec, render: SliceRender, pool, timer) -> _OnGrid:
     set_uniforms(prog, {"u_triangles": n_tri, "u_dims": tuple(spec.dims)})
     on_grid = _OnGrid(vox, bufs.faces, per_tri, n_tri, bufs.anchor)
     with timer.stage("setup"):
-        on_grid.bind()
+        on_grid.bind(prog)
         dispatch_1d(ctx, prog, n_tri, _LOCAL)
         barrier(ctx)
     return on_grid
@@ -334,7 +333,7 @@ def _draw_pass(ctx, render: SliceRender, pp: _PassPrograms, on_grid: _OnGrid, ti
     pp.fbo.use()
     pp.clear_vao.render(moderngl.TRIANGLES, vertices=3)
     set_uniforms(pp.draw, tile)
-    on_grid.bind()
+    on_grid.bind(pp.draw)
     if pp.table is not None:
         pp.table.use(_MASK_UNIT)
     with ctx.logic_op(render.op):
@@ -344,12 +343,11 @@ def _draw_pass(ctx, render: SliceRender, pp: _PassPrograms, on_grid: _OnGrid, ti
 def _pack_pass(ctx, render: SliceRender, pp: _PassPrograms, tg: _Targets, used: int, grid, count,
                tile: dict) -> None:
     """The pass's targets into the packed grid: a copy along x, 32x32 bit transposes along y and z;
-    the set bits stored are added to ``count`` (binding 3, the setup's in the draws)."""
+    the set bits stored are added to ``count``."""
     tw, th = tile["u_tile_size"]
     for t in range(used):
         tg.textures[t].bind_to_image(t, read=True, write=False)
-    grid.bind_to_storage_buffer(2)
-    count.bind_to_storage_buffer(3)
+    bind(pp.pack, Grid=grid, Count=count)
     if render.axis == 0:
         count = used * tw * th
         words_x = 0

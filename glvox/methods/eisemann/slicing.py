@@ -68,6 +68,7 @@ import numpy as np
 
 from ...gpu.buffers import read_grid_words
 from ...results.voxels import VoxelGrid
+from ...gpu.transform import SHADERS as TRANSFORM_SHADERS
 from ..base import Method, MethodInfo, Option, Requirements, register
 from .passes import COVERAGES, DEFAULT_MASKS, MASKS, TARGETS, SliceRender, release_targets, render_slice_masks
 
@@ -76,7 +77,7 @@ _PAPER_2008 = ("Eisemann & Decoret 2008 (Leung & Wang 2013 Sec. III-A, Alg. 1 li
 _PAPER_2006 = "Eisemann & Decoret 2006 (the OR variant; Schwarz & Seidel 2010 Sec. 2)"
 _REQUIRES = Requirements(gl_version=450, limits={
     "GL_MAX_DRAW_BUFFERS": TARGETS, "GL_MAX_COLOR_ATTACHMENTS": TARGETS,
-    "GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 4})
+    "GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 4}, compute=(("eisemann/*.comp", {}),) + TRANSFORM_SHADERS)
 
 
 class _Eisemann(Method):

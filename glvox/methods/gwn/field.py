@@ -45,19 +45,20 @@ from ...errors import LimitError, MethodError
 from ...gl.shaders import compute_program
 from ...gl.timing import StageTimer
 from ...gpu.buffers import buffer_pool, mesh_buffers, read_grid_words
-from ...gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set_uniforms
+from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
 from ...gpu.transform import transform_vertices
 from ...results.voxels import VoxelGrid
 from ...tolerances import WINDING_TIE
 from ..base import Method, MethodInfo, Option, Requirements, register
 from .tree import ClusterTree, boundary_loops, build_tree
-from ..ss.solid import COLUMN_CHUNK, crossing_passes, mesh_rows
+from ..ss.solid import COMPUTE as SOLID_COMPUTE, COLUMN_CHUNK, crossing_passes, mesh_rows
 from ..carve.sweep import surface_slices
-from ..ss.surface import surface_on_gpu
+from ..ss.surface import COMPUTE as SURFACE_COMPUTE, surface_on_gpu
 
 _LOCAL = 64  # local_size_x of the gwn shaders
 _REQUIRES = Requirements(gl_version=430, extensions=("GL_ARB_gpu_shader_fp64",),
-                         limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 12})
+                         limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 12},
+                         compute=(("gwn/*.comp", {}),) + SOLID_COMPUTE + SURFACE_COMPUTE)
 
 #: vec4 per row segment: a segment is 4 * SEGV voxels, a whole 32-bit word,
 #: so each invocation of the field pass writes its word alone.
@@ -195,9 +196,7 @@ class GwnSolid(Method):
         per_slice = spec.dims[1] * spec.words_per_row
         prog = compute_program(ctx, "gwn/shell.comp")
         set_uniforms(prog, {"u_first_word": k0 * per_slice, "u_words": nk * per_slice})
-        surface.bind_to_storage_buffer(0)
-        bits.bind_to_storage_buffer(7)
-        count.bind_to_storage_buffer(8)
+        bind(prog, Surface=surface, Bits=bits, Count=count)
         dispatch_1d(ctx, prog, nk * per_slice, 64)
         barrier(ctx)
 
@@ -257,9 +256,7 @@ class _Run:
             prog = compute_program(ctx, "gwn/rows.comp", {"EDGES": int(self.tree is not None),
                                                           "WINDING": int(self.winding)})
             set_uniforms(prog, {**common, "u_rows": box})
-            cells.bind_to_storage_buffer(3)
-            self.bits.bind_to_storage_buffer(7)
-            self.count.bind_to_storage_buffer(8)
+            bind(prog, Cells=cells, Bits=self.bits, Count=self.count)
             dispatch_1d(ctx, prog, box[1] * box[3], _LOCAL)
             barrier(ctx)
         if self.tree is not None:
@@ -278,7 +275,8 @@ class _Run:
         for prog in (first, rest):
             set_uniforms(prog, {**common, "u_triangles": n})
         with self.timer.stage("crossings"):
-            crossing_passes(ctx, (first, rest), n, self.max_groups, (self.vox, self.bufs.faces, cells, big, args))
+            crossing_passes(ctx, (first, rest), n, self.max_groups,
+                            {"VoxVerts": self.vox, "Faces": self.bufs.faces, "Counts": cells}, big, args)
 
     def _field(self, cells, common, s0, s1, rows):
         ctx, spec, pool, t = self.ctx, self.spec, self.pool, self.gpu_tree
@@ -313,7 +311,7 @@ class _Run:
             if edges > REFINE_EDGES else None
         with self.timer.stage("refine"):
             prog = compute_program(ctx, "gwn/refine.comp", defines)
-            self._bind(cells, sums, listed)
+            bind(prog, **self._blocks(cells, listed), **({"Sums": sums} if sums is not None else {}))
             for e0 in range(0, edges, REFINE_EDGES):
                 e1 = min(edges, e0 + REFINE_EDGES)
                 set_uniforms(prog, {**uni, "u_edges": (e0, e1), "u_first": e0 == 0, "u_last": e1 == edges,
@@ -329,7 +327,9 @@ class _Run:
         ctx = self.ctx
         out = self.pool.get("refine", n * 8, what="segments left undecided", clear=False)
         prog = compute_program(ctx, "gwn/field.comp", defines)
-        self._bind(cells, acc, out)
+        t = self.gpu_tree
+        bind(prog, **self._blocks(cells, out), Nodes=t["nodes"], Links=t["links"], Roots=t["roots"],
+             **({"Acc": acc} if acc is not None else {}))
         start = 0
         for i, chunk in enumerate(self.chunks):
             set_uniforms(prog, {**uni, "u_roots": (start, start + len(chunk)), "u_first": i == 0,
@@ -341,16 +341,7 @@ class _Run:
         self.count.write(np.zeros(1, "<u4").tobytes(), offset=4)
         return out, n_out
 
-    def _bind(self, cells, acc, refine):
-        t = self.gpu_tree
-        self.vox.bind_to_storage_buffer(1)
-        cells.bind_to_storage_buffer(3)
-        if acc is not None:
-            acc.bind_to_storage_buffer(4)
-        t["edges"].bind_to_storage_buffer(5)
-        t["nodes"].bind_to_storage_buffer(6)
-        self.bits.bind_to_storage_buffer(7)
-        self.count.bind_to_storage_buffer(8)
-        t["links"].bind_to_storage_buffer(9)
-        t["roots"].bind_to_storage_buffer(10)
-        refine.bind_to_storage_buffer(11)
+    def _blocks(self, cells, refine) -> dict:
+        """The buffers ``gwn/field.comp`` and ``gwn/refine.comp`` share, by block name."""
+        return {"VoxVerts": self.vox, "Cells": cells, "Edges": self.gpu_tree["edges"], "Bits": self.bits,
+                "Count": self.count, "Refine": refine}

@@ -72,9 +72,10 @@ import numpy as np
 from ...errors import GridError, MethodError
 from ...gl.shaders import compute_program
 from ...gpu.buffers import buffer_pool
-from ...gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, set_uniforms
+from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, set_uniforms
 from ...grid import GridSpec, fit_grid
 from ...results.ldi import LDI
+from ...gpu.transform import SHADERS as TRANSFORM_SHADERS
 from ..base import Method, MethodInfo, Option, Requirements, register
 from ..envelope import run_in_envelope
 from .common import AXIS_OPTION, warn_open
@@ -95,7 +96,9 @@ assert MAX_LOD_C // 32 < LOOP_BUDGET // 4
 _LOCAL = 64  # local_size_x of ldi/intersect.comp
 _REQUIRES = Requirements(gl_version=450, limits={
     "GL_MAX_DRAW_BUFFERS": TARGETS, "GL_MAX_COLOR_ATTACHMENTS": TARGETS,
-    "GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 12})
+    "GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 12},
+    compute=tuple((f"ldi/{name}.comp", {}) for name in ("intersect", "count", "masks_store", "store"))
+    + (("eisemann/setup.comp", {}),) + TRANSFORM_SHADERS)
 _TILE = Option(0, "largest render-target side in pixels; larger views are drawn in tiles (0: the context's "
                   "limits); any side >= 1 (the passes store whole rays)")
 
@@ -202,10 +205,7 @@ def _combine(ctx, frame: Frame, m: dict, timer) -> None:
     n_words = frame.n_rays * frame.words
     set_uniforms(prog, {"u_words": frame.words, "u_cells": frame.cells, "u_invocations": n_words})
     with timer.stage("combine"):
-        m["t1"].bind_to_storage_buffer(0)
-        m["t2"].bind_to_storage_buffer(1)
-        for i, n in enumerate(("t1_a", "t2_a", "t1_b", "t2_b")):
-            m[n].bind_to_storage_buffer(8 + i)
+        bind(prog, OutT1=m["t1"], OutT2=m["t2"], A1=m["t1_a"], A2=m["t2_a"], B1=m["t1_b"], B2=m["t2_b"])
         dispatch_1d(ctx, prog, n_words, _LOCAL)
         barrier(ctx)
 

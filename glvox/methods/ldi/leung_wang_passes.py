@@ -25,8 +25,8 @@ import numpy as np
 from ...errors import CapabilityError, MethodError
 from ...gl import raw as rawgl
 from ...gl.shaders import compute_program, render_program
-from ...gpu.buffers import check_buffer_size, object_cache, release_object_cache
-from ...gpu.dispatch import barrier, dispatch_1d, set_uniforms
+from ...gpu.buffers import check_buffer_size, mesh_buffers, object_cache, release_object_cache
+from ...gpu.dispatch import barrier, bind, dispatch_1d, set_uniforms
 from ...gpu.transform import transform_vertices
 from ..eisemann import passes as eisemann_passes
 from .common import Rays, read_chunks
@@ -188,11 +188,30 @@ class OnGrid:
     bufs: Any
     vox: Any
     setup: Any
+    motion: float = 0.0  # voxels, per coordinate: :func:`mesh_motion`
+    snap_motion: Any = None  # float32 per vertex: the snap's move (common/transform.comp)
 
-    def bind(self) -> None:
-        self.vox.bind_to_storage_buffer(0)
-        self.bufs.faces.bind_to_storage_buffer(1)
-        self.setup.bind_to_storage_buffer(3)
+    def bind(self, prog, motion: bool = False) -> None:
+        """Bind the mesh's buffers to ``prog``'s blocks ``EisVox``, ``EisFaces``, ``EisSetups``;
+        ``motion``: the snap's per-vertex motion to ``Motion`` too (Phase 2's depths widen by it)."""
+        bind(prog, EisVox=self.vox, EisFaces=self.bufs.faces, EisSetups=self.setup)
+        if motion and self.snap_motion is not None:
+            bind(prog, Motion=self.snap_motion)
+
+
+def mesh_motion(mesh, spec) -> float:
+    """How far the float32 upload can move the mesh the GPU sees, per coordinate, in voxels.
+
+    The upload relative to the anchor rounds a coordinate by at most 2^-24 of its distance
+    from the anchor (half an ulp, doubled for safety).  The plane snap
+    (:func:`glvox.grid.snap_to_planes`) then moves a vertex by up to ``SNAP_EPS`` more;
+    ``common/transform.comp`` measures that per vertex.  Phase 2 widens every sample by
+    what the sum can do to its crossing (``ldi/depths.frag``), so the LDI encloses the true
+    mesh's intervals, not only those of the snapped one.  An upper bound for tests:
+    this plus ``SNAP_EPS``.
+    """
+    reach = float(np.abs(mesh.vertices - mesh.anchor).max()) if len(mesh.vertices) else 0.0
+    return 2.0 ** -24 * reach / float(spec.voxel_size)
 
 
 def prepare(ctx, mesh, frame: Frame, pool, tag: str, timer, suffix: str = "") -> OnGrid:
@@ -204,20 +223,20 @@ def prepare(ctx, mesh, frame: Frame, pool, tag: str, timer, suffix: str = "") ->
     stretch[a] = frame.cells / frame.n_a
     shift = [0.0] * 3
     shift[a] = 0.5
+    snap_motion = pool.get(f"snap_motion_{tag}", max(mesh_buffers(ctx, mesh).n_vertices, 1) * 4,
+                           what="the snap's move per vertex", clear=False)
     bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool, double=True, stretch=stretch, shift=shift,
-                                   name=f"vox_{tag}", stage=f"transform{suffix}")
+                                   name=f"vox_{tag}", stage=f"transform{suffix}", motion=snap_motion)
     setup = pool.get(f"setup_{tag}", bufs.n_triangles * 48, what="per-triangle setup", clear=False)
     prog = compute_program(ctx, "eisemann/setup.comp", {"EIS_AXIS": a, "EIS_OP": 0, "EIS_COVERAGE": 0})
     dims = list(spec.dims)
     dims[a] = frame.cells
     set_uniforms(prog, {"u_triangles": bufs.n_triangles, "u_dims": tuple(dims)})
     with timer.stage(f"setup{suffix}"):
-        vox.bind_to_storage_buffer(0)
-        bufs.faces.bind_to_storage_buffer(1)
-        setup.bind_to_storage_buffer(3)
+        bind(prog, EisVox=vox, EisFaces=bufs.faces, EisSetups=setup)
         dispatch_1d(ctx, prog, bufs.n_triangles, _LOCAL)
         barrier(ctx)
-    return OnGrid(bufs, vox, setup)
+    return OnGrid(bufs, vox, setup, mesh_motion(mesh, spec), snap_motion)
 
 
 def _draw_defines(frame: Frame, n_targets: int, **extra) -> dict[str, Any]:
@@ -263,15 +282,15 @@ def render_mask(ctx, frame: Frame, mesh: OnGrid, op: str, out, t1, timer, stage:
                         _clear_targets(ctx, tg, n_targets, "u4")
                         tg.fbo.viewport = (0, 0, tw, th)
                         set_uniforms(prog, tile)
-                        mesh.bind()
+                        mesh.bind(prog)
                         if t1 is not None:
-                            t1.bind_to_storage_buffer(4)
+                            bind(prog, LdiT1=t1)
                         with ctx.logic_op(op):
                             vao.render(moderngl.TRIANGLES, vertices=3 * n_tri)
                     with timer.stage(f"{stage}_store"):
                         for t, tex in enumerate(tg.textures):
                             tex.bind_to_image(t, read=True, write=False)
-                        out.bind_to_storage_buffer(2)
+                        bind(store, Masks=out)
                         count = tw * th
                         set_uniforms(store, {**tile, "u_invocations": count})
                         dispatch_1d(ctx, store, count, _LOCAL)
@@ -294,10 +313,7 @@ def count_samples(ctx, frame: Frame, t1, t2, counts, stats_buf, timer) -> tuple[
     prog = compute_program(ctx, "ldi/count.comp", {"EIS_AXIS": frame.axis})
     set_uniforms(prog, frame.column_uniforms())
     with timer.stage("count"):
-        t1.bind_to_storage_buffer(4)
-        t2.bind_to_storage_buffer(5)
-        counts.bind_to_storage_buffer(6)
-        stats_buf.bind_to_storage_buffer(7)
+        bind(prog, LdiT1=t1, LdiT2=t2, Counts=counts, Stats=stats_buf)
         dispatch_1d(ctx, prog, frame.n_rays, _LOCAL)
         barrier(ctx)
         n_max, samples = (int(x) for x in np.frombuffer(stats_buf.read(size=8), dtype="<u4"))
@@ -353,18 +369,16 @@ def phase2(ctx, frame: Frame, meshes: list[OnGrid], t1, t2, counts, n_max: int, 
                         _clear_targets(ctx, tg, n_targets, "f4")
                         tg.fbo.viewport = (0, 0, tw, th)
                         set_uniforms(prog, tile)
-                        t1.bind_to_storage_buffer(4)
-                        t2.bind_to_storage_buffer(5)
+                        bind(prog, LdiT1=t1, LdiT2=t2)
                         for m in meshes:
-                            m.bind()
+                            m.bind(prog, motion=True)
+                            set_uniforms(prog, {"u_motion": m.motion, "u_cells_per_voxel": frame.cells / frame.n_a})
                             vao.render(moderngl.TRIANGLES, vertices=3 * m.bufs.n_triangles)
                             stats["draws"] += 1
                     with timer.stage("store"):
                         for t, tex in enumerate(tg.textures):
                             tex.bind_to_image(t, read=True, write=False)
-                        t1.bind_to_storage_buffer(4)
-                        counts.bind_to_storage_buffer(6)
-                        bufs[chunk].bind_to_storage_buffer(2)
+                        bind(store, LdiT1=t1, LdiT2=t2, Counts=counts, Depths=bufs[chunk])
                         count = tw * th
                         set_uniforms(store, {**tile, "u_chunk_lo": chunks[chunk][0],
                                              "u_chunk_layers": chunks[chunk][1], "u_invocations": count})
@@ -381,6 +395,11 @@ def read_result(frame: Frame, chunks: list, counts, n_max: int, timer) -> tuple[
     """Stage ``readback``: the depths (n_p, n_q, n_max) float32 and counts (n_p, n_q) int32."""
     with timer.stage("readback", gpu=False):
         depths = read_chunks(chunks, frame.n_rays, n_max, frame.out_shape())
+        # samples widened by the mesh's motion (ldi/depths.frag) can pass those of a
+        # neighbouring cell; the running maximum keeps them sorted and the union of the
+        # intervals unchanged (an entering sample raised to the leaving one before it)
+        valid = ~np.isnan(depths)
+        depths = np.where(valid, np.fmax.accumulate(depths, axis=2), np.float32(np.nan)).astype(np.float32)
         cnt = np.frombuffer(counts.read(size=frame.n_rays * 4), dtype="<u4").reshape(frame.out_shape())
     return depths, cnt.astype(np.int32)
 

@@ -23,7 +23,7 @@ import numpy as np
 from ...errors import MethodError
 from ...gl.shaders import compute_program
 from ...gpu.buffers import buffer_pool, check_buffer_size, mesh_buffers
-from ...gpu.dispatch import barrier, dispatch_1d, grid_uniforms, set_uniforms
+from ...gpu.dispatch import barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
 from ...gpu.transform import SNAP_DEFINES
 from ...results.ldi import LDI
 from ..base import Method, MethodInfo, Option, Requirements, register
@@ -94,7 +94,7 @@ class _Peeling:
         run.draw(target, 0, count="restart")
         self.stats.clear(size=4)
         target.stencil.use(0)
-        self.stats.bind_to_storage_buffer(7)
+        bind(self.count_prog, Stats=self.stats)
         self.count_prog.run(*self.groups)
         barrier(self.ctx)
         return int(np.frombuffer(self.stats.read(size=4), dtype="<u4")[0])
@@ -105,11 +105,8 @@ class _Peeling:
         chunks = self.chunks
         c = chunks.ensure(index)
         target.layers[layer_tex].use(0)
-        self.bufs.vertices.bind_to_storage_buffer(0)
-        self.bufs.faces.bind_to_storage_buffer(1)
-        chunks.bufs[c].bind_to_storage_buffer(2)
-        self.last.bind_to_storage_buffer(3)
-        self.counts.bind_to_storage_buffer(6)
+        bind(self.record, Verts=self.bufs.vertices, Faces=self.bufs.faces, Depths=chunks.bufs[c], Last=self.last,
+             Counts=self.counts)
         set_uniforms(self.record, {"u_tile_origin": origin, "u_layer_index": index,
                                    "u_chunk_lo": chunks.ranges[c][0], "u_chunk_layers": chunks.layers})
         self.record.run(*self.groups)
@@ -145,11 +142,10 @@ class _Peeling:
         if layers:
             chunks.ensure(room - 1)
         prog = compute_program(self.ctx, "ldi/peel_finish.comp", {"EIS_AXIS": rays.axis})
-        self.counts.bind_to_storage_buffer(6)
         for c, (c0, n) in enumerate(chunks.ranges):
             if c0 >= room:
                 break
-            chunks.bufs[c].bind_to_storage_buffer(2)
+            bind(prog, Depths=chunks.bufs[c], Counts=self.counts)
             set_uniforms(prog, {"u_grid_uv": (rays.n_u, rays.n_v), "u_chunk_lo": c0, "u_chunk_layers": n,
                                 "u_layers": room, "u_depth_n": rays.n_a, "u_invocations": rays.n_rays * n})
             dispatch_1d(self.ctx, prog, rays.n_rays * n, _LOCAL)
@@ -218,7 +214,8 @@ class PeelLDI(Method):
               "Leung & Wang 2013, Sec. II and Table II)",
         summary="exact LDI by depth peeling: one raster pass per layer, every crossing in depth order",
         reference="reference-solid", exact=True,
-        requires=Requirements(gl_version=450, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 8}),
+        requires=Requirements(gl_version=450, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 8},
+                              compute=(("ldi/peel_*.comp", {}),)),
         options={
             "axis": AXIS_OPTION,
             "tile": Option(0, "largest render-target side in pixels; larger views are drawn in tiles "

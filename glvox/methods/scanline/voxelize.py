@@ -52,8 +52,8 @@ import numpy as np
 from ...errors import LimitError
 from ...gl.shaders import compute_program
 from ...gpu.buffers import buffer_pool, mesh_buffers, read_grid_words
-from ...gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set_uniforms
-from ...gpu.transform import SNAP_DEFINES, gpu_vertices_voxel
+from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
+from ...gpu.transform import SHADERS as TRANSFORM_SHADERS, SNAP_DEFINES, gpu_vertices_voxel
 from ...reference.scanline import (ILV_BOUNDARY_SNAP, ILV_COORD_LIMIT, RLV_BOUNDARY_SNAP, SCANLINE_SLACK,
                                   TUNNELS)
 from ...results.voxels import VoxelGrid
@@ -62,7 +62,8 @@ from ..base import Method, MethodInfo, Option, Requirements, register
 _PAPER = "Zhang et al. 2018"
 _LOCAL = 64
 _MODES = {"rlv": 0, "slv": 1, "ilv": 2}
-_REQUIRES = Requirements(gl_version=450, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 5})
+_REQUIRES = Requirements(gl_version=450, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 5},
+                         compute=(("scanline/voxelize.comp", {"LOCAL_SIZE": _LOCAL}),) + TRANSFORM_SHADERS)
 
 #: Loop iterations kept back from LOOP_BUDGET per SIMD batch: the shader
 #: charges the entries of its outermost loops and its final partial loop
@@ -126,11 +127,8 @@ class _Scanline(Method):
             uniforms = {**grid_uniforms(spec, bufs.anchor), "u_count": n, "u_budget": main_budget}
             set_uniforms(prog, uniforms)
         with timer.stage("voxelize"):
-            bufs.vertices.bind_to_storage_buffer(0)
-            bufs.faces.bind_to_storage_buffer(1)
-            grid.bind_to_storage_buffer(2)
-            out.bind_to_storage_buffer(3)
-            out.bind_to_storage_buffer(4)  # bound, never read in this pass
+            # Items is never read in this pass, but a block the shader declares gets a buffer
+            bind(prog, Vertices=bufs.vertices, Faces=bufs.faces, Grid=grid, Out=out, Items=out)
             dispatch_1d(ctx, prog, n, _LOCAL)
             barrier(ctx)
         n_over, refused = (int(x) for x in np.frombuffer(out.read(size=8), dtype="<u4"))
@@ -162,11 +160,7 @@ class _Scanline(Method):
         prog = self._program(ctx, tunnel, 1)
         base = {**grid_uniforms(spec, bufs.anchor), "u_budget": budget}
         set_uniforms(prog, {**base, "u_count": m})
-        grid.bind_to_storage_buffer(2)
-        meas.bind_to_storage_buffer(3)
-        item_buf.bind_to_storage_buffer(4)
-        bufs.vertices.bind_to_storage_buffer(0)
-        bufs.faces.bind_to_storage_buffer(1)
+        bind(prog, Vertices=bufs.vertices, Faces=bufs.faces, Grid=grid, Out=meas, Items=item_buf)
         dispatch_1d(ctx, prog, m, 1)
         barrier(ctx)
         res = np.frombuffer(meas.read(size=12 * m), dtype="<u4").reshape(m, 3).astype(np.int64)
@@ -193,9 +187,7 @@ class _Scanline(Method):
         flag = pool.get("abort", 4, what="the abort counter")
         prog = self._program(ctx, tunnel, 2)
         set_uniforms(prog, {**base, "u_count": len(items)})
-        flag.bind_to_storage_buffer(3)
-        item_buf.bind_to_storage_buffer(4)
-        grid.bind_to_storage_buffer(2)
+        bind(prog, Vertices=bufs.vertices, Faces=bufs.faces, Grid=grid, Out=flag, Items=item_buf)
         dispatch_1d(ctx, prog, len(items), 1)
         barrier(ctx)
         if int(np.frombuffer(flag.read(size=4), dtype="<u4")[0]):

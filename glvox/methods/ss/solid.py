@@ -57,9 +57,9 @@ import numpy as np
 from ...errors import LimitError
 from ...gl.shaders import compute_program
 from ...gpu.buffers import buffer_pool, read_grid_words
-from ...gpu.sort import exclusive_scan, sort_pairs
-from ...gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set_uniforms
-from ...gpu.transform import transform_vertices
+from ...gpu.sort import SHADERS as SORT_SHADERS, exclusive_scan, sort_pairs
+from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
+from ...gpu.transform import SHADERS as TRANSFORM_SHADERS, transform_vertices
 from ...grid import GridSpec
 from ...results.voxels import VoxelGrid
 from ..base import Method, MethodInfo, Requirements, register
@@ -67,8 +67,6 @@ from .solid_tuning import fill_defines, fill_rows, voxelize_faces
 
 _PAPER = "Schwarz & Seidel 2010"
 _LOCAL = 64  # local_size_x of ss/solid_classify.comp, ss/solid.comp, ss/tile_pairs.comp
-_REQUIRES = Requirements(gl_version=430, extensions=("GL_ARB_gpu_shader_fp64",),
-                         limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 9})
 
 #: Tile edge in columns (Sec. 4.2: 4 x 4 voxel columns per tile).
 TILE = 4
@@ -140,8 +138,7 @@ def _indirect_chunks(ctx, pool, n, stats, max_groups):
     dargs = compute_program(ctx, "ss/dispatch_args.comp")
     set_uniforms(dargs, {"u_sorted": False, "u_groups_x": -(-n // _LOCAL), "u_max_groups": max_groups,
                          "u_local_size": _LOCAL})
-    stats.bind_to_storage_buffer(4)
-    args.bind_to_storage_buffer(8)
+    bind(dargs, Stats=stats, Args=args)
     dargs.run(1, 1, 1)
     barrier(ctx)
     return args
@@ -165,10 +162,7 @@ def _classify(ctx, spec, timer, bufs, vox, pool, unit, chunk):
     prog = compute_program(ctx, "ss/solid_classify.comp", {"SOLID_UNIT": unit, "SOLID_CHUNK": chunk})
     set_uniforms(prog, {**grid_uniforms(spec, bufs.anchor), "u_triangles": n})
     with timer.stage("classify"):
-        vox.bind_to_storage_buffer(1)
-        bufs.faces.bind_to_storage_buffer(2)
-        stats.bind_to_storage_buffer(4)
-        tri_chunks.bind_to_storage_buffer(5)
+        bind(prog, VoxVerts=vox, Faces=bufs.faces, Stats=stats, TriChunks=tri_chunks)
         dispatch_1d(ctx, prog, n, _LOCAL)
         barrier(ctx)
     return stats, tri_chunks
@@ -176,6 +170,13 @@ def _classify(ctx, spec, timer, bufs, vox, pool, unit, chunk):
 
 #: Defines of the tiled passes.
 _TILE_DEFINES = {"TILE": TILE, "SOLID_CHUNK": TILE_CHUNK}
+#: The compute shaders the solid passes compile (what a method reusing them adds
+#: to its requirements).
+COMPUTE = tuple((f"ss/{name}.comp", {}) for name in (
+    "dispatch_args", "solid", "solid_big_args", "solid_classify", "solid_fill", "solid_fill_axis",
+    "tile_compact", "tile_pairs")) + (("ss/tile_process.comp", _TILE_DEFINES),) + SORT_SHADERS + TRANSFORM_SHADERS
+_REQUIRES = Requirements(gl_version=430, extensions=("GL_ARB_gpu_shader_fp64",),
+                         limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 9}, compute=COMPUTE)
 
 
 def _tile_pairs(ctx, pool, bufs, vox, tri_chunks, stats, common, max_groups):
@@ -188,10 +189,7 @@ def _tile_pairs(ctx, pool, bufs, vox, tri_chunks, stats, common, max_groups):
     total = pool.get("total", 4, clear=False)
     count = compute_program(ctx, "ss/tile_pairs.comp", {**_TILE_DEFINES, "EMIT": 0})
     set_uniforms(count, common)
-    vox.bind_to_storage_buffer(1)
-    bufs.faces.bind_to_storage_buffer(2)
-    tri_chunks.bind_to_storage_buffer(5)
-    counts.bind_to_storage_buffer(6)
+    bind(count, VoxVerts=vox, Faces=bufs.faces, TriChunks=tri_chunks, Counts=counts)
     count.run_indirect(args)
     barrier(ctx)
     exclusive_scan(ctx, counts, counts, n, total=total)
@@ -202,12 +200,7 @@ def _tile_pairs(ctx, pool, bufs, vox, tri_chunks, stats, common, max_groups):
     values = pool.get("values", n_pairs * 4, what=f"{n_pairs} tile triangles", clear=False)
     emit = compute_program(ctx, "ss/tile_pairs.comp", {**_TILE_DEFINES, "EMIT": 1})
     set_uniforms(emit, common)
-    vox.bind_to_storage_buffer(1)
-    bufs.faces.bind_to_storage_buffer(2)
-    tri_chunks.bind_to_storage_buffer(5)
-    counts.bind_to_storage_buffer(6)
-    keys.bind_to_storage_buffer(7)
-    values.bind_to_storage_buffer(8)
+    bind(emit, VoxVerts=vox, Faces=bufs.faces, TriChunks=tri_chunks, Counts=counts, Keys=keys, Values=values)
     emit.run_indirect(args)
     barrier(ctx)
     return keys, values, n_pairs
@@ -227,11 +220,7 @@ def _compact_tiles(ctx, pool, keys, n_pairs):
             barrier(ctx)
         prog = compute_program(ctx, "ss/tile_compact.comp", {"PHASE": phase})
         set_uniforms(prog, {"u_pairs": n_pairs})
-        keys.bind_to_storage_buffer(0)
-        flags.bind_to_storage_buffer(1)
-        slots.bind_to_storage_buffer(2)
-        active.bind_to_storage_buffer(3)
-        tstats.bind_to_storage_buffer(4)
+        bind(prog, Keys=keys, Flags=flags, Slots=slots, Active=active, Stats=tstats)
         # phase 2 runs over active tiles, of which there are at most as many as pairs
         dispatch_1d(ctx, prog, n_pairs, 256)
         barrier(ctx)
@@ -263,28 +252,26 @@ AXIS_SEGMENT = 16384
 assert AXIS_SEGMENT < LOOP_BUDGET
 
 
-def crossing_passes(ctx, progs, n: int, max_groups: int, buffers) -> None:
+def crossing_passes(ctx, progs, n: int, max_groups: int, blocks, big, args) -> None:
     """The two passes of a per-triangle crossing kernel (``ss/solid.comp``,
     ``gwn/events.comp``): ``first`` runs every triangle's first chunk of columns
     and lists the triangles with more in ``big``; ``ss/solid_big_args.comp``
     sizes the indirect dispatch of ``rest``, which runs their remaining chunks.
 
-    ``buffers``: (voxel-space vertices, faces, target, big, args), bound at 1, 2,
-    3, 4 and 8; both kernels have ``local_size_x`` = :data:`_LOCAL`.
+    ``blocks``: the kernels' buffers by storage block name (``Big`` among them:
+    the ``big`` list); ``args``: the indirect arguments.  Both kernels have
+    ``local_size_x`` = :data:`_LOCAL`.
     """
     first, rest = progs
-    vox, faces, target, big, args = buffers
     big_args = compute_program(ctx, "ss/solid_big_args.comp")
     set_uniforms(big_args, {"u_local_size": _LOCAL, "u_max_groups": max_groups})
-    vox.bind_to_storage_buffer(1)
-    faces.bind_to_storage_buffer(2)
-    target.bind_to_storage_buffer(3)
-    big.bind_to_storage_buffer(4)
+    bind(first, **blocks, Big=big)
     dispatch_1d(ctx, first, n, _LOCAL)
     barrier(ctx)
-    args.bind_to_storage_buffer(8)
+    bind(big_args, Big=big, Args=args)
     big_args.run(1, 1, 1)
     barrier(ctx)
+    bind(rest, **blocks, Big=big)
     rest.run_indirect(args)
     barrier(ctx)
 
@@ -339,7 +326,8 @@ def parity_on_gpu(ctx, mesh, spec, timer, pool, *, axis: int = 0, tag: str = "")
     args = pool.get("args" + tag, 3 * 4, clear=False)
     faces = voxelize_faces(ctx, mesh, spec, bufs)
     with timer.stage("voxelize" + tag):
-        crossing_passes(ctx, (first, rest), n, max_groups, (vox, faces, grid, big, args))
+        crossing_passes(ctx, (first, rest), n, max_groups, {"VoxVerts": vox, "Faces": faces, "Crossings": grid},
+                        big, args)
     rows = mesh_rows(spec, bufs, 0)
     with timer.stage("fill" + tag):
         _fill(ctx, spec, grid, count, rows, axis)
@@ -351,19 +339,19 @@ def _fill(ctx, spec, grid, count, rows, axis: int) -> None:
     rows of ``rows`` (x, counted into ``count``), or of every y or z column."""
     wpr = spec.words_per_row
     vec = 4 if wpr % 4 == 0 else 2 if wpr % 2 == 0 else 1
-    grid.bind_to_storage_buffer(3)
     if axis == 0:
         defines = fill_defines(ctx, wpr)
         per = fill_rows(defines, wpr, rows[2] * rows[3], _LOCAL)
         fill = compute_program(ctx, "ss/solid_fill.comp", defines)
         set_uniforms(fill, {**grid_uniforms(spec, np.zeros(3)), "u_rows": rows, "u_rows_per": per})
-        count.bind_to_storage_buffer(5)
+        bind(fill, Grid=grid, Count=count)
         dispatch_1d(ctx, fill, -(-rows[2] * rows[3] // per), _LOCAL)
         barrier(ctx)
         return
     fill = compute_program(ctx, "ss/solid_fill_axis.comp", {"AXIS": axis, "VEC": vec, "SEGMENT": AXIS_SEGMENT})
     set_uniforms(fill, grid_uniforms(spec, np.zeros(3)))
     lines = wpr // vec * spec.dims[3 - axis]  # columns along y: (words, z); along z: (words, y)
+    bind(fill, Grid=grid)
     for seg in range(-(-spec.dims[axis] // AXIS_SEGMENT)):
         set_uniforms(fill, {"u_segment": seg})
         dispatch_1d(ctx, fill, lines, _LOCAL)
@@ -433,13 +421,8 @@ class SSSolidTiled(Method):
         with timer.stage("tiles"):
             proc = compute_program(ctx, "ss/tile_process.comp", {**_TILE_DEFINES, "TILE_TRIANGLES": TILE_TRIANGLES})
             set_uniforms(proc, {**common, "u_pairs": n_pairs})
-            vox.bind_to_storage_buffer(1)
-            bufs.faces.bind_to_storage_buffer(2)
-            grid.bind_to_storage_buffer(3)
-            tstats.bind_to_storage_buffer(4)
-            count.bind_to_storage_buffer(5)
-            active.bind_to_storage_buffer(6)
-            values.bind_to_storage_buffer(8)
+            bind(proc, VoxVerts=vox, Faces=bufs.faces, Grid=grid, Stats=tstats, Count=count, Active=active,
+                 Values=values)
             gx = min(active_tiles, max_groups)
             for p in range(passes):
                 set_uniforms(proc, {"u_pass": p})

@@ -30,9 +30,9 @@ import numpy as np
 from ...errors import LimitError
 from ...gl.shaders import compute_program
 from ...gpu.buffers import buffer_pool, read_grid_words
-from ...gpu.sort import sort_pairs
-from ...gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set_uniforms
-from ...gpu.transform import transform_vertices
+from ...gpu.sort import SHADERS as SORT_SHADERS, sort_pairs
+from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
+from ...gpu.transform import SHADERS as TRANSFORM_SHADERS, transform_vertices
 from ...results.voxels import VoxelGrid
 from ...tolerances import SLIVER_EPS
 from ..base import Method, MethodInfo, Option, Requirements, register
@@ -57,8 +57,11 @@ VARIANTS = {"simple": 0, "specialized": 1, "sorted": 2}
 #: stanford_armadillo_libigl_86k.obj -r 256 512 1024 --check-max 0 --against
 #: b7fd10f --repeat 15``).
 WORK_BITS = 12
-_REQUIRES = Requirements(gl_version=430, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 7,
-                                                 "GL_MAX_COMPUTE_WORK_GROUP_SIZE": 256})
+#: The compute shaders the surface compiles (what a method reusing
+#: :func:`surface_on_gpu` adds to its requirements).
+COMPUTE = tuple((f"ss/{name}.comp", {}) for name in ("classify", "dispatch_args", "ranges", "surface")) \
+    + SORT_SHADERS + TRANSFORM_SHADERS
+_REQUIRES = Requirements(gl_version=430, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 7}, compute=COMPUTE)
 
 #: ``ss-conservative``'s variant ``auto`` (the default) runs ``simple`` where a
 #: grid face has at most 1 / AUTO_SIMPLE_DENSITY voxels per triangle
@@ -144,33 +147,32 @@ def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int
     defines = surface_defines(criterion, variant)
     common = {**grid_uniforms(spec, bufs.anchor), "u_triangles": n, "u_tri_offset": 0,
               "u_local_size": LOCAL_SIZE, "u_max_groups": max_groups}
-    vox.bind_to_storage_buffer(1)
-    bufs.faces.bind_to_storage_buffer(2)
-    grid.bind_to_storage_buffer(3)
-    stats.bind_to_storage_buffer(4)
-    per_tri.bind_to_storage_buffer(5)
-    args.bind_to_storage_buffer(8)
     keys = None
     if variant == "sorted":
         keys = pool.get("keys", n * 4, what="sort keys", clear=False)
-        keys.bind_to_storage_buffer(7)
     classify = compute_program(ctx, "ss/classify.comp", defines)
     set_uniforms(classify, common)
     with timer.stage("classify"):
+        bind(classify, VoxVerts=vox, Faces=bufs.faces, Stats=stats, TriChunks=per_tri)
+        if keys is not None:
+            bind(classify, Keys=keys)
         dispatch_1d(ctx, classify, n, LOCAL_SIZE)
         barrier(ctx)
+    blocks = {"VoxVerts": vox, "Faces": bufs.faces, "Grid": grid, "Stats": stats}
     if variant != "sorted":
-        voxelize_unsorted(ctx, timer, n, defines, common, args, max_groups)
+        voxelize_unsorted(ctx, timer, n, defines, common, {**blocks, "TriChunks": per_tri}, stats, args, max_groups)
     else:
-        _voxelize_sorted(ctx, timer, pool, n, defines, common, (vox, bufs.faces, grid, stats, per_tri, keys, args),
-                         max_groups)
+        ranges = sort_by_case(ctx, timer, pool, n, (stats, per_tri, keys, args), max_groups)
+        voxelize_sorted(ctx, timer, defines, common, {**blocks, "SortedTris": per_tri, "Ranges": ranges}, args)
     return grid, stats
 
 
-def voxelize_unsorted(ctx, timer, n, defines, common, args, max_groups, stage: str = "voxelize"):
+def voxelize_unsorted(ctx, timer, n, defines, common, blocks, stats, args, max_groups, stage: str = "voxelize"):
     """Stage ``voxelize`` (or ``stage``) of the simple and specialized variants: indirect
     dispatches over the triangles, at most GL_MAX_COMPUTE_WORK_GROUP_COUNT groups each
-    (the attribute passes run them too, with ``SS_ATTR_PASS`` defined)."""
+    (the attribute passes run them too, with ``SS_ATTR_PASS`` defined).  ``blocks``:
+    ``ss/surface.comp``'s buffers by block name; ``stats`` and ``args``: the classify
+    pass's counts and the indirect arguments."""
     dargs = compute_program(ctx, "ss/dispatch_args.comp")
     prog = compute_program(ctx, "ss/surface.comp", defines)
     set_uniforms(prog, common)
@@ -180,28 +182,22 @@ def voxelize_unsorted(ctx, timer, n, defines, common, args, max_groups, stage: s
             count = min(batch, n - offset)
             set_uniforms(dargs, {"u_sorted": False, "u_groups_x": -(-count // LOCAL_SIZE),
                                  "u_max_groups": max_groups, "u_local_size": LOCAL_SIZE})
+            bind(dargs, Stats=stats, Args=args)
             dargs.run(1, 1, 1)
             barrier(ctx)
             set_uniforms(prog, {"u_tri_offset": offset})
+            bind(prog, **blocks)
             prog.run_indirect(args)
             barrier(ctx)
 
 
-def _voxelize_sorted(ctx, timer, pool, n, defines, common, buffers, max_groups):
-    """Stages ``sort``, ``ranges`` and ``voxelize`` of the sorted variant: triangles
-    sorted by case, one indirect dispatch per bounding-box type."""
-    vox, faces, grid, stats, per_tri, keys, args = buffers
-    sort_by_case(ctx, timer, pool, n, (stats, per_tri, keys, args), max_groups)
-    voxelize_sorted(ctx, timer, defines, common, (vox, faces, grid, per_tri, args))
-
-
-def sort_by_case(ctx, timer, pool, n, buffers, max_groups, prefix: str = "") -> None:
+def sort_by_case(ctx, timer, pool, n, buffers, max_groups, prefix: str = ""):
     """Stages ``sort`` and ``ranges`` of the sorted variant (``prefix`` before the
-    names): triangles sorted by case, the indirect arguments of each type."""
+    names): triangles sorted by case, the indirect arguments of each type.  Returns
+    the ranges buffer (``ss/surface.comp``'s block ``Ranges``)."""
     stats, per_tri, keys, args = buffers
     dargs = compute_program(ctx, "ss/dispatch_args.comp")
     ranges = pool.get("ranges", 8 * 4)
-    ranges.bind_to_storage_buffer(6)
     with timer.stage(f"{prefix}sort"):
         sort_pairs(ctx, keys, per_tri, n, key_bits=WORK_BITS + 4)
         barrier(ctx)
@@ -209,29 +205,25 @@ def sort_by_case(ctx, timer, pool, n, buffers, max_groups, prefix: str = "") -> 
     set_uniforms(rng, {"u_count": n})
     set_uniforms(dargs, {"u_sorted": True, "u_local_size": LOCAL_SIZE, "u_max_groups": max_groups})
     with timer.stage(f"{prefix}ranges"):
-        # the sort may have bound its own buffers: bind ours again
-        keys.bind_to_storage_buffer(7)
-        ranges.bind_to_storage_buffer(6)
-        stats.bind_to_storage_buffer(4)
-        args.bind_to_storage_buffer(8)
+        bind(rng, Keys=keys, Ranges=ranges)
         dispatch_1d(ctx, rng, n, 256)
         barrier(ctx)
+        bind(dargs, Stats=stats, Ranges=ranges, Args=args)
         dargs.run(1, 1, 1)
         barrier(ctx)
+    return ranges
 
 
-def voxelize_sorted(ctx, timer, defines, common, buffers, stage: str = "voxelize") -> None:
+def voxelize_sorted(ctx, timer, defines, common, blocks, args, stage: str = "voxelize") -> None:
     """Stage ``voxelize`` (or ``stage``) of the sorted variant, after :func:`sort_by_case`:
-    one indirect dispatch per bounding-box type (the attribute passes run it too)."""
-    vox, faces, grid, per_tri, args = buffers
+    one indirect dispatch per bounding-box type (the attribute passes run it too).
+    ``blocks``: ``ss/surface.comp``'s buffers by block name; ``args``: the indirect
+    arguments."""
     with timer.stage(stage):
-        vox.bind_to_storage_buffer(1)
-        faces.bind_to_storage_buffer(2)
-        grid.bind_to_storage_buffer(3)
-        per_tri.bind_to_storage_buffer(5)
         for bbox_type in range(3):
             prog = compute_program(ctx, "ss/surface.comp", {**defines, "SS_BBOX_TYPE": bbox_type})
             set_uniforms(prog, common)
+            bind(prog, **blocks)
             prog.run_indirect(args, offset=12 * bbox_type)
         barrier(ctx)
 

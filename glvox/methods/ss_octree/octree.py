@@ -56,11 +56,11 @@ import weakref
 import numpy as np
 
 from ...errors import LimitError
-from ...gl.shaders import compute_program
+from ...gl.shaders import compute_program, program_source
 from ...gpu.buffers import buffer_pool
-from ...gpu.sort import exclusive_scan
-from ...gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, grid_uniforms, set_uniforms
-from ...gpu.transform import transform_vertices
+from ...gpu.sort import SHADERS as SORT_SHADERS, exclusive_scan
+from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
+from ...gpu.transform import SHADERS as TRANSFORM_SHADERS, transform_vertices
 from ...results.octree import MAX_OCTREE_DIM, NONE, OctreeLevel, SparseOctree, top_level
 from ..base import Method, MethodInfo, Option, Requirements, register
 
@@ -88,7 +88,8 @@ assert MAX_OCTREE_DIM // 4 < LOOP_BUDGET  # string walks: at most the level-0 ex
 assert top_level((MAX_OCTREE_DIM,) * 3) < MAX_LEVELS
 
 _REQUIRES = Requirements(gl_version=430, extensions=("GL_ARB_gpu_shader_fp64",),
-                         limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 20})
+                         limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 20},
+                         compute=(("ss_octree/*.comp", {}),) + SORT_SHADERS + TRANSFORM_SHADERS)
 
 _BOUNDARY_EDGES: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
@@ -124,10 +125,11 @@ def _read_u32(buf, n: int = 1, offset: int = 0) -> np.ndarray:
     return np.frombuffer(buf.read(size=4 * n, offset=4 * offset), dtype="<u4").copy()
 
 
-def _bind(**bufs_at) -> None:
-    """Bind each buffer to the storage binding its key names (``b5=buf``: binding 5)."""
-    for binding, buf in bufs_at.items():
-        buf.bind_to_storage_buffer(int(binding[1:]))
+def _declared(prog, blocks: dict) -> dict:
+    """The entries of ``blocks`` (by storage block name) that ``prog``'s source declares:
+    every pass over the node arrays gets the whole tree and takes the arrays it uses."""
+    names = program_source(prog).storage_blocks
+    return {k: v for k, v in blocks.items() if k in names}
 
 
 class _Build:
@@ -136,7 +138,7 @@ class _Build:
     Each step leaves what the next one needs on ``self``: the active nodes per
     level (``n_act``, ``acts``, ``pidx``), the node counts per level
     (``sizes``) with their offsets in the node arrays (``nbase``, ``ubase``),
-    and the node arrays (``tree``, by storage binding).
+    and the node arrays (``tree``, by storage block name).
     """
 
     def __init__(self, ctx, mesh, spec, walls: bool, owner: str, timer) -> None:
@@ -189,13 +191,14 @@ class _Build:
         offsets = self.alloc("chunk_offsets", 4 * n_items, what=f"{what} chunk offsets", clear=False)
         total = self.alloc("chunk_total", 16)
         args = self.alloc("args", 16, clear=False)
-        _bind(b1=self.vox, b2=self.bufs.faces, b3=self.walls, b4=self.stats, b5=chunks)
+        bind(work, **_declared(work, {"VoxVerts": self.vox, "Faces": self.bufs.faces, "Walls": self.walls,
+                                      "Stats": self.stats}), Chunks=chunks)
         dispatch_1d(ctx, work, n_items, _LOCAL)
         barrier(ctx)
         exclusive_scan(ctx, chunks, offsets, n_items, total=total)
         barrier(ctx)
         targs = self.prog("chunk_args.comp", u_local_size=_LOCAL, u_max_groups=self.max_groups)
-        _bind(b7=total, b8=args)
+        bind(targs, ChunkTotal=total, Args=args)
         targs.run(1, 1, 1)
         barrier(ctx)
         return offsets, total, args
@@ -208,12 +211,13 @@ class _Build:
         defines = {"OCT_CHUNK": ACTIVATE_CHUNK}
         offsets, total, args = self.run_chunks(self.prog("activate_work.comp", defines), n_items, "activation")
         act_prog = self.prog("activate.comp", defines)
-        _bind(b1=self.vox, b2=self.bufs.faces, b3=self.walls, b6=offsets, b7=total, b8=l1)
+        bind(act_prog, VoxVerts=self.vox, Faces=self.bufs.faces, Walls=self.walls, ChunkOffsets=offsets,
+             ChunkTotal=total, L1Bits=l1)
         act_prog.run_indirect(args)
         barrier(ctx)
         counts = self.alloc("l1_counts", 4 * l1_words, what="level-1 word counts", clear=False)
         count_prog = self.prog("extract.comp", {"EXTRACT_WRITE": 0}, u_words=l1_words)
-        _bind(b8=l1, b5=counts)
+        bind(count_prog, L1Bits=l1, Counts=counts)
         dispatch_1d(ctx, count_prog, l1_words, _LOCAL_NODES)
         barrier(ctx)
         exclusive_scan(ctx, counts, counts, l1_words, total=total)
@@ -223,7 +227,7 @@ class _Build:
         self.acts = {1: self.alloc("act1", 4 * self.n_act[1], what=f"{self.n_act[1]} active level-1 nodes",
                                    clear=False)}
         write_prog = self.prog("extract.comp", {"EXTRACT_WRITE": 1}, u_words=l1_words)
-        _bind(b8=l1, b5=counts, b9=self.acts[1])
+        bind(write_prog, L1Bits=l1, Offsets=counts, Act=self.acts[1])
         dispatch_1d(ctx, write_prog, l1_words, _LOCAL_NODES)
         barrier(ctx)
 
@@ -237,7 +241,7 @@ class _Build:
             n = n_act[level]
             self.pidx[level] = self.alloc(f"pidx{level}", 4 * n, what=f"PARENTINDEX_{level}", clear=False)
             p0 = self.prog("construct.comp", {"PHASE": 0}, u_count=n)
-            _bind(b9=acts[level], b10=flag)
+            bind(p0, Act=acts[level], Flag=flag)
             dispatch_1d(ctx, p0, n, _LOCAL_NODES)
             barrier(ctx)
             exclusive_scan(ctx, flag, self.pidx[level], n, total=self.total)
@@ -246,7 +250,7 @@ class _Build:
             acts[level + 1] = self.alloc(f"act{level + 1}", 4 * n_act[level + 1],
                                          what=f"active level-{level + 1} nodes", clear=False)
             p1 = self.prog("construct.comp", {"PHASE": 1}, u_count=n)
-            _bind(b9=acts[level], b10=flag, b11=acts[level + 1], b5=self.pidx[level])
+            bind(p1, Act=acts[level], Flag=flag, ActNext=acts[level + 1], ParentIndex=self.pidx[level])
             dispatch_1d(ctx, p1, n, _LOCAL_NODES)
             barrier(ctx)
 
@@ -268,18 +272,18 @@ class _Build:
         child = self.alloc("child", 4 * n_upper, what="child pointers", clear=False)
         flags = self.alloc("flags", 4 * n_upper, what="node flags", clear=False)
         data = self.alloc("data", 8 * sizes[0], what=f"the sub-grids of {sizes[0]} level-0 nodes", clear=False)
-        self.tree = dict(b12=morton, b13=parent, b14=x_next, b15=x_prev, b16=child, b17=flags, b18=data,
-                         b19=count)
+        self.tree = dict(Morton=morton, Parent=parent, XNext=x_next, XPrev=x_prev, Child=child, Flags=flags,
+                         Data=data, Count=count)
         for level in range(top, -1, -1):
             up = self.acts.get(level + 1, self.dummy)
             p_up = self.pidx.get(level + 1, self.dummy)
             init = self.prog("init_level.comp", u_level=level, u_count=sizes[level])
-            _bind(**self.tree, b11=up, b5=p_up)
+            bind(init, **_declared(init, self.tree), ActUp=up, ParentIndexUp=p_up)
             dispatch_1d(ctx, init, sizes[level], _LOCAL_NODES)
             barrier(ctx)
             if level < top:
                 link = self.prog("link_x.comp", u_level=level, u_count=sizes[level])
-                _bind(**self.tree)
+                bind(link, **_declared(link, self.tree))
                 dispatch_1d(ctx, link, sizes[level], _LOCAL_NODES)
                 barrier(ctx)
 
@@ -289,14 +293,15 @@ class _Build:
         offsets, total, args = self.run_chunks(self.prog("voxelize.comp", {**defines, "VOX_WORK": 1}),
                                                self.n_tris, "voxelization")
         vprog = self.prog("voxelize.comp", {**defines, "VOX_WORK": 0})
-        _bind(**self.tree, b1=self.vox, b2=self.bufs.faces, b4=self.stats, b6=offsets, b7=total)
+        bind(vprog, **_declared(vprog, self.tree), VoxVerts=self.vox, Faces=self.bufs.faces, Stats=self.stats,
+             ChunkOffsets=offsets, ChunkTotal=total)
         vprog.run_indirect(args)
         barrier(self.ctx)
 
     def _over_level(self, path, level, defines=None, **uniforms) -> None:
         """One pass of ``path`` over the nodes of ``level``."""
         p = self.prog(path, defines, u_level=level, u_count=self.sizes[level], **uniforms)
-        _bind(**self.tree)
+        bind(p, **_declared(p, self.tree))
         dispatch_1d(self.ctx, p, self.sizes[level], _LOCAL_NODES)
         barrier(self.ctx)
 
@@ -326,10 +331,10 @@ class _Build:
         def arr(buf, n):
             return np.frombuffer(buf.read(size=4 * n), dtype="<u4") if n else np.zeros(0, "<u4")
 
-        all_m, all_p = arr(t["b12"], n_all), arr(t["b13"], n_all)
-        all_n, all_x, all_c = arr(t["b14"], n_all), arr(t["b15"], n_all), arr(t["b19"], n_all)
-        up_child, up_flags = arr(t["b16"], n_upper), arr(t["b17"], n_upper)
-        sub = (np.frombuffer(t["b18"].read(size=8 * sizes[0]), dtype="<u8") if sizes[0]
+        all_m, all_p = arr(t["Morton"], n_all), arr(t["Parent"], n_all)
+        all_n, all_x, all_c = arr(t["XNext"], n_all), arr(t["XPrev"], n_all), arr(t["Count"], n_all)
+        up_child, up_flags = arr(t["Child"], n_upper), arr(t["Flags"], n_upper)
+        sub = (np.frombuffer(t["Data"].read(size=8 * sizes[0]), dtype="<u8") if sizes[0]
                else np.zeros(0, "<u8"))
         vstats = _read_u32(self.stats, 2)
         levels = []

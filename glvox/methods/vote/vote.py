@@ -25,14 +25,15 @@ import numpy as np
 
 from ...gl.shaders import compute_program
 from ...gpu.buffers import buffer_pool, read_grid_words
-from ...gpu.dispatch import barrier, dispatch_1d, grid_uniforms, set_uniforms
+from ...gpu.dispatch import barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
 from ...results.voxels import VoxelGrid
 from ..base import Method, MethodInfo, Requirements, register
-from ..ss.solid import parity_on_gpu
+from ..ss.solid import COMPUTE as SOLID_COMPUTE, parity_on_gpu
 
 _LOCAL = 64  # local_size_x of vote/vote.comp
 _REQUIRES = Requirements(gl_version=430, extensions=("GL_ARB_gpu_shader_fp64",),
-                         limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 9})
+                         limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 9},
+                         compute=(("vote/*.comp", {}),) + SOLID_COMPUTE)
 
 
 @register
@@ -62,8 +63,7 @@ class VoteSolid(Method):
         set_uniforms(prog, {**grid_uniforms(spec, np.zeros(3)), "u_first": k0 * per_slice,
                             "u_count": nk * per_slice})
         with timer.stage("vote"):
-            for b, buf in enumerate((x.grid, y.grid, z.grid, count)):
-                buf.bind_to_storage_buffer(b)
+            bind(prog, X=x.grid, Y=y.grid, Z=z.grid, Count=count)
             dispatch_1d(ctx, prog, nk * per_slice, _LOCAL)
             barrier(ctx)
         with timer.stage("readback", gpu=False):

@@ -1,0 +1,200 @@
+"""``glvox selftest``: every registered method on this machine's GPU against the CPU references.
+
+    glvox selftest                       # every method, a table, exit 1 on any mismatch
+    glvox selftest --methods ss-conservative peel-ldi --json
+
+Small generated meshes (and one shared mesh when it is on this machine, at no
+download) on 16^3 to 32^3 grids, checked the way the test suite checks them:
+
+* an exact method against its exact reference (``MethodInfo.reference``, with
+  the options that make it comparable, :func:`glvox.study.harness.reference_of`):
+  a voxel that differs counts as a mismatch unless it is a proven tie of the
+  reference (:func:`glvox.metrics.tie_set`); an LDI as its parity solid
+  against ``reference-ldi``'s, ``ss-octree`` as its dense grid;
+* an approximate method against the bound its paper states (:data:`BOUNDS`):
+  karabassi and leung-wang-ldi only add to the exact solid, passalis-stencil
+  only loses from it, eisemann-surface and scanline-rlv/slv stay inside the
+  conservative surface, scanline-ilv equals the CPU model of its integer
+  lattice (:func:`glvox.reference.scanline.scanline_surface`) voxel for voxel;
+* the CPU references define the checks and are listed, not checked.
+
+A method that fails (a capability refusal included) is a failure like a
+mismatch.  The figure on llvmpipe (2 shared cores) is in docs/testing.md.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+import warnings
+from dataclasses import asdict, dataclass, field
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from ..datasets import find
+from ..errors import GlvoxError, NotWatertightWarning
+from ..gl.context import get_context
+from ..grid import grid_for, pack_bits
+from ..mesh import load_mesh
+from ..methods import get_method, method_infos, run_method
+from ..methods.scanline.voxelize import gpu_voxel_coords
+from ..metrics import not_tie_words, popcount
+from ..reference.scanline import scanline_surface
+from . import harness
+from .plan import Contender
+
+#: (mesh, grid size along the longest side): generated meshes, then one shared
+#: mesh used only when it is already on this machine.
+CASES = (("gen:torus", 24), ("gen:sphere", 16), ("gen:box", 20), ("gen:bunny-like", 32))
+SHARED_CASE = ("cad_fandisk.off", 24)
+
+#: How an approximate method may differ from its reference (its paper's
+#: approximation): 'superset' (only adds voxels), 'subset' (only loses them;
+#: for surfaces: inside the conservative surface), or 'ilv-model' (equals the
+#: CPU model of scanline-ilv's integer lattice).
+BOUNDS = {
+    "karabassi": "superset", "leung-wang-ldi": "superset", "passalis-stencil": "subset",
+    "eisemann-surface": "subset", "scanline-rlv": "subset", "scanline-slv": "subset", "scanline-ilv": "ilv-model",
+}
+
+
+@dataclass
+class Row:
+    """One method's line of the table."""
+
+    method: str
+    check: str
+    cases: int = 0
+    mismatches: int = 0
+    seconds: float = 0.0
+    status: str = "ok"
+    detail: list[str] = field(default_factory=list)
+
+
+def _words(result) -> np.ndarray:
+    """Packed words of a result of any kind (an LDI's or an octree's dense solid)."""
+    return (result if hasattr(result, "words") else result.to_grid()).words()
+
+
+def _describe(name: str) -> str:
+    info = get_method(name).info
+    if info.family == "reference":
+        return "reference"
+    if info.exact:
+        return f"exact vs {'reference-ldi' if info.kind == 'ldi' else info.reference}"
+    bound = BOUNDS.get(name)
+    if bound is None:
+        raise GlvoxError(f"selftest has no bound for the approximate method {name!r}: add it to BOUNDS")
+    return {"superset": f"bounded: contains {info.reference}", "subset": f"bounded: within {info.reference}",
+            "ilv-model": "bounded: equals the ILV model"}[bound]
+
+
+def _mismatches(name: str, result, mesh, spec, refs: harness.References) -> int:
+    """Voxels of ``result`` (of method ``name``) outside what its check allows."""
+    info = get_method(name).info
+    words = _words(result)
+    if BOUNDS.get(name) == "ilv-model" and not info.exact:
+        tunnel = info.options["tunnel"].default
+        model = scanline_surface(gpu_voxel_coords(mesh, spec), spec.dims, "ilv", tunnel)
+        return popcount(words ^ pack_bits(model))
+    if info.kind == "ldi":
+        ref_words, ties = refs.words("reference-solid"), refs.ties("reference-solid")
+        if info.exact:
+            ref_words = _words(run_method("reference-ldi", mesh, spec))
+    else:
+        ref, opts = harness.reference_of(Contender.of_method(name), mesh)
+        ref_words, ties = refs.words(ref, opts), refs.ties(ref, opts)
+    if info.exact:
+        return popcount(not_tie_words(words, ref_words, ties))
+    if BOUNDS[name] == "superset":
+        return popcount(ref_words & ~words & ~ties)
+    return popcount(words & ~ref_words & ~ties)
+
+
+def selftest(methods: Sequence[str] | None = None, progress: Callable[[str], None] = lambda s: None,
+             ctx=None) -> dict[str, Any]:
+    """Run ``methods`` (default: every registered one) on :data:`CASES` and check each.
+
+    Returns
+    -------
+    dict
+        ``renderer``, ``vendor``, ``version``, ``cases`` (``'mesh@n'``), ``methods``
+        (one :class:`Row` as a dict each: method, check, cases, mismatches,
+        seconds of the method's runs, status 'ok' / 'mismatch' / 'error',
+        detail lines), ``ok`` and ``seconds`` (the whole test).
+    """
+    t_all = time.perf_counter()
+    ctx = ctx if ctx is not None else get_context()
+    names = list(methods) if methods else [i.name for i in method_infos()]
+    rows = {n: Row(n, _describe(n)) for n in names}
+    cases = list(CASES)
+    shared = find(SHARED_CASE[0])
+    if shared is not None:
+        cases.append((str(shared), SHARED_CASE[1]))
+    labels = []
+    for mesh_name, n in cases:
+        mesh = load_mesh(mesh_name)
+        spec = grid_for(mesh, n)
+        label = f"{mesh.name or mesh_name}@{n}"
+        labels.append(label)
+        refs = harness.References(mesh, spec)
+        for name in names:
+            row = rows[name]
+            progress(f"{label}: {name}")
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", NotWatertightWarning)
+                    t0 = time.perf_counter()
+                    result = run_method(name, mesh, spec, ctx=ctx if get_method(name).info.uses_gl else None)
+                    row.seconds += time.perf_counter() - t0
+                    row.cases += 1
+                    if row.check == "reference":
+                        continue
+                    bad = _mismatches(name, result, mesh, spec, refs)
+            except GlvoxError as exc:
+                row.status = "error"
+                row.detail.append(f"{label}: {exc}")
+                continue
+            if bad:
+                row.mismatches += bad
+                row.status = "error" if row.status == "error" else "mismatch"
+                row.detail.append(f"{label}: {bad} voxels outside the check")
+    out_rows = [asdict(r) for r in rows.values()]
+    return {"renderer": ctx.renderer, "vendor": ctx.vendor, "version": ctx.version, "cases": labels,
+            "methods": out_rows, "ok": all(r["status"] == "ok" for r in out_rows),
+            "seconds": time.perf_counter() - t_all}
+
+
+def print_report(report: dict[str, Any]) -> None:
+    """The table: method, check, cases, mismatches, seconds, status (details below it)."""
+    rows = report["methods"]
+    w = max([len(r["method"]) for r in rows] + [6])
+    c = max([len(r["check"]) for r in rows] + [5])
+    print(f"{'method':<{w}}  {'check':<{c}}  {'cases':>5}  {'mismatches':>10}  {'time s':>7}  status")
+    for r in rows:
+        print(f"{r['method']:<{w}}  {r['check']:<{c}}  {r['cases']:>5}  {r['mismatches']:>10}  "
+              f"{r['seconds']:>7.2f}  {r['status']}")
+    for r in rows:
+        for line in r["detail"]:
+            print(f"  {r['method']}: {line}")
+    failed = [r["method"] for r in rows if r["status"] != "ok"]
+    verdict = "all methods agree with their checks" if not failed else f"FAILED: {', '.join(failed)}"
+    print(f"{verdict} ({report['seconds']:.1f} s)")
+
+
+def main(args) -> int:
+    """``glvox selftest``: exit 0 when every method passes its check, 1 otherwise."""
+    ctx = get_context(getattr(args, "backend", None))
+    head = {"renderer": ctx.renderer, "vendor": ctx.vendor, "version": ctx.version}
+    if not args.json:
+        for key, value in head.items():
+            print(f"{key + ':':<10} {value}", flush=True)
+    progress = (lambda s: None) if args.json or args.quiet else (lambda s: print(f"  {s}", flush=True))
+    report = selftest(args.methods, progress=progress, ctx=ctx)
+    if args.json:
+        print(json.dumps(report, indent=2))
+    else:
+        print(f"cases:     {', '.join(report['cases'])}")
+        print_report(report)
+    return 0 if report["ok"] else 1
