@@ -74,11 +74,6 @@ class Mesh:
         return is_watertight(self.vertices, self.faces)
 
     @cached_property
-    def consistently_oriented(self) -> bool:
-        """No directed edge used twice (:func:`is_consistently_oriented`; computed once)."""
-        return is_consistently_oriented(self.vertices, self.faces)
-
-    @cached_property
     def bounds(self) -> np.ndarray:
         """(2, 3) float64 min and max corner of the referenced vertices (computed once, read-only)."""
         if len(self.faces):
@@ -375,33 +370,6 @@ def is_watertight(vertices: np.ndarray, faces: np.ndarray) -> bool:
     # sorted, every key exactly twice <=> pairs equal and no pair equal to the next one
     return bool(len(edges) % 2 == 0 and np.array_equal(edges[0::2], edges[1::2])
                 and not np.any(edges[1:-1:2] == edges[2::2]))
-
-
-def is_consistently_oriented(vertices: np.ndarray, faces: np.ndarray) -> bool:
-    """No directed edge used twice after merging duplicate positions (as :func:`is_watertight`
-    merges them): the two triangles of every shared edge traverse it in opposite directions.
-
-    A minimal check for ``-m solid``'s choice (:mod:`glvox.methods.solid.choose`);
-    a double-sided mesh (every face twice, opposite windings) fails it, as does a
-    watertight mesh with some faces flipped.
-
-    Parameters
-    ----------
-    vertices : (V, 3) float64
-    faces : (F, 3) int64
-    """
-    used = np.zeros(len(vertices), dtype=bool)
-    used[faces] = True
-    idx = np.flatnonzero(used)
-    with np.errstate(over="ignore", invalid="ignore"):
-        keys = (vertices[idx] * 10**MERGE_DIGITS).round().astype(np.int64)
-    labels = _row_labels(keys)
-    remap = np.zeros(len(vertices), dtype=np.int64)
-    remap[idx] = labels
-    f = remap[faces]
-    a, b = f.ravel(), f[:, [1, 2, 0]].ravel()
-    directed = np.sort(a * (int(labels.max()) + 1) + b)
-    return not bool(np.any(directed[1:] == directed[:-1]))
 
 
 def _row_labels(keys: np.ndarray) -> np.ndarray:

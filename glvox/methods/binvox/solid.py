@@ -44,7 +44,7 @@ import numpy as np
 
 from ...gl.shaders import compute_program
 from ...gpu.buffers import buffer_pool, mesh_buffers, read_grid_words
-from ...gpu.dispatch import barrier, dispatch_1d, grid_uniforms, set_uniforms
+from ...gpu.dispatch import barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
 from ...grid import GridSpec
 from ...results.voxels import VoxelGrid
 from ..base import Method, MethodInfo, Option, Requirements, register
@@ -101,10 +101,8 @@ class _BinvoxRun(RasterPass):
         target.layers[layer].use(0)
         target.stencil.use(1)
         set_uniforms(self.record, {"u_record": kind, "u_stencil_mode": 1 if stencil else 0})
-        out["flips_carve" if kind < 2 else "flips_vote"].bind_to_storage_buffer(0)
-        out["stats"].bind_to_storage_buffer(1)
-        out["total"].bind_to_storage_buffer(2)
-        out["surface"].bind_to_storage_buffer(3)
+        bind(self.record, Flips=out["flips_carve" if kind < 2 else "flips_vote"], Stats=out["stats"],
+             Total=out["total"], Surface=out["surface"])
         if stencil:
             out["stats"].clear(size=4)
         self.record.run((size[0] + 7) // 8, (size[1] + 7) // 8, 1)
@@ -193,11 +191,8 @@ class BinvoxSolid(Method):
             passes = run.passes
         set_uniforms(finish, {"u_carve": carve, "u_vote": vote, "u_surface": bool(surface)})
         with timer.stage("finish"):
-            out["carve"].bind_to_storage_buffer(1)
-            for i, name in enumerate(("v0", "v1", "v2"), start=2):
-                out[name].bind_to_storage_buffer(i)
-            out["surface"].bind_to_storage_buffer(6)
-            out["count"].bind_to_storage_buffer(7)
+            bind(finish, Carve=out["carve"], V0=out["v0"], V1=out["v1"], V2=out["v2"], Surface=out["surface"],
+                 Count=out["count"])
             dispatch_1d(ctx, finish, nw, 256)
             barrier(ctx)
         result = out["carve"]
@@ -229,9 +224,7 @@ class BinvoxSolid(Method):
                               clear=False)
             count.clear(size=4)
             set_uniforms(prog, {**grid_uniforms(coarse_spec, np.zeros(3)), "u_dmin": dmin})
-            fine.bind_to_storage_buffer(0)
-            coarse.bind_to_storage_buffer(1)
-            count.bind_to_storage_buffer(2)
+            bind(prog, Fine=fine, Coarse=coarse, Count=count)
             dispatch_1d(ctx, prog, coarse_spec.n_words, 64)
             barrier(ctx)
             fine = coarse
@@ -241,7 +234,7 @@ class BinvoxSolid(Method):
     def _combine(ctx, spec, axis, mode, scan, combine, flips, out) -> None:
         """Prefix XOR of ``flips`` along ``axis`` (segments along y and z), then
         ``binvox/combine.comp`` in ``mode`` (0/1 carve first/and, 2 vote)."""
-        flips.bind_to_storage_buffer(0)
+        bind(scan, Flips=flips)
         set_uniforms(scan, {"u_axis": axis})
         nx, ny, nz = spec.dims
         if axis == 0:
@@ -256,9 +249,6 @@ class BinvoxSolid(Method):
                 dispatch_1d(ctx, scan, lines, 64)
                 barrier(ctx)
         set_uniforms(combine, {"u_axis": axis, "u_mode": mode})
-        flips.bind_to_storage_buffer(0)
-        out["carve"].bind_to_storage_buffer(1)
-        for i, name in enumerate(("v0", "v1", "v2", "total"), start=2):
-            out[name].bind_to_storage_buffer(i)
+        bind(combine, Flips=flips, Carve=out["carve"], V0=out["v0"], V1=out["v1"], V2=out["v2"], Total=out["total"])
         dispatch_1d(ctx, combine, spec.n_words, 256)
         barrier(ctx)

@@ -10,12 +10,13 @@ runs the method it picks, so the run info (``result.run.method``) and a batch
 manifest's ``method`` column name the one that ran;
 ``result.run.stats['requested']`` is ``'solid'``.
 
-The traits used are the mesh's own minimal checks (``Mesh.watertight``,
-``Mesh.consistently_oriented``); :func:`choice` says which decided.
+The traits are :func:`glvox.traits.mesh_traits` (computed once per mesh);
+:func:`choice` says which decided.
 """
 
 from __future__ import annotations
 
+from ...traits import mesh_traits
 from ..base import _REGISTRY, Method, MethodInfo, register
 from ..ss.solid import _REQUIRES
 
@@ -25,10 +26,14 @@ CLOSED_METHOD, OTHER_METHOD = "ss-solid", "binvox-solid"
 
 def choice(mesh) -> tuple[str, str]:
     """(method, why) for ``mesh``: the table of docs/methods/solid.md."""
-    if not mesh.watertight:
-        return OTHER_METHOD, "not watertight (open, or double-sided: edges shared by more than two faces)"
-    if not mesh.consistently_oriented:
-        return OTHER_METHOD, "watertight but inconsistently oriented (a directed edge used twice)"
+    t = mesh_traits(mesh)
+    if t.opposite_pairs or t.duplicate_share:
+        return OTHER_METHOD, (f"double-sided ({100 * (t.opposite_share + t.duplicate_share):.3g}% of faces "
+                              "coincide with another)")
+    if t.open_edges or not t.watertight:
+        return OTHER_METHOD, f"not watertight ({t.open_edges} open edges)"
+    if t.inconsistent_parts:
+        return OTHER_METHOD, f"inconsistently oriented ({t.inconsistent_parts} of {t.parts} parts)"
     return CLOSED_METHOD, "watertight and consistently oriented"
 
 
