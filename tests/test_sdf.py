@@ -200,3 +200,14 @@ def test_samples_are_reproducible_and_exact(tmp_path):
     with np.load(out) as z:
         assert z["points"].shape == (300, 3) and z["sdf"].shape == (300,)
         assert np.array_equal(z["points"], sdf_samples(mesh, 300, seed=3)["points"])
+
+
+def test_render_draws_a_slice(tmp_path):
+    pytest.importorskip("matplotlib")
+    out = tmp_path / "t.npz"
+    glvox.save(_sdf("gen:torus", 24), out)
+    assert main(["render", str(out), "-o", str(tmp_path / "t.png"), "-q"]) == 0
+    import matplotlib.image
+
+    img = matplotlib.image.imread(tmp_path / "t.png")
+    assert img.shape[0] > 300 and img[..., :3].std() > 0.05  # a picture, not a blank
