@@ -27,12 +27,14 @@ from .mesh import Mesh
 from .mesh import load_mesh as _load_mesh
 from .methods import DEFAULT_METHOD, Request, get_method, method_infos, run_method
 from .methods.ldi.leung_wang import overlap_bounds, overlap_grid, run_intersection
-from .results import LDI, SparseOctree, VoxelGrid
+from .methods.sdf.field import DEFAULT_BAND, signed_distance_field
+from .methods.sdf.samples import sdf_samples as _sdf_samples
+from .results import LDI, SDFGrid, SparseOctree, VoxelGrid
 from .visuals import load_visual_mesh
 
 __all__ = [
     "voxelize", "grid_for", "load_mesh", "fit_grid", "save", "load", "list_methods", "info",
-    "ldi", "intersect_ldi", "intersecting_volume", "LDI", "datasets", "inspect_mesh", "MeshReport",
+    "ldi", "sdf", "sdf_samples", "SDFGrid", "intersect_ldi", "intersecting_volume", "LDI", "datasets", "inspect_mesh", "MeshReport",
     "GridSpec", "VoxelGrid", "SparseOctree", "Mesh", "DEFAULT_METHOD", "DEFAULT_RESOLUTION", "__version__",
     "GlvoxError", "BackendError", "CapabilityError", "DatasetError", "EmptyMeshError", "FaceIndexError",
     "FormatError", "GLError", "GridError", "LimitError", "MeshError", "MeshLoadError", "MeshNotFoundError",
@@ -205,6 +207,53 @@ def intersecting_volume(mesh_a: Any, mesh_b: Any, resolution: int | None = None,
     if kwargs.get("grid") is None and overlap_bounds(a, b) is None:
         return 0.0
     return intersect_ldi(a, b, resolution, **kwargs).volume
+
+
+def sdf(mesh: Any, resolution: int | None = None, *, grid: GridSpec | None = None, band: Any = DEFAULT_BAND,
+        sign: str = "solid", truncation: Any = None, dims: Sequence[int] | None = None,
+        voxel_size: float | None = None, bounds: Any = None, padding: int = 0, tight: bool = False,
+        allow_open: bool = False, backend: str | None = None, ctx=None) -> SDFGrid:
+    """The signed distance from every voxel center to the mesh, on the GPU.
+
+    Parameters
+    ----------
+    mesh : path, "gen:NAME", mesh name, trimesh.Trimesh, (vertices, faces) or Mesh
+        As :func:`load_mesh` takes it.
+    resolution, grid, dims, voxel_size, bounds, padding, tight
+        The grid, as :func:`voxelize`.
+    band : float or 'all'
+        Voxels: distances are exact within ``band`` voxels of the surface and
+        ``+-band * voxel_size`` beyond (clamped); ``'all'``: exact everywhere
+        (the voxels beyond the band on the CPU: slower).
+    sign : str
+        The solid method whose occupancy gives the sign (inside negative);
+        ``'solid'`` picks one per mesh.
+    truncation : float, str or None
+        A TSDF: values clamped to ``+-truncation`` (world units, or voxels as
+        ``'2vox'``); a truncation wider than the band widens the band.
+    allow_open, backend, ctx
+        As :func:`voxelize`.
+
+    Returns
+    -------
+    SDFGrid
+        ``.sdf`` float32 (nx, ny, nz) in world units, ``.band`` and
+        ``.uncertain`` bool (nx, ny, nz), ``.origin``, ``.voxel_size``, ``.dims``.
+    """
+    m = load_mesh(mesh)
+    if grid is None:
+        if resolution is None and dims is None and voxel_size is None:
+            resolution = DEFAULT_RESOLUTION
+        grid = grid_for(m, resolution, dims=dims, voxel_size=voxel_size, bounds=bounds, padding=padding,
+                        tight=tight)
+    return signed_distance_field(m, grid, band=band, sign=sign, truncation=truncation, ctx=ctx,
+                                 backend=backend, allow_open=allow_open)
+
+
+def sdf_samples(mesh: Any, n: int, *, seed: int = 0, **kwargs: Any) -> dict:
+    """``n`` points near the surface (area-weighted, Gaussian offsets) and in the box, each with its
+    exact signed distance (world units); see :func:`glvox.methods.sdf.samples.sdf_samples`."""
+    return _sdf_samples(load_mesh(mesh), n, seed=seed, **kwargs)
 
 
 def list_methods(kind: str | None = None, family: str | None = None, pipeline: str | None = None):

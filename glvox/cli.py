@@ -1,4 +1,4 @@
-"""Command line: ``glvox info | methods | voxelize | convert | batch | ldi | volume | compare | bench | data | inspect
+"""Command line: ``glvox info | methods | voxelize | sdf | convert | batch | ldi | volume | compare | bench | data | inspect
 | render | selftest``.
 
 Errors glvox raises on purpose print one line ``glvox: error: ...`` and exit
@@ -21,7 +21,7 @@ from typing import Sequence
 from . import preflight
 from ._version import __version__
 from .commands import (cmd_batch, cmd_bench, cmd_compare, cmd_convert, cmd_data, cmd_info, cmd_inspect, cmd_ldi,
-                       cmd_methods, cmd_render, cmd_selftest, cmd_voxelize, cmd_volume)
+                       cmd_methods, cmd_render, cmd_sdf, cmd_selftest, cmd_voxelize, cmd_volume)
 from .errors import GlvoxError
 from .grid import DEFAULT_RESOLUTION
 from .methods import DEFAULT_METHOD, FAMILIES, PIPELINES
@@ -116,6 +116,29 @@ def _add_voxelize_parser(sub) -> None:
     _add_output_arguments(pv, "print counts and timings as JSON")
     _add_attribute_arguments(pv)
     pv.set_defaults(func=cmd_voxelize, validate=preflight.validate_voxelize)
+
+
+def _add_sdf_parser(sub) -> None:
+    ps = sub.add_parser("sdf", help="signed distances from the voxel centers (or near-surface samples) to a mesh",
+                        description="Signed distance field of MESH on the grid's voxel centers (world units, "
+                                    "negative inside), or --samples N points near the surface with their distances.")
+    ps.add_argument("mesh")
+    ps.add_argument("-r", "--resolution", type=int, help=_RESOLUTION_HELP)
+    ps.add_argument("-o", "--output", required=True, help="output file: .npz, .nrrd, .nii(.gz) or .vti (samples: .npz)")
+    ps.add_argument("--band", default="3", help="voxels from the surface where distances are exact (beyond: "
+                                                "clamped to +-band voxels), or 'all' (default 3)")
+    ps.add_argument("--sign", default="solid", metavar="METHOD",
+                    help="the solid method whose occupancy gives the sign (default solid: picked per mesh)")
+    ps.add_argument("--truncation", default=None, metavar="T[vox|world]",
+                    help="clamp to +-T (world units, or voxels with the suffix vox): a TSDF")
+    ps.add_argument("--samples", type=int, default=None, metavar="N",
+                    help="write N near-surface sample points with their signed distances instead of a grid")
+    ps.add_argument("--seed", type=int, default=0, help="random seed of --samples (default 0)")
+    _add_grid_arguments(ps)
+    ps.add_argument("--allow-open", action="store_true",
+                    help="let a --sign method that needs a closed mesh run on an open one")
+    _add_output_arguments(ps, "print timings and counts as JSON")
+    ps.set_defaults(func=cmd_sdf, validate=preflight.validate_sdf)
 
 
 def _add_convert_parser(sub) -> None:
@@ -302,7 +325,7 @@ def _add_selftest_parser(sub) -> None:
 
 
 #: One function per command, each adding its subparser.
-_COMMANDS = (_add_info_parser, _add_methods_parser, _add_voxelize_parser, _add_convert_parser, _add_batch_parser,
+_COMMANDS = (_add_info_parser, _add_methods_parser, _add_voxelize_parser, _add_sdf_parser, _add_convert_parser, _add_batch_parser,
              _add_ldi_parser, _add_volume_parser, _add_compare_parser, _add_bench_parser, _add_data_parser,
              _add_inspect_parser, _add_render_parser, _add_selftest_parser)
 

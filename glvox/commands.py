@@ -25,9 +25,11 @@ from .inspect import inspect_mesh
 from .mesh import binvox_bounds, load_mesh
 from .methods import Request, get_method, method_infos, run_method
 from .methods.ldi.leung_wang import overlap_bounds, overlap_grid, run_intersection
+from .methods.sdf.field import signed_distance_field
+from .methods.sdf.samples import save_samples, sdf_samples
 from .progress import Stages
 from .visuals import load_visual_mesh
-from .results import LDI, SparseOctree
+from .results import LDI, SDFGrid, SparseOctree
 
 
 def cmd_info(args) -> int:
@@ -123,6 +125,34 @@ def cmd_voxelize(args) -> int:
     return 0
 
 
+def cmd_sdf(args) -> int:
+    """``glvox sdf MESH -o out.npz``: the signed distance field on the grid, or --samples N points."""
+    call: preflight.SdfCall = args.checked
+    say = Stages(args.quiet or args.json)
+    mesh = load_mesh(datasets.resolve_mesh(args.mesh, quiet=args.quiet or args.json))
+    say(f"loaded {mesh.name}: {mesh.n_triangles} triangles")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        if args.samples is not None:
+            out = save_samples(sdf_samples(mesh, args.samples, seed=args.seed), call.output)
+            summary = {"samples": args.samples, "seed": args.seed}
+        else:
+            spec = _spec(args, mesh)
+            preflight.sdf_memory(spec.dims)
+            say(f"grid {spec}")
+            result = signed_distance_field(mesh, spec, band=args.band, sign=args.sign, truncation=args.truncation,
+                                           backend=args.backend, allow_open=args.allow_open)
+            say(f"{result!r}; {result.run.timings.summary()}")
+            _save(result, call.output)
+            summary = result.run.to_dict()
+    for w in caught:
+        print(f"glvox: warning: {w.message}", file=sys.stderr)
+    say(f"wrote {call.output}")
+    if args.json:
+        print(json.dumps({**summary, "output": str(call.output)}, indent=2, default=str))
+    return 0
+
+
 def _save(result, out: Path, **options) -> None:
     """``io.save``, its FormatWarnings (what a format drops) printed as ``glvox: warning:`` lines."""
     with warnings.catch_warnings(record=True) as caught:
@@ -149,10 +179,14 @@ def cmd_convert(args) -> int:
 def cmd_render(args) -> int:
     """``glvox render RESULT -o PICTURE.png``: the voxels as lit cubes in their own colours."""
     # imported here for start-up time, as in cmd_compare: the renderer needs moderngl and matplotlib
-    from .study.render import render_voxels, save_png
+    from .study.render import render_voxels, save_png, save_sdf_slice_png
 
     say = Stages(args.quiet)
     result = io.load(args.input)
+    if isinstance(result, SDFGrid):  # a slice with the zero level marked
+        save_sdf_slice_png(result, Path(args.output))
+        say(f"wrote {args.output} (the middle z slice of {result!r})")
+        return 0
     if isinstance(result, LDI):
         raise GlvoxError(f"glvox render draws voxel grids; {args.input} holds an LDI (depths per ray)")
     grid = result.to_grid() if isinstance(result, SparseOctree) else result

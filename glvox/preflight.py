@@ -30,11 +30,13 @@ import numpy as np
 
 from . import datasets, io
 from .errors import FormatError, GlvoxError, GridError
-from .grid import DEFAULT_RESOLUTION, GridSpec, fit_grid
+from .grid import DEFAULT_RESOLUTION, MAX_VOXELS, GridSpec, fit_grid
 from .batch import BatchSettings
 from .methods import Request, get_method
 from .methods.attributes.passes import parse_attributes
 from .methods.base import MethodInfo
+from .methods.sdf.field import parse_band, parse_truncation, sign_request
+from .methods.sdf.samples import check_samples
 from .study.options import BENCH_PRESETS, CHECKOUT_BASELINE, COMPARE_PRESETS
 
 
@@ -276,6 +278,60 @@ def validate_voxelize(args) -> VoxelizeCall:
         format_fits(out, request.info, spec)
     note_default_grid(args, defaulted)
     return VoxelizeCall(request, out, spec if args.bounds is not None else None, spec is not None)
+
+
+#: Bytes per voxel ``glvox sdf`` holds at its peak: the float32 field and its GPU
+#: readback, the solid's occupancy and winding numbers, the masks, the signed copy.
+SDF_BYTES_PER_VOXEL = 22
+
+
+def sdf_memory(dims: Sequence[int]) -> None:
+    """GlvoxError, in one line, when a dense float grid of ``dims`` would not fit: over
+    glvox's dense limit, or over the memory available now (Linux's MemAvailable)."""
+    n = int(np.prod([int(d) for d in dims], dtype=np.int64))
+    need = n * SDF_BYTES_PER_VOXEL
+    have = _available_memory()
+    if n > MAX_VOXELS or (have is not None and need > have):
+        where = f"{have / 2**30:.1f} GiB are available" if have is not None else "over glvox's dense limit"
+        raise GlvoxError(f"an SDF on {'x'.join(map(str, dims))} voxels needs about {need / 2**30:.1f} GiB "
+                         f"({SDF_BYTES_PER_VOXEL} bytes per voxel) and {where}: use a smaller -r")
+
+
+def _available_memory() -> int | None:
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return None
+
+
+@dataclass(frozen=True)
+class SdfCall:
+    """``glvox sdf`` checked: the output and the band in voxels (``inf`` for 'all')."""
+
+    output: Path
+    band: float
+
+
+def validate_sdf(args) -> SdfCall:
+    band = parse_band(args.band)
+    parse_truncation(args.truncation)
+    if args.samples is not None:
+        check_samples(args.samples)
+        out = output_file(args.output, (".npz",), "samples output")
+    else:
+        sign_request(args.sign)
+        out = result_file(args.output, kind="sdf")
+    mesh_arg(args.mesh)
+    defaulted = default_grid(args)
+    spec = _grid_args(args)
+    if spec is not None and args.samples is None:
+        sdf_memory(spec.dims)
+    note_default_grid(args, defaulted and args.samples is None)
+    return SdfCall(out, band)
 
 
 def validate_batch(args) -> BatchSettings:

@@ -198,3 +198,18 @@ MERGE_DIGITS = 8
 #: relative) and far below any real feature (a 2^20-voxel grid's voxel is 1e-6),
 #: and keeps the integer keys below 2^31.
 WELD_RTOL = 1e-9
+
+# -- signed distance fields ------------------------------------------------------
+
+#: (voxels) glvox sdf: the GPU's distances agree with the float64 reference
+#: within this.  The band pass computes the closest point in double and rounds
+#: the distance once to float32 (2^-24 relative: 2e-7 voxel at a 3-voxel band;
+#: 1e-5 voxel at 170 voxels, so ``band='all'`` rounds far voxels of large grids
+#: beyond it, relative error still 6e-8).
+SDF_DISTANCE_TOL = 1e-5
+
+#: glvox sdf: a voxel's sign is uncertain where the generalized winding number
+#: at its center lies within this of 1/2 (a closed, consistently oriented
+#: surface gives 0 or 1 off the surface; holes, flipped or doubled faces give
+#: values between).
+SDF_WINDING_UNCERTAIN = 0.25

@@ -41,8 +41,8 @@ from .common import Format
 FORMATS: tuple[Format, ...] = (npz.FORMAT, binvox.FORMAT, nrrd.FORMAT, nifti.FORMAT, vti.FORMAT, vdb.FORMAT,
                               vox.FORMAT, colored.POINTS, colored.CUBES)
 
-#: Result kinds :func:`check_writable` knows: a dense grid, a sparse octree, an LDI.
-KINDS = ("surface", "solid", "sparse", "ldi")
+#: Result kinds :func:`check_writable` knows: a dense grid, a sparse octree, an LDI, a signed distance field.
+KINDS = ("surface", "solid", "sparse", "ldi", "sdf")
 
 
 def suffixes() -> list[str]:
@@ -69,7 +69,7 @@ def check_writable(path: str | os.PathLike, kind: str | None = None,
     ----------
     path : path-like
         The output file; its suffix picks the format.
-    kind : {'surface', 'solid', 'sparse', 'ldi'}, optional
+    kind : {'surface', 'solid', 'sparse', 'ldi', 'sdf'}, optional
         The kind of result that will be written (a method's ``info.kind``).
     dims : (3,) int, optional
         The grid's dims, when known (binvox takes cubic grids only; formats
@@ -93,6 +93,9 @@ def check_writable(path: str | os.PathLike, kind: str | None = None,
         raise FormatError(f"result kind must be one of {KINDS}, got {kind!r}")
     if kind == "ldi" and not fmt.ldi:
         raise FormatError(f"an LDI is saved as .npz (depths per ray), not {fmt.name}: {path}")
+    if kind == "sdf" and not fmt.sdf:
+        raise FormatError(f"a signed distance field is saved as .npz, .nrrd, .nii(.gz) or .vti, not {fmt.name}: "
+                          f"{path}")
     if dims is not None:
         check_dims(path, kind, dims)
     fmt.require()

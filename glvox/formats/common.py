@@ -14,7 +14,7 @@ import numpy as np
 
 from ..errors import FormatError, FormatWarning, LimitError
 from ..grid import GridSpec
-from ..results import LDI, Result, SparseOctree, VoxelGrid
+from ..results import LDI, Result, SDFGrid, SparseOctree, VoxelGrid
 from ..tolerances import FORMAT_AXIS_RTOL
 
 #: The optional extra that installs the PyPI libraries of the formats.
@@ -55,6 +55,8 @@ class Format:
     attributes : tuple of str
         The per-voxel attributes (``grid.attributes``) it writes; :data:`ALL_ATTRIBUTES`
         for every one.
+    sdf : bool
+        Holds an :class:`~glvox.results.SDFGrid` as a float32 field (world units).
     """
 
     name: str
@@ -68,6 +70,7 @@ class Format:
     ldi: bool = False
     check_dims: Callable[[tuple[int, int, int]], None] | None = None
     attributes: tuple[str, ...] = ()
+    sdf: bool = False
 
     def drops(self, names) -> list[str]:
         """Those of the attribute ``names`` this format does not write."""
@@ -104,6 +107,21 @@ def as_grid(result: Result, fmt: str) -> VoxelGrid:
     if not isinstance(result, VoxelGrid):
         raise FormatError(f"{fmt} stores voxel grids, got a {type(result).__name__}")
     return result
+
+
+def sdf_as_grid(result: SDFGrid) -> VoxelGrid:
+    """An SDF as the VoxelGrid that .vti stores: occupancy ``sdf < 0``, the masks ``band`` and
+    ``uncertain`` as extra masks and the distances as the float field ``sdf`` (world units)."""
+    spec = result.spec
+    return VoxelGrid(result.sdf < 0, spec, extras={"band": VoxelGrid(result.band, spec),
+                                                   "uncertain": VoxelGrid(result.uncertain, spec)},
+                     fields={"sdf": result.sdf})
+
+
+def warn_sdf_masks(fmt: str) -> None:
+    """The :class:`FormatWarning` of a format that keeps an SDF's distances but not its masks."""
+    warnings.warn(FormatWarning(f"{fmt} keeps the signed distances only; the band and uncertain masks are not "
+                                "written (.npz and .vti keep them)"), stacklevel=3)
 
 
 def warn_dropped(grid, fmt: str, *, keeps: str = "the occupancy only", keeps_masks: bool = False,

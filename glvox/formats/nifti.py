@@ -1,6 +1,7 @@
 """NIfTI-1 through nibabel (``pip install 'glvox[formats]'``): ``.nii`` and ``.nii.gz``.
 
-Written: a uint8 volume (1 = occupied) indexed [i, j, k] and an affine that
+Written: a uint8 volume (1 = occupied; a signed distance field: float32 distances in
+world units, negative inside) indexed [i, j, k] and an affine that
 maps voxel indices (i, j, k) to the world center of voxel (i, j, k),
 ``diag(h, h, h)`` and the translation ``origin + h / 2``; ``qform`` and
 ``sform`` both hold it (code 2, "aligned": the mesh's frame, not a
@@ -30,8 +31,9 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FormatError
-from ..results import Result, VoxelGrid
-from .common import Format, as_grid, center_matrix, grid_from_matrix, import_library, warn_dropped
+from ..results import Result, SDFGrid, VoxelGrid
+from .common import (Format, as_grid, center_matrix, grid_from_matrix, import_library, warn_dropped,
+                     warn_sdf_masks)
 
 #: NIfTI xform code written to qform and sform: 2 = aligned to another file or frame (the mesh's).
 XFORM_CODE = 2
@@ -44,13 +46,19 @@ def _library():
 def write(result: Result, path: Path) -> None:
     """Write ``result`` (a VoxelGrid, or an octree decoded) as NIfTI-1, uint8, qform = sform."""
     nib = _library()
-    grid = as_grid(result, "NIfTI")
+    sdf = isinstance(result, SDFGrid)  # the distances as float32, world units
+    grid = result if sdf else as_grid(result, "NIfTI")
     affine = center_matrix(grid.spec)
-    img = nib.Nifti1Image(np.asarray(grid.dense(), dtype=np.uint8), affine)
+    data = np.asarray(result.sdf, dtype=np.float32) if sdf else np.asarray(grid.dense(), dtype=np.uint8)
+    img = nib.Nifti1Image(data, affine)
     img.set_qform(affine, code=XFORM_CODE)
     img.set_sform(affine, code=XFORM_CODE)
-    img.header["descrip"] = b"glvox occupancy; affine: voxel index -> voxel center"
-    warn_dropped(grid, "NIfTI")
+    img.header["descrip"] = (b"glvox signed distance, world units" if sdf else b"glvox occupancy") \
+        + b"; affine: voxel index -> voxel center"
+    if sdf:
+        warn_sdf_masks("NIfTI")
+    else:
+        warn_dropped(grid, "NIfTI")
     nib.save(img, str(path))
 
 
@@ -70,4 +78,4 @@ def read(path: Path) -> VoxelGrid:
     return grid_from_matrix(data, affine[:3, :3], affine[:3, 3], path)
 
 
-FORMAT = Format("NIfTI", (".nii", ".nii.gz"), write, read, library=_library)
+FORMAT = Format("NIfTI", (".nii", ".nii.gz"), write, read, library=_library, sdf=True)

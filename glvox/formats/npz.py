@@ -23,4 +23,4 @@ def read(path: Path) -> Result:
     return read_npz(path)
 
 
-FORMAT = Format("npz", (".npz",), write, read, sparse=True, ldi=True, attributes=ALL_ATTRIBUTES)
+FORMAT = Format("npz", (".npz",), write, read, sparse=True, ldi=True, attributes=ALL_ATTRIBUTES, sdf=True)

@@ -1,6 +1,7 @@
 """NRRD through pynrrd (``pip install 'glvox[formats]'``).
 
-Written: ``type: uint8`` (1 = occupied), axes in glvox's [i, j, k] order
+Written: ``type: uint8`` (1 = occupied; a signed distance field: ``type: float``,
+its distances in world units, negative inside), axes in glvox's [i, j, k] order
 (i fastest on disk), gzip encoding, ``centerings: cell cell cell``,
 ``space directions`` h along each world axis and ``space origin`` the
 center of voxel (0, 0, 0), ``origin + h / 2``: in NRRD the space origin is
@@ -27,8 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FormatError
-from ..results import Result, VoxelGrid
-from .common import Format, as_grid, grid_from_matrix, import_library, warn_dropped
+from ..results import Result, SDFGrid, VoxelGrid
+from .common import Format, as_grid, grid_from_matrix, import_library, warn_dropped, warn_sdf_masks
 
 #: Sign of each world axis of a NRRD space relative to RAS (the frame glvox labels its world).
 SPACE_TO_RAS = {
@@ -48,16 +49,22 @@ def _library():
 def write(result: Result, path: Path) -> None:
     """Write ``result`` (a VoxelGrid, or an octree decoded) as a gzip NRRD, uint8, RAS."""
     nrrd = _library()
-    grid = as_grid(result, "NRRD")
+    sdf = isinstance(result, SDFGrid)  # the distances as float32, world units
+    grid = result if sdf else as_grid(result, "NRRD")
     h = grid.voxel_size
     header = {
-        "type": "uint8", "encoding": "gzip", "space": "right-anterior-superior",
+        "type": "float" if sdf else "uint8", "encoding": "gzip", "space": "right-anterior-superior",
         "space directions": np.diag([h, h, h]), "space origin": grid.origin + 0.5 * h,
         "kinds": ["domain"] * 3, "centerings": ["cell"] * 3, "glvox_placement": PLACEMENT_NOTE,
     }
-    warn_dropped(grid, "NRRD")
+    if sdf:
+        data = np.asarray(result.sdf, dtype=np.float32)
+        warn_sdf_masks("NRRD")
+    else:
+        data = np.asarray(grid.dense(), dtype=np.uint8)
+        warn_dropped(grid, "NRRD")
     # zlib level 6 (as npz and .vti): pynrrd's default 9 took 7x longer here for 20% smaller files
-    nrrd.write(str(path), np.asarray(grid.dense(), dtype=np.uint8), header, index_order="F", compression_level=6)
+    nrrd.write(str(path), data, header, index_order="F", compression_level=6)
 
 
 def read(path: Path) -> VoxelGrid:
@@ -88,4 +95,4 @@ def read(path: Path) -> VoxelGrid:
     return grid_from_matrix(data, steps, first, path)
 
 
-FORMAT = Format("NRRD", (".nrrd",), write, read, library=_library)
+FORMAT = Format("NRRD", (".nrrd",), write, read, library=_library, sdf=True)

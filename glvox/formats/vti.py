@@ -10,7 +10,9 @@ the files VTK writes in each of its encodings.
 Written: ``WholeExtent 0 nx 0 ny 0 nz`` (points), ``Origin`` the grid's min
 corner, ``Spacing h h h``, ``Direction`` the identity, and one uint8 **cell**
 array ``occupancy`` (1 = occupied) plus one ``extra_<name>`` per extra mask,
-one Float32 ``field_<name>`` per float field (``gwn-solid``'s winding numbers)
+one Float32 ``field_<name>`` per float field (``gwn-solid``'s winding numbers; a
+signed distance field: ``field_sdf``, world units, with ``occupancy`` = inside and
+the masks ``extra_band`` and ``extra_uncertain``)
 and one ``attr_<name>`` per per-voxel attribute (``grid.attributes``:
 Int32 ``triangle`` / ``material``, 4-component UInt8 ``color``, 3-component
 Float32 ``normal``; unset voxels hold the empty values of
@@ -44,8 +46,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FormatError, GridError
-from ..results import Result, VoxelGrid
-from .common import ALL_ATTRIBUTES, Format, as_grid, grid_from_matrix
+from ..results import Result, SDFGrid, VoxelGrid
+from .common import ALL_ATTRIBUTES, Format, as_grid, grid_from_matrix, sdf_as_grid
 
 #: Uncompressed bytes per zlib block (VTK's own default is 32 KiB; bigger
 #: blocks mean fewer header entries at the same ratio).
@@ -70,7 +72,7 @@ def _f(x: float) -> str:
 
 def write(result: Result, path: Path) -> None:
     """Write ``result`` (a VoxelGrid, or an octree decoded) as VTK image data with uint8 cell arrays."""
-    grid = as_grid(result, "VTK image data")
+    grid = sdf_as_grid(result) if isinstance(result, SDFGrid) else as_grid(result, "VTK image data")
     nx, ny, nz = grid.dims
     arrays = {"occupancy": grid.dense(), **{f"extra_{k}": g.dense() for k, g in grid.extras.items()},
               **{f"field_{k}": a for k, a in grid.fields.items()}}
@@ -295,4 +297,4 @@ def _read_attributes(grid: VoxelGrid, attrs: dict, dec, dims, steps, path: Path)
         raise FormatError(f"{path}: {exc}") from None
 
 
-FORMAT = Format("VTK image data", (".vti",), write, read, attributes=ALL_ATTRIBUTES)
+FORMAT = Format("VTK image data", (".vti",), write, read, attributes=ALL_ATTRIBUTES, sdf=True)

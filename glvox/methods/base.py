@@ -31,7 +31,7 @@ PIPELINES = ("raster", "compute", "cpu")
 FAMILIES = ("depth", "eisemann", "ldi", "ss", "ss_octree", "scanline", "carve", "gwn", "vote", "binvox", "solid",
             "reference")
 #: Families of passes that run after any method and register none (``--attributes``).
-PASS_FAMILIES = ("attributes",)
+PASS_FAMILIES = ("attributes", "sdf")
 #: Shader folders that belong to no family: what every family includes or runs.
 SHARED_SHADERS = ("common", "render", "sort", "testing")
 

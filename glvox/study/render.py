@@ -285,3 +285,53 @@ def save_png(img: np.ndarray, path: Path) -> Path:
 
     plt.imsave(path, img)
     return Path(path)
+
+
+def save_sdf_slice_png(result, path: Path, axis: int = 2, index: int | None = None) -> Path:
+    """A slice of a signed distance field: distances in a diverging colour map (blue inside,
+    red outside, world units), the zero level drawn as a black line, voxels outside the
+    exact band hatched grey and voxels with an uncertain sign marked.
+
+    Parameters
+    ----------
+    result : SDFGrid
+    path : path
+        The PNG to write.
+    axis : {0, 1, 2}
+        The slice's normal; ``index`` the slice (default the middle one).
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = result.dims[axis]
+    index = n // 2 if index is None else int(index)
+    take = [slice(None)] * 3
+    take[axis] = index
+    sdf = np.asarray(result.sdf[tuple(take)], dtype=np.float64).T  # rows: the second remaining axis
+    band = np.asarray(result.band[tuple(take)]).T
+    unc = np.asarray(result.uncertain[tuple(take)]).T
+    lim = float(np.abs(sdf).max()) or 1.0
+    fig, ax = plt.subplots(figsize=(7, 6.4))
+    im = ax.imshow(sdf, origin="lower", cmap="RdBu_r", vmin=-lim, vmax=lim, interpolation="nearest")
+    if (~band).any():
+        ax.imshow(np.where(band, np.nan, 1.0), origin="lower", cmap="Greys", vmin=0, vmax=3, alpha=0.35,
+                  interpolation="nearest")
+    if sdf.min() < 0 < sdf.max():
+        ax.contour(sdf, levels=[0.0], colors="black", linewidths=1.2)
+    if unc.any():
+        v, u = np.nonzero(unc)
+        ax.scatter(u, v, s=6, c="gold", marker="x", label=f"uncertain sign ({int(unc.sum())})")
+        ax.legend(loc="upper right", fontsize=8)
+    names = "xyz"
+    rest = [names[a] for a in range(3) if a != axis]
+    ax.set_xlabel(f"{rest[0]} (voxels)")
+    ax.set_ylabel(f"{rest[1]} (voxels)")
+    ax.set_title(f"signed distance, slice {names[axis]} = {index} of {n} (black: zero level; grey: clamped)",
+                 fontsize=9)
+    fig.colorbar(im, ax=ax, label="world units (negative inside)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return Path(path)
