@@ -107,6 +107,10 @@ def _add_voxelize_parser(sub) -> None:
     pv.add_argument("-O", "--option", action="append", default=[], metavar="KEY=VALUE",
                     help="method option (repeatable); `--KEY VALUE` works too, e.g. --axis 2")
     _add_grid_arguments(pv, bounds=True)
+    pv.add_argument("--fit", choices=("center", "binvox"), default="center",
+                    help="grid placement with -r: centered on the bounding box (default), or binvox's (its "
+                         "minimum corner at the box's, longest side = N voxels; .binvox written in binvox's "
+                         "convention)")
     pv.add_argument("--allow-open", action="store_true",
                     help="let solid methods run on meshes that are not watertight")
     _add_output_arguments(pv, "print counts and timings as JSON")

@@ -20,10 +20,10 @@ from ._version import __version__
 from .batch import BatchSettings, run_batch
 from .errors import GlvoxError
 from .gl.context import get_context
-from .grid import grid_for
+from .grid import binvox_grid, grid_for
 from .inspect import inspect_mesh
-from .mesh import load_mesh
-from .methods import Request, method_infos, run_method
+from .mesh import binvox_bounds, load_mesh
+from .methods import Request, get_method, method_infos, run_method
 from .methods.ldi.leung_wang import overlap_bounds, overlap_grid, run_intersection
 from .methods.sdf.field import signed_distance_field
 from .methods.sdf.samples import save_samples, sdf_samples
@@ -87,11 +87,22 @@ def cmd_voxelize(args) -> int:
     mesh = load_visual_mesh(mesh_path) if call.request.attributes else load_mesh(mesh_path)
     say(f"{mesh.n_triangles} triangles ({mesh.n_degenerate} zero-area dropped), "
         f"{'watertight' if mesh.watertight else 'NOT watertight'}")
-    spec = call.grid if call.grid is not None else _spec(args, mesh)
+    binvox_fit = getattr(args, "fit", "center") == "binvox"
+    if binvox_fit:
+        spec = binvox_grid(binvox_bounds(mesh_path, mesh), args.resolution)
+    else:
+        spec = call.grid if call.grid is not None else _spec(args, mesh)
     if out is not None and not call.output_fits:
         preflight.format_fits(out, info, spec)  # the dims of --tight / --voxel-size are known now
     say(f"grid {spec}")
-    say(f"voxelizing with {info.name} ({info.family} family, {info.pipeline}, {info.kind})")
+    picked = call.request.method.resolve(mesh)
+    if picked != info.name:  # an alias (-m solid): say what it picked and why
+        why = call.request.method.why(mesh)
+        info = get_method(picked).info
+        say(f"voxelizing with {info.name} ({info.family} family, {info.pipeline}, {info.kind}; "
+            f"picked by {call.request.name}: {why})")
+    else:
+        say(f"voxelizing with {info.name} ({info.family} family, {info.pipeline}, {info.kind})")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         result = run_method(call.request, mesh, spec, backend=args.backend, allow_open=args.allow_open)
@@ -100,7 +111,8 @@ def cmd_voxelize(args) -> int:
     run = result.run
     say(f"{_summary(result)}; {run.timings.summary()}")
     if out is not None:
-        _save(result, out)
+        # binvox's placement is written in binvox's header convention (translate = origin, scale = n h)
+        _save(result, out, **({"convention": "binvox"} if binvox_fit else {}))
         say(f"wrote {out}")
     if args.json:
         d = run.to_dict()

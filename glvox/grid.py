@@ -309,6 +309,43 @@ def grid_for(mesh, resolution: int | None = None, *, dims: Sequence[int] | None 
     return fit_grid(b, resolution, dims=dims, voxel_size=voxel_size, padding=padding, tight=tight)
 
 
+def binvox_grid(bounds: np.ndarray, n: int) -> GridSpec:
+    """binvox's placement of an ``n``^3 grid around world-space ``bounds`` (2, 3).
+
+    binvox moves the bounding box's minimum corner to the origin and scales its
+    longest side to 1 (no centering of the shorter axes, no padding), then
+    samples voxel centers at ``(i + 0.5) / n``: in world units the grid's
+    minimum corner is the bounding box's (``origin = bounds[0]``, binvox's
+    ``translate``) and ``h = max extent / n`` (``n h`` is binvox's ``scale``).
+
+    Worked example: bounds [-1, 2] x [0, 1] x [0, 0.5] at n = 4 give
+    origin (-1, 0, 0), h = 0.75, dims (4, 4, 4); the grid spans [-1, 2] along x
+    and [0, 3] along y and z.
+
+    Parameters
+    ----------
+    bounds : (2, 3) float
+        Min and max corner (binvox: of every vertex of the file).
+    n : int
+        Voxels along every axis (binvox ``-d``).
+
+    Returns
+    -------
+    GridSpec
+    """
+    b = np.asarray(bounds, dtype=np.float64)
+    if b.shape != (2, 3) or not np.all(np.isfinite(b)):
+        raise GridError(f"bounds must be a finite (2, 3) array [min, max], got shape {b.shape}")
+    if np.any(b[1] < b[0]):
+        raise GridError(f"bounds max must be >= min on every axis, got min {b[0]} max {b[1]}")
+    if int(n) != n or n < 1:
+        raise GridError(f"resolution must be a positive integer, got {n!r}")
+    extent = float((b[1] - b[0]).max())
+    if not extent > 0:
+        raise GridError("the bounds have zero extent on every axis (a single point): binvox cannot scale them")
+    return GridSpec((int(n),) * 3, b[0], extent / int(n))
+
+
 # ---------------------------------------------------------------------------
 # packing
 # ---------------------------------------------------------------------------

@@ -22,7 +22,7 @@ from typing import Any, Sequence, Union
 import numpy as np
 
 from .errors import EmptyMeshError, FaceIndexError, LimitError, MeshError, MeshLoadError, NonFiniteVertexError
-from .meshfiles import FAST_SUFFIXES, read_fast
+from .meshfiles import FAST_SUFFIXES, obj_vertex_bounds, read_fast
 from .tolerances import DEGENERATE_AREA_RTOL, MERGE_DIGITS
 
 #: The largest float32, the type of vertices on the GPU.
@@ -205,6 +205,22 @@ def _scene_triangles(scene, path: Path):
     if not faces:
         raise EmptyMeshError(f"{path} holds no triangles")
     return np.concatenate(verts), np.concatenate(faces)
+
+
+def binvox_bounds(source: Any, mesh: Mesh) -> np.ndarray:
+    """The bounding box binvox fits its grid to: of every ``v`` record when ``source``
+    is an OBJ file (:func:`glvox.meshfiles.obj_vertex_bounds`), else ``mesh.bounds``.
+
+    Returns
+    -------
+    (2, 3) float64
+        World units.
+    """
+    if isinstance(source, (str, os.PathLike)) and str(source).lower().endswith(".obj") and Path(source).is_file():
+        b = obj_vertex_bounds(Path(source).read_bytes())
+        if b is not None:
+            return b
+    return np.array(mesh.bounds)
 
 
 def load_mesh(mesh: MeshLike, *, name: str | None = None) -> Mesh:

@@ -318,3 +318,22 @@ def _obj_block(data: bytes, starts, ends, mine, theirs, tokens) -> Optional[byte
     if lines.size == hi - lo + 1 or not np.any(tokens[lo:hi + 1][~mine[lo:hi + 1]]):
         return data[starts[lo] + 1:ends[hi]]  # one block (blank lines inside parse as nothing)
     return b"\n".join(data[starts[i] + 1:ends[i]] for i in lines.tolist())
+
+
+def obj_vertex_bounds(data: bytes) -> Optional[np.ndarray]:
+    """(2, 3) float64 min and max of every ``v`` record of an OBJ file, or None when it has none.
+
+    binvox fits its grid to these, vertices that no face uses included (ShapeNet
+    files hold polyline-only vertices), where the loaded mesh keeps the
+    referenced ones only.
+    """
+    rows = [line.split()[1:4] for line in data.splitlines() if line.startswith(b"v ") or line.startswith(b"v\t")]
+    if not rows:
+        return None
+    try:
+        v = np.array([[float(x) for x in r] for r in rows if len(r) == 3], dtype=np.float64)
+    except ValueError:
+        return None
+    if v.size == 0 or not np.all(np.isfinite(v)):
+        return None
+    return np.stack([v.min(axis=0), v.max(axis=0)])

@@ -267,6 +267,12 @@ def validate_voxelize(args) -> VoxelizeCall:
     attribute_output(request, out)
     mesh_arg(args.mesh)
     defaulted = default_grid(args)
+    if getattr(args, "fit", "center") == "binvox":
+        given = [flag for flag, on in (("--dims", args.dims is not None), ("--voxel-size", args.voxel_size is not None),
+                                       ("--bounds", args.bounds is not None), ("--padding", args.padding != 0),
+                                       ("--tight", args.tight)) if on]
+        if given:
+            raise GlvoxError(f"--fit binvox places an N^3 grid by -r N alone (binvox -d N); drop {', '.join(given)}")
     spec = _grid_args(args, bounds=True)
     if out is not None and spec is not None:
         format_fits(out, request.info, spec)

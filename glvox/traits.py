@@ -264,7 +264,7 @@ SOLID_MECHANISMS = {
     "gwn-solid": "winding", "reference-gwn": "winding",
     "karabassi": "hull",
     "carve-solid": "carve", "reference-carve": "carve",
-    "binvox-solid": "binvox",
+    "binvox-solid": "binvox", "reference-binvox": "binvox",
 }
 
 #: One line per mechanism, for ``glvox inspect``.

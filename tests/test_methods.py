@@ -24,8 +24,8 @@ VOXEL_KINDS = ("surface", "solid")
 
 def test_registry_holds_the_references():
     assert {"reference-conservative", "reference-6sep", "reference-solid"} <= set(method_names())
-    assert method_names(kind="solid", pipeline="cpu") == ["reference-carve", "reference-gwn", "reference-solid",
-                                                        "reference-vote"]
+    assert method_names(kind="solid", pipeline="cpu") == ["reference-binvox", "reference-carve", "reference-gwn",
+                                                        "reference-solid", "reference-vote"]
 
 
 @pytest.mark.parametrize("name", method_names())

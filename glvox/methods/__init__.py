@@ -111,6 +111,7 @@ def run_method(name: str | Request, mesh: Mesh, spec: GridSpec, *, ctx=None, bac
                              allow_open=allow_open, debug=debug)
     if request is not asked:
         result.run.stats["requested"] = asked.name
+        result.run.stats["picked_because"] = asked.method.why(mesh)
     return result
 
 

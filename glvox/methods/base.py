@@ -28,7 +28,8 @@ PIPELINES = ("raster", "compute", "cpu")
 #: ``shaders/<family>/``, its tests ``tests/test_<family>.py`` and its page
 #: ``docs/methods/<family>.md`` (``tests/test_layout.py`` holds them together);
 #: a method's family is the package that registers it.
-FAMILIES = ("depth", "eisemann", "ldi", "ss", "ss_octree", "scanline", "carve", "gwn", "vote", "solid", "reference")
+FAMILIES = ("depth", "eisemann", "ldi", "ss", "ss_octree", "scanline", "carve", "gwn", "vote", "binvox", "solid",
+            "reference")
 #: Families of passes that run after any method and register none (``--attributes``).
 PASS_FAMILIES = ("attributes", "sdf")
 #: Shader folders that belong to no family: what every family includes or runs.
@@ -286,6 +287,11 @@ class Method:
         for aliases that pick a method by the mesh (``solid``); :func:`run_method`
         runs that one and records it in the run info."""
         return self.info.name
+
+    def why(self, mesh) -> str | None:
+        """For an alias, why :meth:`resolve` picks its method for ``mesh`` (recorded as
+        ``result.run.stats['picked_because']``); None for other methods."""
+        return None
 
     #: True for references that define :meth:`tie_set`.
     has_ties: ClassVar[bool] = False

@@ -29,7 +29,9 @@ uniform bool u_peel;
 uniform usampler2D u_prev;   // previous layer: (key bits, id, slot, valid)
 // The layer: key bits, triangle id, the first voxel whose center lies beyond the crossing
 // (reference: voxel i flips iff i + 1/2 > q, i.e. i >= floor(q + 1/2)), clamped to
-// [0, u_depth_n] with u_depth_n meaning "beyond the grid", and 1 = a crossing is here.
+// [0, u_depth_n] with u_depth_n meaning "beyond the grid", and w != 0 = a crossing is here:
+// w = floor(q) + 2 with floor(q) clamped to [-1, u_depth_n], so w - 2 is the voxel holding
+// the crossing when it lies in [0, u_depth_n) (binvox-solid's surface; 0 is never written).
 layout(location = 0) out uvec4 o_layer;
 
 // Edge function of p -> q at c, evaluated from the lexicographically smaller end point and
@@ -86,5 +88,6 @@ void main() {
     precise double first = floor(q + 0.5);
     uint slot = first >= double(u_depth_n) ? uint(u_depth_n) : uint(max(first, 0.0lf));
     gl_FragDepth = key;
-    o_layer = uvec4(floatBitsToUint(key), g_id, slot, 1u);
+    uint holder = uint(clamp(floor(q), -1.0lf, double(u_depth_n)) + 2.0lf);
+    o_layer = uvec4(floatBitsToUint(key), g_id, slot, holder);
 }

@@ -1,0 +1,249 @@
+"""binvox-solid (binvox's carving and parity voting on the GPU) against reference-binvox
+and hand-worked grids; binvox's placement (glvox.grid.binvox_grid) and its CLI switch.
+
+The hand-made meshes have every vertex and crossing away from voxel centers and
+boundaries (no ties), so GPU and float64 reference must agree voxel for voxel.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+import trimesh
+
+from glvox.grid import GridSpec, binvox_grid
+from glvox.mesh import binvox_bounds, load_mesh
+from glvox.meshfiles import obj_vertex_bounds
+from glvox.methods import run_method
+from glvox.methods.binvox.solid import BINVOX_DEFAULTS, EmptySolidWarning
+from glvox.reference.binvox import binvox_parts, binvox_solid, halve
+
+SPEC = GridSpec((10, 9, 8), (0, 0, 0), 1.0)
+MODES = ("default", "carve", "vote")
+
+
+def box_mesh():
+    """x in [1.9, 6.3], y in [2.25, 5.55], z in [2.6, 4.8] (voxel units on SPEC), outward faces."""
+    m = trimesh.creation.box(extents=(4.4, 3.3, 2.2))
+    m.apply_translation((4.1, 3.9, 3.7))
+    return np.asarray(m.vertices), np.asarray(m.faces)
+
+
+def box_solid():
+    """Hand-worked: centers between the crossings on all three axes: i 2..5, j 2..5, k 3..4."""
+    out = np.zeros(SPEC.dims, bool)
+    out[2:6, 2:6, 3:5] = True
+    return out
+
+
+def box_surface():
+    """Hand-worked voxels holding a crossing: x crossings 1.9 / 6.3 -> i 1 / 6 in the columns
+    j 2..5, k 3..4; y crossings 2.25 / 5.55 -> j 2 / 5 (inside the solid already); z crossings
+    2.6 / 4.8 -> k 2 / 4 in the columns i 2..5, j 2..5."""
+    out = np.zeros(SPEC.dims, bool)
+    out[[1, 6], 2:6, 3:5] = True
+    out[2:6, [2, 5], 3:5] = True
+    out[2:6, 2:6, [2, 4]] = True
+    return out
+
+
+def gpu(mesh, **options):
+    """binvox-solid on SPEC, binvox's own defaults unless ``options`` say otherwise."""
+    return run_method("binvox-solid", mesh, SPEC, **{**BINVOX_DEFAULTS, **options}).dense()
+
+
+def ref(mesh, **options):
+    return run_method("reference-binvox", mesh, SPEC, **{**BINVOX_DEFAULTS, **options}).dense()
+
+
+@pytest.mark.parametrize("mode", MODES)
+@pytest.mark.parametrize("surface", [False, True])
+def test_closed_box(mode, surface):
+    mesh = load_mesh(box_mesh())
+    expect = box_solid() | (box_surface() if surface else False)
+    assert np.array_equal(ref(mesh, mode=mode, surface=surface), expect)
+    g = run_method("binvox-solid", mesh, SPEC, **{**BINVOX_DEFAULTS, "mode": mode, "surface": surface})
+    assert np.array_equal(g.dense(), expect)
+    assert g.count == int(expect.sum())
+
+
+@pytest.mark.parametrize("mode", ["default", "carve"])
+def test_double_sided_box_is_full(mode):
+    """Every face twice, opposite windings: carving ignores winding, so the box is full."""
+    v, f = box_mesh()
+    mesh = load_mesh((v, np.concatenate([f, f[:, ::-1]])))
+    assert np.array_equal(gpu(mesh, mode=mode, surface=False), box_solid())
+    assert np.array_equal(ref(mesh, mode=mode, surface=False), box_solid())
+
+
+def test_double_sided_box_votes_nothing():
+    """Pinned: parity voting alone sees an even count on every ray of a double-sided mesh,
+    so binvox -v empties it; the method warns."""
+    v, f = box_mesh()
+    mesh = load_mesh((v, np.concatenate([f, f[:, ::-1]])))
+    with pytest.warns(EmptySolidWarning, match="double-sided"):
+        assert not gpu(mesh, mode="vote", surface=False).any()
+    assert not ref(mesh, mode="vote", surface=False).any()
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_inconsistent_orientation(mode):
+    """Half the faces flipped: neither carving nor parity depends on winding."""
+    v, f = box_mesh()
+    f = f.copy()
+    f[::2] = f[::2, ::-1]
+    mesh = load_mesh((v, f))
+    assert np.array_equal(gpu(mesh, mode=mode), box_solid() | box_surface())
+    assert np.array_equal(ref(mesh, mode=mode), box_solid() | box_surface())
+
+
+def test_open_box():
+    """The box without its +z face.  Pinned: carving leaks (every z column sees one
+    crossing from both ends: nothing kept), the votes fill it (x and y give 2 each, z 1:
+    5 of 6), so the default (carve | votes >= 3) is the closed box's solid."""
+    v, f = box_mesh()
+    n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    mesh = load_mesh((v, f[n[:, 2] <= 0]))
+    assert not mesh.watertight
+    with pytest.warns(EmptySolidWarning):
+        assert not gpu(mesh, mode="carve", surface=False).any()
+    for mode in ("default", "vote"):
+        assert np.array_equal(gpu(mesh, mode=mode, surface=False), box_solid())
+        assert np.array_equal(ref(mesh, mode=mode, surface=False), box_solid())
+
+
+@pytest.mark.parametrize("sides", [(-1, -1, -1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1)])
+def test_three_walls_vote_exactly_three(sides):
+    """One face per axis (the -x or +x face as ``sides`` says, and so on): every column
+    holds one crossing, so carving keeps nothing, and a voxel inside the box gets exactly
+    one vote per axis (the parity before its center for a + wall, beyond it for a - wall):
+    3 votes, set (binvox sets more than 2)."""
+    v, f = box_mesh()
+    n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    mesh = load_mesh((v, f[(n * np.array(sides)).max(axis=1) > 0]))
+    assert len(mesh.faces) == 6
+    for mode in ("default", "vote"):
+        assert np.array_equal(gpu(mesh, mode=mode, surface=False), box_solid())
+        assert np.array_equal(ref(mesh, mode=mode, surface=False), box_solid())
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_open_sloped_mesh_matches_reference(mode):
+    """An icosahedron with three faces dropped: odd crossing counts on many columns."""
+    m = trimesh.creation.icosphere(subdivisions=1, radius=3.37)
+    m.apply_translation((4.61, 4.43, 3.89))
+    mesh = load_mesh((m.vertices, m.faces[3:]))
+    assert np.array_equal(gpu(mesh, mode=mode), ref(mesh, mode=mode))
+
+
+def octahedron():
+    """A sloped closed mesh (dilated carving changes it), center and radius off the lattice."""
+    m = trimesh.creation.icosphere(subdivisions=0, radius=3.37)
+    m.apply_translation((4.61, 4.43, 3.89))
+    return load_mesh((m.vertices, m.faces))
+
+
+@pytest.mark.parametrize("mode", MODES)
+@pytest.mark.parametrize("dilated", [False, True])
+def test_sloped_mesh_matches_reference(mode, dilated):
+    mesh = octahedron()
+    assert np.array_equal(gpu(mesh, mode=mode, dilated=dilated), ref(mesh, mode=mode, dilated=dilated))
+
+
+def test_dilated_carving_adds_one_voxel_per_end():
+    """-dc keeps max(lo - 1, 0) <= k < hi + 1 per axis: the plain carve's voxels and more,
+    each added voxel one step along some axis from the plain carve (on an axis-aligned box
+    it adds nothing: the other axes' lines through the extra voxel miss the box)."""
+    mesh = octahedron()
+    tris = mesh.triangles_voxel(SPEC)
+    plain, _, _ = binvox_parts(tris, SPEC.dims, dilated=False)
+    dil, _, _ = binvox_parts(tris, SPEC.dims, dilated=True)
+    assert (plain & ~dil).sum() == 0 and (dil & ~plain).sum() > 0
+    g = gpu(mesh, mode="carve", surface=False, dilated=True)
+    assert np.array_equal(g, dil)
+    # every added voxel is a 6-neighbour of the plain carve (one more voxel at an interval's end)
+    near = plain.copy()
+    for axis in range(3):
+        for step in (1, -1):
+            near |= np.roll(plain, step, axis)
+    assert not (dil & ~near).any()
+
+
+def test_down_matches_reference():
+    """binvox -down: voxelized at twice the dims, then >= dmin of 8 (GPU pass vs numpy)."""
+    mesh = octahedron()
+    for dmin in (1, 4, 8):
+        g = gpu(mesh, down=1, dmin=dmin, dilated=True)
+        assert np.array_equal(g, ref(mesh, down=1, dmin=dmin, dilated=True)), dmin
+    fine = np.zeros((4, 2, 2), bool)
+    fine[0:2, 0, :] = True           # 4 of the first block's 8
+    fine[2, 0, 0] = fine[3, 1, 1] = fine[2, 1, 0] = True  # 3 of the second's
+    assert halve(fine, 4).ravel().tolist() == [True, False]
+    assert halve(fine, 3).ravel().tolist() == [True, True]
+
+
+def test_shared_mesh_matches_reference():
+    """A generated closed mesh at 24^3 with binvox's placement (tie-free here)."""
+    mesh = load_mesh("gen:torus")
+    spec = binvox_grid(mesh.bounds, 24)
+    for mode in MODES:
+        g = run_method("binvox-solid", mesh, spec, mode=mode).dense()  # ShapeNet's recipe: -dc -down
+        r = run_method("reference-binvox", mesh, spec, mode=mode).dense()
+        assert np.array_equal(g, r), mode
+
+
+def test_binvox_grid_hand_worked():
+    spec = binvox_grid(np.array([[-1.0, 0.0, 0.0], [2.0, 1.0, 0.5]]), 4)
+    assert spec.dims == (4, 4, 4)
+    assert np.array_equal(spec.origin, [-1.0, 0.0, 0.0])
+    assert spec.voxel_size == 0.75
+    # voxel 0's center is binvox's (0 + 0.5) / 4 of the unit cube: -1 + 0.125 * 3
+    assert np.allclose(spec.centers(np.array([[0, 0, 0]])), [[-0.625, 0.375, 0.375]])
+    with pytest.raises(Exception, match="zero extent"):
+        binvox_grid(np.zeros((2, 3)), 4)
+
+
+def test_obj_bounds_count_every_vertex(tmp_path):
+    """binvox fits every `v` record, a vertex used only by a polyline included."""
+    p = tmp_path / "m.obj"
+    p.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 5 0 0\nf 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\nl 1 5\n")
+    assert np.array_equal(obj_vertex_bounds(p.read_bytes()), [[0, 0, 0], [5, 1, 1]])
+    mesh = load_mesh(p)
+    assert np.array_equal(binvox_bounds(p, mesh), [[0, 0, 0], [5, 1, 1]])
+    assert np.array_equal(binvox_bounds("gen:torus", load_mesh("gen:torus")), load_mesh("gen:torus").bounds)
+
+
+def test_cli_fit_binvox(tmp_path, capsys):
+    from glvox.cli import main
+    from glvox.formats.binvox import read
+    p = tmp_path / "box.obj"
+    v, f = box_mesh()
+    trimesh.Trimesh(v, f, process=False).export(p)
+    out = tmp_path / "box.binvox"
+    assert main(["voxelize", str(p), "-m", "binvox-solid", "-r", "10", "--fit", "binvox", "-o", str(out)]) == 0
+    head = out.read_bytes().split(b"data\n")[0].decode().splitlines()
+    assert head[2].split()[1:] == ["1.9", "2.25", "2.6"] and float(head[3].split()[1]) == pytest.approx(4.4)
+    grid = read(out, convention="binvox")
+    assert np.allclose(grid.origin, [1.9, 2.25, 2.6]) and grid.voxel_size == pytest.approx(0.44)
+    said = capsys.readouterr()
+    assert "voxelizing with binvox-solid" in said.err + said.out
+    assert main(["voxelize", str(p), "-m", "binvox-solid", "-r", "10", "--fit", "binvox", "--tight"]) != 0
+    assert "--fit binvox places an N^3 grid by -r N alone (binvox -d N); drop --tight" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("axis", [0, 1, 2])
+def test_mirror_on_a_tie_free_mesh(axis):
+    """Mirrored along ``axis`` about the grid's center (faces flipped back), the solid is the
+    mirrored solid, -dc -down included (at ties binvox's round-half-up is not symmetric:
+    tests/test_ties.py leaves binvox out of its mirror test)."""
+    mesh = octahedron()
+    spec = GridSpec((10, 10, 10), (0, 0, 0), 1.0)
+    v = mesh.vertices.copy()
+    v[:, axis] = 10.0 - v[:, axis]
+    mirrored = load_mesh((v, mesh.faces[:, ::-1]))
+    for options in ({}, BINVOX_DEFAULTS):
+        a = run_method("binvox-solid", mesh, spec, **options).dense()
+        b = run_method("binvox-solid", mirrored, spec, **options).dense()
+        assert np.array_equal(np.flip(b, axis), a), options
