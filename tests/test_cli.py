@@ -144,6 +144,7 @@ BAD_OUTPUT = {
     "bench": ["bench", "--meshes", "/nonexistent.obj", "-r", "8", "-o", "/proc/glvox_x"],
     "bench-baseline": ["bench", "--meshes", "/nonexistent.obj", "-r", "8", "--save-baseline", "/proc/glvox_b.json"],
     "render": ["render", "/nonexistent.npz", "-o", "/proc/glvox_x.png"],
+    "sdf": ["sdf", "/nonexistent.obj", "-r", "8", "-o", "/proc/glvox_x.npz"],
 }
 
 

@@ -117,7 +117,9 @@ def run_in_envelope(info: MethodInfo, meshes: Sequence[Any], spec: GridSpec,
     result.run = RunInfo(method=info.name, kind=info.kind, spec=spec, timings=timings,
                          stats=stats, options=options)
     if info.kind == "solid" and count is not None and len(meshes) == 1:
-        line = suspicious_solid(info.name, meshes[0], spec, count)
+        # a method that knows why its own result is suspect says so in its stats (one line,
+        # its cause); else the mesh's traits judge the count
+        line = stats.get("suspicious") or suspicious_solid(info.name, meshes[0], spec, count)
         if line:
             stats["suspicious"] = line
             warnings.warn(f"{meshes[0].name}: {line}", SuspiciousResultWarning, stacklevel=3)

@@ -140,3 +140,12 @@ def binvox_solid(tris: np.ndarray, dims: Sequence[int], mode: str = "default", d
     if surface:
         out |= surf
     return out
+
+
+def empty_cause(method: str, mode: str, dims: Sequence[int]) -> str:
+    """Why binvox's solid can be empty, as one line (the run envelope's warning): parity
+    voting alone cancels on double-sided meshes, carving alone on a mesh open towards
+    every view; the default combines both."""
+    return (f"0 voxels (empty) from {method} (mode={mode!r}) on {tuple(int(d) for d in dims)}: parity voting "
+            "alone empties double-sided meshes (every ray crosses each face twice) and carving alone "
+            "empties a mesh open towards every view; use -O mode=default")

@@ -38,7 +38,6 @@ counters), then ``finish`` and ``readback``.
 
 from __future__ import annotations
 
-import warnings
 
 import numpy as np
 
@@ -46,6 +45,7 @@ from ...gl.shaders import compute_program
 from ...gpu.buffers import buffer_pool, mesh_buffers, read_grid_words
 from ...gpu.dispatch import barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
 from ...grid import GridSpec
+from ...reference.binvox import empty_cause
 from ...results.voxels import VoxelGrid
 from ..base import Method, MethodInfo, Option, Requirements, register
 from ..depth.layers import SCAN_SEGMENT
@@ -54,11 +54,9 @@ from ..depth.raster import RasterPass, depth_target, peel_behind, tile_origins, 
 MODES = ("default", "carve", "vote")
 
 
-class EmptySolidWarning(UserWarning):
-    """binvox-solid set no voxel of a mesh that has triangles."""
-
 _AXIS_NAMES = "xyz"
-_REQUIRES = Requirements(gl_version=450, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 8})
+_REQUIRES = Requirements(gl_version=450, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 8},
+                         compute=(("binvox/*.comp", {}), ("depth/scan.comp", {})))
 
 #: The options of binvox-solid and reference-binvox (one definition: they are compared
 #: with the same values).
@@ -203,11 +201,9 @@ class BinvoxSolid(Method):
             words = read_grid_words(result, target_spec)
             voxels = int(np.frombuffer(out["count"].read(size=4), dtype="<u4")[0])
         if voxels == 0:
-            # binvox's own output would be empty too; say why rather than return it silently
-            warnings.warn(f"binvox-solid (mode={mode!r}) set no voxel of {mesh.name} on {target_spec.dims}: "
-                          "parity voting alone empties double-sided meshes (every ray crosses each face twice) "
-                          "and carving alone empties a mesh open towards every view; try mode='default'",
-                          EmptySolidWarning, stacklevel=2)
+            # binvox's own output would be empty too; the run envelope warns with this cause
+            # (SuspiciousResultWarning) rather than return it silently
+            timer.stats["suspicious"] = empty_cause("binvox-solid", mode, target_spec.dims)
         timer.stats.update({"mode": mode, "dilated": bool(dilated), "surface": bool(surface), "down": down,
                             "passes": passes, "layers": layers, "tiles": tiles})
         return VoxelGrid(words=words, spec=target_spec, count=voxels)

@@ -18,7 +18,7 @@ from ...errors import MethodError
 from ...grid import snap_to_planes
 from ...reference import (conservative_surface, six_separating_surface, solid, solid_ties, solid_vote, surface_ties,
                          winding, winding_ties)
-from ...reference.binvox import binvox_solid
+from ...reference.binvox import binvox_solid, empty_cause
 from ...reference.carve import MAX_CLOSE, carve_ties, carved_solid
 from ...reference.ldi import crossings
 from ...results.ldi import LDI, close_odd
@@ -169,7 +169,10 @@ class ReferenceBinvox(Method):
             tris = mesh.triangles_voxel(spec)
         with timer.stage("voxelize", gpu=False):
             occ = binvox_solid(tris, spec.dims, mode, dilated, surface, down, dmin)
-        return VoxelGrid(occ, spec)
+        grid = VoxelGrid(occ, spec)
+        if grid.count == 0:  # the run envelope warns with this cause
+            timer.stats["suspicious"] = empty_cause("reference-binvox", mode, grid.spec.dims)
+        return grid
 
 
 class _WindingCache:

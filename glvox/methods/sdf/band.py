@@ -17,7 +17,7 @@ import numpy as np
 from ...errors import LimitError
 from ...gl.shaders import compute_program
 from ...gpu.buffers import buffer_pool, check_buffer_size
-from ...gpu.dispatch import LOOP_BUDGET, barrier, dispatch_1d, set_uniforms
+from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, set_uniforms
 
 _LOCAL = 64
 _POOL = "sdf"
@@ -142,9 +142,7 @@ def band_distances(ctx, tri_vox: np.ndarray, dims, radius: float, timer) -> np.n
         dist.clear(size=n_vox * 4, chunk=np.uint32(FAR_BITS).tobytes())
     with timer.stage("sdf_band"):
         prog = compute_program(ctx, "sdf/band.comp")
-        for binding, name in enumerate(("geo", "plane", "box", "items")):
-            bufs[name].bind_to_storage_buffer(binding)
-        dist.bind_to_storage_buffer(4)
+        bind(prog, Geo=bufs["geo"], Plane=bufs["plane"], Box=bufs["box"], Items=bufs["items"], Dist=dist)
         set_uniforms(prog, {"u_dims": (nx, ny, nz), "u_chunk": chunk, "u_radius": float(radius)})
         for first in range(0, total, COLUMNS_PER_DISPATCH):
             count = min(COLUMNS_PER_DISPATCH, total - first)
@@ -152,7 +150,8 @@ def band_distances(ctx, tri_vox: np.ndarray, dims, radius: float, timer) -> np.n
             dispatch_1d(ctx, prog, count, _LOCAL)
         barrier(ctx)
     with timer.stage("sdf_readback", gpu=False):
-        out = np.frombuffer(bytearray(dist.read(size=n_vox * 4)), dtype=np.float32).reshape(nx, ny, nz)
+        out = np.empty((nx, ny, nz), dtype=np.float32)  # read_into: no bytes object, no second copy
+        dist.read_into(out, size=n_vox * 4)
     timer.stats["sdf_columns"] = int(counts.sum())
     timer.stats["sdf_items"] = total
     return out
