@@ -269,6 +269,13 @@ def cmd_selftest(args) -> int:
     return selftest_main(args)
 
 
+def cmd_calibrate(args) -> int:
+    """``glvox calibrate``: ss-conservative's variants timed on this GPU, the fastest stored."""
+    from .study.calibrate import main as calibrate_main  # for start-up time, as in cmd_compare
+
+    return calibrate_main(args)
+
+
 def cmd_data(args) -> int:
     """``glvox data list | fetch NAME... | path [NAME]``: the meshes glvox knows by name."""
     if args.action == "list":

@@ -1,4 +1,4 @@
-"""The command lines of ``glvox compare`` and ``glvox bench``: presets, defaults, arguments.
+"""The command lines of ``glvox compare``, ``glvox bench`` and ``glvox calibrate``: presets, defaults, arguments.
 
 ``glvox.cli`` builds every subcommand's parser at start-up, so this module
 imports nothing but argparse and glvox's tolerances: the runner, the peers,
@@ -12,6 +12,13 @@ import argparse
 from typing import Any
 
 from glvox.tolerances import REGRESSION_TOLERANCE
+
+# -- glvox calibrate -------------------------------------------------------------
+
+#: ``glvox calibrate``'s defaults: the mesh, the grid sizes, the timed rounds.
+CALIBRATE_MESH = "stanford_bunny_bun_zipper.ply"
+CALIBRATE_SIZES = (64, 128, 256, 512)
+CALIBRATE_REPEAT = 5
 
 # -- glvox compare ---------------------------------------------------------------
 
