@@ -112,7 +112,7 @@ def main() -> None:
         print(f"{args.mesh}, ss-conservative surface; load average {os.getloadavg()[0]:.2f}; "
               f"extra = peak RSS (VmHWM) during glvox.save minus RSS before it, MiB; "
               f"traced = tracemalloc peak, MiB")
-        print(f"| N | format | packed MiB | " + " | ".join(f"{t} extra | {t} traced | {t} s" for t in trees)
+        print("| N | format | packed MiB | " + " | ".join(f"{t} extra | {t} traced | {t} s" for t in trees)
               + " | same bytes |")
         print("|---|---|---|" + "---|---|---|" * len(trees) + "---|")
         for n in args.sizes:

@@ -69,7 +69,7 @@ def main(args) -> int:
             for e in entries or []:
                 print(f"  F/N^2 {e['density']:8.3f} ({e.get('mesh', '?')} at {e['n']}^3): {e['variant']}")
             if not entries:
-                print(f"  nothing stored: auto uses the llvmpipe rule (`glvox calibrate` measures this GPU)")
+                print("  nothing stored: auto uses the llvmpipe rule (`glvox calibrate` measures this GPU)")
         return 0
     mesh = load_mesh(resolve_mesh(args.mesh))
     say = (lambda *_: None) if args.json or args.quiet else print
