@@ -36,6 +36,7 @@ from .methods import Request, get_method
 from .methods.attributes.passes import parse_attributes
 from .methods.base import MethodInfo
 from .methods.ss.variant_store import store_path
+from .study.options import check_binary
 from .study.options import BENCH_PRESETS, CALIBRATE_MESH, CALIBRATE_REPEAT, CALIBRATE_SIZES, CHECKOUT_BASELINE, COMPARE_PRESETS
 
 
@@ -417,6 +418,8 @@ def validate_bench(args) -> None:
                          f"--save-baseline {args.check}` on the version to compare against")
     if args.budget is not None:
         positive("--budget", args.budget, integer=False)
+    if getattr(args, "cuda_voxelizer", None) is not None:
+        check_binary(args.cuda_voxelizer)
 
 
 def validate_selftest(args) -> None:
