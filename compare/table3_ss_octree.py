@@ -17,7 +17,10 @@ The bunny and the dragons are open meshes (the paper used them anyway): they
 run with allow_open, and by default with walls (the octree then decodes to
 ss-solid's parity result; --no-walls gives the paper's algorithm and fewer
 nodes).  Meshes are paths or names in GLVOX_MESHES (default ../shared/meshes
-beside the checkout).  Prints a markdown table.
+beside the checkout).  Prints a markdown table; beside each glvox column of
+a mesh that stands for one of the paper's models (glvox.study.paper_figures)
+at one of its sizes, the paper's column (Schwarz & Seidel 2010 on the GTX
+285; its sizes in MB, glvox's in MiB; its rows only).
 """
 
 from __future__ import annotations
@@ -31,12 +34,27 @@ from glvox.errors import NotWatertightWarning
 from glvox.gl.context import get_context
 from glvox.study.harness import timed
 from glvox.datasets import resolve_mesh
+from glvox.study.paper_figures import SS_GPU, SS_TABLE3, SS_TABLE3_SIZES, fmt, ss_model
 
 DEFAULT_MESHES = ["stanford_bunny_bun_zipper.ply", "stanford_dragon_vrip_res2.ply",
                   "stanford_armadillo_libigl_86k.obj"]
 STAGES = [("Determine active level-1 nodes", "active nodes"), ("Construct octree", "construct"),
           ("Voxelize into octree", "voxelize"), ("Propagate inside/outside", "propagate"),
           ("Compute coverage factor", "coverage")]
+
+
+def paper_column(name: str, n: int) -> dict[str, str] | None:
+    """The paper's Table 3 column (row label -> cell) for the model the shared mesh ``name``
+    stands for at ``n``^3, or None."""
+    model = ss_model(name)
+    if model is None or n not in SS_TABLE3_SIZES or model not in SS_TABLE3["Total (the five stages)"]:
+        return None
+    i = SS_TABLE3_SIZES.index(n)
+    col = {"Scalar-valued grid size": f"{n // 4}^3"}
+    for row, models in SS_TABLE3.items():
+        v = models[model][i]
+        col[row] = f"{v:.2f}%" if row == "Stored level-0 nodes" else f"{v} MB" if row == "Octree size" else fmt(v)
+    return col
 
 
 def main(argv=None) -> int:
@@ -74,8 +92,14 @@ def main(argv=None) -> int:
             put("nodes per level (0..top)", " / ".join(f"{k:,}" for k in mem["nodes"]))
             put("walls (open boundary edges)", f"{st['walls']}")
             print(f"<!-- done {cols[-1]}: {wall:.0f} ms -->", file=sys.stderr, flush=True)
-    print(f"<!-- {ctx.renderer}; {ctx.version}; GPU ms (timestamp queries), median of {args.repeat} warm "
-          f"runs; walls {'off' if args.no_walls else 'on'} -->")
+            paper = paper_column(name, n)
+            if paper is not None:
+                cols.append(f"paper: {ss_model(name)} {n}^3")
+                for row in rows:
+                    put(row, paper.get(row, "-"))
+    print(f"<!-- glvox: {ctx.renderer}; {ctx.version}; GPU ms (timestamp queries), median of {args.repeat} warm "
+          f"runs; walls {'off' if args.no_walls else 'on'}. paper columns: Schwarz & Seidel 2010 Table 3, "
+          f"{SS_GPU}, ms -->")
     print("| | " + " | ".join(cols) + " |")
     print("|---" * (len(cols) + 1) + "|")
     for row, vals in rows.items():

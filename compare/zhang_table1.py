@@ -31,25 +31,18 @@ from glvox.reference import conservative_surface
 from glvox.reference.scanline import OpCounts, lattice_points, scanline_surface
 from glvox.study.harness import timed
 from glvox.datasets import SHARED_MESHES, resolve_mesh
+from glvox.study.paper_figures import ZHANG_GPU, ZHANG_TABLE1, ZHANG_TABLE2_GPU
 from glvox.study.zhang import ANGLES, RADIUS, N, ss_counts, triangle
 
 #: Table 1 of the paper: (comparisons, additions) of SS10, Pan11, Ours per angle.
-PAPER = {
-    "y": {0: ((2483, 4966), (0, 0), (838, 1111)), 15: ((6356, 12712), (3806, 7612), (863, 1236)),
-          30: ((8177, 16354), (5343, 10686), (1061, 1687)), 45: ((7835, 15666), (5523, 11046), (1027, 1744)),
-          60: ((8151, 16302), (5246, 10492), (1068, 1701)), 75: ((6357, 12750), (3786, 7572), (863, 1236)),
-          90: ((2483, 4966), (0, 0), (839, 1113))},
-    "z": {0: ((2483, 4966), (0, 0), (838, 1111)), 15: ((5899, 11798), (3490, 6980), (863, 1236)),
-          30: ((6204, 12408), (3940, 7880), (1061, 1687)), 45: ((8162, 16324), (5358, 10716), (1027, 1744)),
-          60: ((6204, 12408), (3988, 7976), (1068, 1701)), 75: ((5899, 11798), (3502, 7004), (863, 1236)),
-          90: ((2483, 4966), (0, 0), (839, 1113))},
-}
+PAPER = ZHANG_TABLE1
 
 
 def table1() -> None:
     print(f"Table 1: equilateral triangle (circumradius {RADIUS} voxels) at {N}^3; "
           "comparisons / additions")
-    print("paper = Zhang et al. 2018 Table 1 (triangle size unknown); here = this script\n")
+    print("paper = Zhang et al. 2018 Table 1 (triangle size unknown); here = this script (CPU operation "
+          "counts: no GPU)\n")
     head = (f"{'':>4} {'angle':>5} | {'SS10 paper':>15} {'SS10 here':>15} | {'Ours paper':>12} "
             f"{'ILV here':>12} {'RLV here':>12} | {'ILV voxels':>10} {'cons voxels':>11}")
     for axis in ("y", "z"):
@@ -102,10 +95,22 @@ def table3(resolutions, meshes) -> None:
                   f"{lat:>10} {100 * (lat - cons) / cons:>+7.2f}% {100 * (ilv - lat) / lat:>+7.2f}%", flush=True)
 
 
+def paper_table2(resolutions) -> list[str]:
+    """The GPU column of the paper's Table 2 at ``resolutions``: Pan11 (SAT-based, the
+    ss-conservative column's kin) and the paper's integer scanline (scanline-ilv's)."""
+    lines = [f"paper: Zhang et al. 2018 Table 2, GPU column, {ZHANG_GPU}, ms (Pan11 / Ours = ILV); "
+             "their meshes, not the shared ones"]
+    for model, rows in ZHANG_TABLE2_GPU.items():
+        cells = [f"{rows[r][0]:>7} / {rows[r][1]:<7}" if r in rows else f"{'-':>17}" for r in resolutions]
+        lines.append(f"{model:<32} " + " ".join(f"{r:>5}: {c}" for r, c in zip(resolutions, cells)))
+    return lines
+
+
 def timing(resolutions, meshes, repeats: int) -> None:
     methods = [m for m in ("ss-conservative", "scanline-rlv", "scanline-slv", "scanline-ilv")
                if m in method_names()]
-    print(f"GPU time (sum of timer-query stages, best of {repeats} warm runs), ms; {get_context().renderer}")
+    print("\n".join(paper_table2(resolutions)) + "\n")
+    print(f"glvox: GPU time (sum of timer-query stages, best of {repeats} warm runs), ms; {get_context().renderer}")
     print(f"{'mesh':<32} {'res':>5} " + " ".join(f"{m:>16}" for m in methods))
     for path in meshes:
         mesh = glvox.load_mesh(path)

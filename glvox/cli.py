@@ -21,7 +21,7 @@ from typing import Sequence
 from . import preflight
 from ._version import __version__
 from .commands import (cmd_batch, cmd_bench, cmd_compare, cmd_convert, cmd_data, cmd_info, cmd_inspect, cmd_ldi,
-                       cmd_methods, cmd_render, cmd_sdf, cmd_selftest, cmd_voxelize, cmd_volume)
+                       cmd_calibrate, cmd_methods, cmd_render, cmd_sdf, cmd_selftest, cmd_voxelize, cmd_volume)
 from .errors import GlvoxError
 from .grid import DEFAULT_RESOLUTION
 from .methods import DEFAULT_METHOD, FAMILIES, PIPELINES
@@ -324,10 +324,28 @@ def _add_selftest_parser(sub) -> None:
     ps.set_defaults(func=cmd_selftest, validate=preflight.validate_selftest)
 
 
+def _add_calibrate_parser(sub) -> None:
+    pk = sub.add_parser(
+        "calibrate", help="time ss-conservative's variants on this GPU; auto then uses the fastest",
+        description="Times ss-conservative's variants (simple, specialized, sorted) on MESH at each size on "
+                    "this GL device and stores the fastest per density band (triangles / N^2) under the GL "
+                    "renderer string in ~/.cache/glvox/ss_variants.json (XDG_CACHE_HOME; GLVOX_CALIBRATION "
+                    "names another file); variant=auto then uses it on this renderer.  --show prints what "
+                    "is stored.")
+    pk.add_argument("--mesh", default=None, help="mesh file, generated mesh or shared mesh name "
+                                                 "(default: stanford_bunny_bun_zipper.ply)")
+    pk.add_argument("--sizes", nargs="+", type=int, default=None, metavar="N",
+                    help="grid sizes along the longest side (default: 64 128 256 512)")
+    pk.add_argument("--repeat", type=int, default=None, help="interleaved timed rounds (default: 5)")
+    pk.add_argument("--show", action="store_true", help="print the stored choices for this renderer; no timing")
+    _add_output_arguments(pk, "print the measurements and the store as JSON", "no table")
+    pk.set_defaults(func=cmd_calibrate, validate=preflight.validate_calibrate)
+
+
 #: One function per command, each adding its subparser.
 _COMMANDS = (_add_info_parser, _add_methods_parser, _add_voxelize_parser, _add_sdf_parser, _add_convert_parser, _add_batch_parser,
              _add_ldi_parser, _add_volume_parser, _add_compare_parser, _add_bench_parser, _add_data_parser,
-             _add_inspect_parser, _add_render_parser, _add_selftest_parser)
+             _add_inspect_parser, _add_render_parser, _add_selftest_parser, _add_calibrate_parser)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -134,7 +134,7 @@ def cmd_sdf(args) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         if args.samples is not None:
-            out = save_samples(sdf_samples(mesh, args.samples, seed=args.seed), call.output)
+            save_samples(sdf_samples(mesh, args.samples, seed=args.seed), call.output)
             summary = {"samples": args.samples, "seed": args.seed}
         else:
             spec = _spec(args, mesh)
@@ -313,6 +313,13 @@ def cmd_selftest(args) -> int:
     from .study.selftest import main as selftest_main  # for start-up time, as in cmd_compare
 
     return selftest_main(args)
+
+
+def cmd_calibrate(args) -> int:
+    """``glvox calibrate``: ss-conservative's variants timed on this GPU, the fastest stored."""
+    from .study.calibrate import main as calibrate_main  # for start-up time, as in cmd_compare
+
+    return calibrate_main(args)
 
 
 def cmd_data(args) -> int:

@@ -83,6 +83,11 @@ class FormatError(GlvoxError, ValueError):
     """A result file is malformed, of an unknown format, or its format's library is missing."""
 
 
+class CalibrationWarning(UserWarning):
+    """A stored calibration (``glvox calibrate``'s variant choices) could not be read
+    and is ignored: the built-in rule decides."""
+
+
 class FormatWarning(UserWarning):
     """A format keeps less than the result holds (e.g. NIfTI has no room for
     extra masks): what is dropped is named."""

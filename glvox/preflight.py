@@ -37,7 +37,9 @@ from .methods.attributes.passes import parse_attributes
 from .methods.base import MethodInfo
 from .methods.sdf.field import parse_band, parse_truncation, sign_request
 from .methods.sdf.samples import check_samples
-from .study.options import BENCH_PRESETS, CHECKOUT_BASELINE, COMPARE_PRESETS
+from .methods.ss.variant_store import store_path
+from .study.options import (BENCH_PRESETS, CALIBRATE_MESH, CALIBRATE_REPEAT, CALIBRATE_SIZES, CHECKOUT_BASELINE,
+                            COMPARE_PRESETS, check_binary)
 
 
 def _writable_folder(folder: Path, what: str) -> None:
@@ -478,11 +480,32 @@ def validate_bench(args) -> None:
                          f"--save-baseline {args.check}` on the version to compare against")
     if args.budget is not None:
         positive("--budget", args.budget, integer=False)
+    if getattr(args, "cuda_voxelizer", None) is not None:
+        check_binary(args.cuda_voxelizer)
 
 
 def validate_selftest(args) -> None:
     for m in args.methods or []:
         get_method(m)  # an unknown name: one line listing the known ones
+
+
+def validate_calibrate(args) -> None:
+    if args.show:
+        if args.mesh is not None or args.sizes is not None or args.repeat is not None:
+            raise GlvoxError("--show prints what is stored; it takes no --mesh, --sizes or --repeat")
+        return
+    args.mesh = args.mesh or CALIBRATE_MESH
+    args.sizes = args.sizes or list(CALIBRATE_SIZES)
+    args.repeat = CALIBRATE_REPEAT if args.repeat is None else args.repeat
+    for n in args.sizes:
+        positive("--sizes", n)
+        if n < 2:
+            raise GlvoxError(f"--sizes must be at least 2, got {n}")
+    positive("--repeat", args.repeat)
+    mesh_arg(args.mesh)
+    folder = store_path().parent
+    existing = next((p for p in (folder, *folder.parents) if p.exists()), Path("/"))
+    _writable_folder(existing, "calibration")
 
 
 def validate_data(args) -> None:

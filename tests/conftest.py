@@ -26,6 +26,16 @@ def pytest_collection_modifyitems(config, items):
             item.add_marker(skip)
 
 
+@pytest.fixture(scope="session", autouse=True)
+def no_user_calibration(tmp_path_factory):
+    """A calibration the user stored (``glvox calibrate``) would change ss-conservative's
+    ``auto`` variant under the tests: point the store at a file that does not exist
+    (child processes inherit it); tests of the store set their own."""
+    with pytest.MonkeyPatch.context() as m:
+        m.setenv("GLVOX_CALIBRATION", str(tmp_path_factory.mktemp("calibration") / "none.json"))
+        yield
+
+
 @pytest.fixture(scope="session")
 def shared_mesh(glvox_mesh):
     """shared_mesh(name) -> path of a shared mesh, through glvox.datasets (the plugin's glvox_mesh:

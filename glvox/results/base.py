@@ -91,6 +91,11 @@ class Result:
         """A result from an open npz file ``z`` (an ``np.load`` mapping) read from ``path``."""
         raise NotImplementedError
 
+    def npz_members(self) -> dict[str, Any]:
+        """The arrays :func:`write_npz` writes beside the common keys: :meth:`npz_arrays`,
+        where a type may give an :class:`NpyStream` for an array it can write piece by piece."""
+        return self.npz_arrays()
+
     def save(self, path: str | os.PathLike) -> Path:
         """Write this result to ``path`` as npz (the layout of the module docstring).
 
@@ -109,14 +114,34 @@ def write_npz(result: Result, path: Path) -> Path:
     kind = result.file_kind if result.file_kind is not None else (run.kind if run is not None else "")
     arrays = {"origin": np.asarray(result.origin, dtype=np.float64), "voxel_size": np.float64(result.voxel_size),
               "method": np.str_(run.method if run is not None else ""), "kind": np.str_(kind),
-              **result.npz_arrays()}
+              **result.npz_members()}
     # what np.savez_compressed writes, at NPZ_COMPRESSLEVEL instead of zlib's default 6
     with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=NPZ_COMPRESSLEVEL,
                          allowZip64=True) as zf:
         for key, value in arrays.items():
             with zf.open(f"{key}.npy", "w", force_zip64=True) as f:
-                np.lib.format.write_array(f, np.asanyarray(value), allow_pickle=False)
+                if isinstance(value, NpyStream):
+                    np.lib.format.write_array_header_1_0(f, value.header)
+                    for chunk in value.chunks():
+                        f.write(chunk)
+                else:
+                    np.lib.format.write_array(f, np.asanyarray(value), allow_pickle=False)
     return path
+
+
+@dataclass(frozen=True)
+class NpyStream:
+    """An npz member written piece by piece, never whole in memory.
+
+    ``header``: the .npy header (``descr``, ``fortran_order``, ``shape``, as
+    :func:`np.lib.format.header_data_from_array_1_0` gives it); ``chunks()``:
+    the data bytes in that order, which together are exactly what
+    :func:`np.lib.format.write_array` writes for the array, so the file reads
+    back with ``np.load`` as the array itself.
+    """
+
+    header: dict[str, Any]
+    chunks: Callable[[], Any]
 
 
 #: zlib level of npz files.  Occupancy grids are long runs of zeros: level 1

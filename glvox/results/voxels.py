@@ -14,13 +14,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 import numpy as np
 
 from ..errors import FormatError, GridError
 from ..grid import GridSpec, pack_bits, set_indices, unpack_bits
-from .base import Result, npz_type, require_keys
+from .base import NpyStream, Result, npz_type, require_keys
+
+#: Voxels per slab of :meth:`VoxelGrid.x_slabs` and :meth:`VoxelGrid.z_slabs`
+#: (4 Mi: 4 MiB of bool), so a writer streaming a 1024^3 grid holds tens of
+#: MiB beside the packed bits instead of the 1 GiB dense grid and its copies.
+SLAB_VOXELS = 1 << 22
 
 #: Per-voxel attributes a grid may carry: name -> (dtype, trailing shape, the
 #: value of a voxel without one).  One row per set voxel, in C order of the
@@ -200,6 +205,44 @@ class VoxelGrid(Result):
         v.setflags(write=False)
         return v
 
+    def x_slabs(self, max_voxels: int | None = None) -> Iterator[tuple[int, np.ndarray]]:
+        """The occupancy in slabs along x, in order, for writers that stream.
+
+        Yields ``(i0, slab)``: ``slab`` bool (n, ny, nz), indexed [i - i0, j, k],
+        a view with any strides; the slabs cover i = 0 .. nx - 1.  From the
+        dense array when the grid holds one, else unpacked from the packed
+        words 8 x at a time (one byte of each row): no dense grid is made or
+        kept.  A slab holds at most ``max(max_voxels, 8 ny nz)`` voxels
+        (default :data:`SLAB_VOXELS`).
+        """
+        nx, ny, nz = self.spec.dims
+        max_voxels = SLAB_VOXELS if max_voxels is None else max_voxels
+        if self._dense is not None:
+            step = max(1, max_voxels // (ny * nz))
+            for i0 in range(0, nx, step):
+                yield i0, self._dense[i0:i0 + step]
+            return
+        rows = np.ascontiguousarray(self._words).view(np.uint8)  # (nz, ny, 4 words_per_row), x = 8 b + bit
+        step = max(1, max_voxels // (8 * ny * nz))
+        for b0 in range(0, (nx + 7) // 8, step):
+            bits = np.unpackbits(rows[:, :, b0:b0 + step], axis=2, bitorder="little")
+            i0 = 8 * b0
+            yield i0, bits[:, :, :nx - i0].view(bool).transpose(2, 1, 0)
+
+    def z_slabs(self, max_voxels: int | None = None) -> Iterator[tuple[int, np.ndarray]]:
+        """The occupancy in slabs along z, in order: ``(k0, slab)``, ``slab`` bool
+        (nx, ny, n) indexed [i, j, k - k0], from the dense array when the grid holds
+        one, else unpacked from the packed words (a Fortran-ordered view, x fastest);
+        at most ``max(max_voxels, nx ny)`` voxels each."""
+        nx, ny, nz = self.spec.dims
+        step = max(1, (SLAB_VOXELS if max_voxels is None else max_voxels) // (nx * ny))
+        for k0 in range(0, nz, step):
+            if self._dense is not None:
+                yield k0, self._dense[:, :, k0:k0 + step]
+            else:
+                part = self._words[k0:k0 + step]
+                yield k0, unpack_bits(part, (nx, ny, part.shape[0]))
+
     @property
     def count(self) -> int:
         """Number of set voxels (counted once; GPU methods may give it, counted on the GPU)."""
@@ -273,6 +316,15 @@ class VoxelGrid(Result):
                 **{f"field_{k}": np.ascontiguousarray(a) for k, a in self.fields.items()},
                 **{f"attr_{k}": np.ascontiguousarray(a) for k, a in self.attributes.items()}}
 
+    def npz_members(self) -> dict[str, Any]:
+        """:meth:`npz_arrays`, with the occupancy and masks of a grid held as packed words
+        streamed (:class:`~glvox.results.base.NpyStream`): the file's bytes are those of
+        the dense arrays, but no dense grid is made."""
+        return {"occupancy": _bool_member(self),
+                **{f"extra_{k}": _bool_member(g) for k, g in self.extras.items()},
+                **{f"field_{k}": np.ascontiguousarray(a) for k, a in self.fields.items()},
+                **{f"attr_{k}": np.ascontiguousarray(a) for k, a in self.attributes.items()}}
+
     @classmethod
     def from_npz(cls, z, path: Path) -> "VoxelGrid":
         require_keys(z, path, {"occupancy", "origin", "voxel_size"})
@@ -326,3 +378,29 @@ class VoxelGrid(Result):
     def __repr__(self) -> str:
         m = f", method={self.run.method!r}" if self.run is not None else ""
         return f"VoxelGrid(dims={self.dims}, count={self.count}, voxel_size={self.voxel_size:.6g}{m})"
+
+
+def _bool_member(grid: VoxelGrid) -> np.ndarray | NpyStream:
+    """``grid``'s occupancy as an npz member: its dense array when it holds one, else a
+    stream of the bytes :func:`np.lib.format.write_array` writes for :meth:`VoxelGrid.dense`.
+
+    The dense array :func:`~glvox.grid.unpack_bits` makes is Fortran-ordered (x
+    fastest) when nx is a multiple of 32 and otherwise neither C- nor
+    Fortran-contiguous, which numpy writes in C order; the stream keeps that
+    order (so files stay byte for byte what they were): z slabs straight from
+    the words, or x slabs transposed.
+    """
+    if grid._dense is not None:
+        return np.asarray(grid._dense, dtype=bool)
+    nx, ny, nz = grid.spec.dims
+    fortran = nx % 32 == 0 and (ny > 1 or nz > 1)
+
+    def chunks() -> Iterator[bytes]:
+        if fortran:
+            for _, slab in grid.z_slabs():
+                yield slab.T.tobytes()  # (n, ny, nx) C order: the slab's Fortran order
+        else:
+            for _, slab in grid.x_slabs():
+                yield slab.tobytes()    # C order
+    return NpyStream({"descr": np.lib.format.dtype_to_descr(np.dtype(bool)), "fortran_order": fortran,
+                      "shape": grid.spec.dims}, chunks)

@@ -248,6 +248,7 @@ def main(args) -> int:
             print(msg, file=sys.stderr, flush=True)
 
     t_start = time.perf_counter()
+    get_peer("cuda-voxelizer").configure(getattr(args, "cuda_voxelizer", None))
     if args.end_to_end is not None:
         return _end_to_end(args, log, Stages(quiet=args.quiet))
     if args.against:

@@ -236,6 +236,22 @@ def regression_lines(check: dict[str, Any], baseline_path: Path | None) -> list[
             f"when above 1: {f})", ""]
 
 
+def peer_stats_table(rows: Sequence[dict]) -> str:
+    """Per row with ``peer_stats`` (cuda_voxelizer): its process and its own kernel time, and its
+    voxels against glvox's ss-conservative on its own cube (glvox/study/peer_cuda.py)."""
+    out = ["Wall = the whole process (start, PLY read, CUDA init, voxelization, binvox write); kernel = "
+           "its own printed GPU time.  Counts on its cube (1 + 2/10001 of glvox's, same center) against "
+           "glvox's ss-conservative there.", "",
+           "| mesh | N | wall ms | kernel ms | device | its voxels | glvox voxels | IoU | missing | extra |",
+           "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        s = r["peer_stats"]
+        out.append(f"| {Path(str(r['mesh'])).name} | {r['n']} | {_ms(r.get('wall_ms'))} | {_ms(s.get('kernel_ms'))} | "
+                   f"{s.get('device')} | {s.get('count')} | {s.get('glvox_count')} | {s.get('iou', 0):.6f} | "
+                   f"{s.get('missing')} | {s.get('extra')} |")
+    return "\n".join(out) + "\n"
+
+
 def report(rows: Sequence[dict], machine: dict[str, Any], plan: Plan, check: dict[str, Any] | None = None,
            baseline_path: Path | None = None, colds: Sequence[dict] | None = None) -> str:
     """The whole bench.md: header, ratio table, targets (and the regression check), every cell,
@@ -250,6 +266,9 @@ def report(rows: Sequence[dict], machine: dict[str, Any], plan: Plan, check: dic
         out += regression_lines(check, baseline_path)
     out += [published_note(), "", "## Every cell", "", cell_tables(rows),
             "## Where the time goes", "", time_table(rows)]
+    peer_stats = [r for r in rows if r.get("peer_stats")]
+    if peer_stats:
+        out += ["## cuda_voxelizer on its own cube", "", peer_stats_table(peer_stats)]
     if colds:
         c0 = colds[0]
         out += ["## Cold start", "",

@@ -391,6 +391,8 @@ def _result_grid(r: _Contestant, row: dict[str, Any]) -> VoxelGrid | None:
     pg = r.peer.to_grid(r.last, r.spec)
     row.update(convert_ms=(time.perf_counter() - t0) * 1e3, prepare_ms=r.prep_s * 1e3, outside=pg.outside,
                call=r.peer.call)
+    if pg.stats:
+        row["peer_stats"] = dict(pg.stats)
     return pg.grid
 
 

@@ -1,7 +1,7 @@
-"""The command lines of ``glvox compare`` and ``glvox bench``: presets, defaults, arguments.
+"""The command lines of ``glvox compare``, ``glvox bench`` and ``glvox calibrate``: presets, defaults, arguments.
 
 ``glvox.cli`` builds every subcommand's parser at start-up, so this module
-imports nothing but argparse and glvox's tolerances: the runner, the peers,
+imports nothing but argparse, pathlib and glvox's tolerances and errors: the runner, the peers,
 the tables and the plots are imported only when ``compare`` or ``bench``
 actually runs.
 """
@@ -9,9 +9,19 @@ actually runs.
 from __future__ import annotations
 
 import argparse
+import os
+from pathlib import Path
 from typing import Any
 
+from glvox.errors import GlvoxError
 from glvox.tolerances import REGRESSION_TOLERANCE
+
+# -- glvox calibrate -------------------------------------------------------------
+
+#: ``glvox calibrate``'s defaults: the mesh, the grid sizes, the timed rounds.
+CALIBRATE_MESH = "stanford_bunny_bun_zipper.ply"
+CALIBRATE_SIZES = (64, 128, 256, 512)
+CALIBRATE_REPEAT = 5
 
 # -- glvox compare ---------------------------------------------------------------
 
@@ -89,7 +99,22 @@ AB_REPEAT = 10
 
 #: The peers' names, in table order (:data:`glvox.study.peers.PEERS` holds them;
 #: named here so that building the parser does not import the peers).
-PEER_NAMES = ("open3d", "trimesh-subdivide", "trimesh-fill", "pyvista", "igl-winding", "warp-winding")
+PEER_NAMES = ("open3d", "trimesh-subdivide", "trimesh-fill", "pyvista", "igl-winding", "warp-winding",
+              "cuda-voxelizer")
+
+#: The environment variable naming the cuda_voxelizer binary when ``--cuda-voxelizer`` is not given.
+CUDA_VOXELIZER_ENV = "GLVOX_CUDA_VOXELIZER"
+
+
+def check_binary(path: str | os.PathLike) -> Path:
+    """``path`` as an executable file (the cuda_voxelizer peer's binary), or a one-line GlvoxError."""
+    p = Path(path).expanduser()
+    if not p.is_file():
+        raise GlvoxError(f"cuda_voxelizer binary {p} not found (--cuda-voxelizer PATH or {CUDA_VOXELIZER_ENV})")
+    if not os.access(p, os.X_OK):
+        raise GlvoxError(f"cuda_voxelizer binary {p} is not executable")
+    return p.resolve()
+
 
 #: ``--check`` given without a PATH: the checkout's ``compare/bench_baseline.json``
 #: (:func:`glvox.study.regression.baseline_path`).  ``--save-baseline`` always
@@ -118,6 +143,10 @@ def add_bench_arguments(p: argparse.ArgumentParser) -> None:
                    help="largest N compared with the CPU references (default: every size; 0: none)")
     p.add_argument("--peer-max", action="append", default=[], metavar="PEER=N",
                    help="run a peer up to N^3 instead of its default limit (PEER=none: no limit)")
+    p.add_argument("--cuda-voxelizer", default=None, metavar="PATH",
+                   help="the cuda_voxelizer binary to run as the peer cuda-voxelizer (default: "
+                        "$GLVOX_CUDA_VOXELIZER); its grid is its own cube, checked against ss-conservative "
+                        "on that cube (row peer_stats)")
     p.add_argument("-o", "--out", default=None, help="folder for bench.md and results.json")
     p.add_argument("--check", nargs="?", const=CHECKOUT_BASELINE, default=None, metavar="PATH",
                    help="exit status 3 when a method regressed by more than "

@@ -167,7 +167,8 @@ def _pairs(ctx, mesh, spec, grid, offsets, count, pool, timer):
     voxel (block SlotVoxel), through ss-conservative's variant ``auto`` picks."""
     n = mesh.n_triangles
     max_groups = int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])
-    variant = auto_variant(n, spec.dims, max_groups)
+    # the llvmpipe rule, not a stored calibration: that timed the surface pass, not this one
+    variant, _ = auto_variant(n, spec.dims, max_groups)
     variant = "specialized" if variant == "simple" else variant  # simple: the same pairs, tested per voxel
     best_dist = pool.get("attr_dist", count * 4, what="the set voxels' distances", clear=False)
     best_tri = pool.get("attr_tri", count * 4, what="the set voxels' source triangles", clear=False)

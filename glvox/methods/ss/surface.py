@@ -36,6 +36,7 @@ from ...gpu.transform import SHADERS as TRANSFORM_SHADERS, transform_vertices
 from ...results.voxels import VoxelGrid
 from ...tolerances import SLIVER_EPS
 from ..base import Method, MethodInfo, Option, Requirements, register
+from . import variant_store
 
 _PAPER = "Schwarz & Seidel 2010"
 LOCAL_SIZE = 64  # local_size_x of ss/surface.comp and ss/classify.comp
@@ -88,10 +89,23 @@ def default_variant(n_triangles: int, dims) -> str:
     return "simple" if (n_triangles / AUTO_SIMPLE_DENSITY) ** 3 >= volume * volume else "sorted"
 
 
-def auto_variant(n_triangles: int, dims, max_groups: int) -> str:
-    """:func:`default_variant`, or :data:`AUTO_FALLBACK` where ``sorted`` cannot dispatch every triangle."""
-    variant = default_variant(n_triangles, dims)
-    return AUTO_FALLBACK if variant == "sorted" and n_triangles > max_groups * LOCAL_SIZE else variant
+#: How ``auto`` chose when no calibration of the renderer is stored (run statistics).
+LLVMPIPE_RULE = f"llvmpipe rule: simple where F/N^2 >= {AUTO_SIMPLE_DENSITY}, else sorted"
+
+
+def auto_variant(n_triangles: int, dims, max_groups: int, renderer: str | None = None) -> tuple[str, str]:
+    """The variant ``auto`` runs and the rule that chose it.
+
+    The choice ``glvox calibrate`` stored for ``renderer`` (the GL_RENDERER
+    string; :mod:`~glvox.methods.ss.variant_store`) at the nearest density,
+    else :func:`default_variant`, measured on llvmpipe; either way
+    :data:`AUTO_FALLBACK` where ``sorted`` cannot dispatch every triangle.
+    """
+    choice = variant_store.lookup(renderer, n_triangles, dims) if renderer is not None else None
+    variant, rule = (choice.variant, choice.rule()) if choice else (default_variant(n_triangles, dims), LLVMPIPE_RULE)
+    if variant == "sorted" and n_triangles > max_groups * LOCAL_SIZE:
+        return AUTO_FALLBACK, f"{rule}; {AUTO_FALLBACK}: too many triangles for sorted"
+    return variant, rule
 
 
 def surface_defines(criterion: int, variant: str) -> dict:
@@ -257,16 +271,21 @@ class SSConservative(_SSSurface):
         summary="conservative (26-separating) surface, one compute invocation per triangle, atomicOr",
         reference="reference-conservative",
         requires=_REQUIRES,
-        options={"variant": Option("auto", "Table 1's realization; auto: simple where triangles / N^2 >= "
-                                           f"{AUTO_SIMPLE_DENSITY}, else sorted (measured, "
-                                           "compare/ss_variants.py)", ("auto", *VARIANTS))},
+        options={"variant": Option("auto", "Table 1's realization; auto: the fastest on this GPU where "
+                                           "`glvox calibrate` measured it (stored per renderer in "
+                                           "~/.cache/glvox/ss_variants.json), else simple where triangles / "
+                                           f"N^2 >= {AUTO_SIMPLE_DENSITY}, else sorted (measured on llvmpipe, "
+                                           "compare/ss_variants.py); run stats 'variant_rule' say which",
+                                   ("auto", *VARIANTS))},
     )
     criterion = 0
 
     def run(self, mesh, spec, *, ctx, timer, variant):
         if variant == "auto":
             max_groups = int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])
-            variant = timer.stats["variant"] = auto_variant(mesh.n_triangles, spec.dims, max_groups)
+            variant, timer.stats["variant_rule"] = auto_variant(mesh.n_triangles, spec.dims, max_groups,
+                                                                ctx.renderer)
+            timer.stats["variant"] = variant
         return self._run(ctx, mesh, spec, timer, variant)
 
 
