@@ -187,16 +187,11 @@ def test_open_mesh_study(tmp_path, gl_context, shared_mesh):
     assert all(r["reference"] == "reference-gwn" and r["iou"] is not None for r in rows)
     by = {(r["method"], r["mesh"]): r for r in rows}
     for mesh in ("messy_teapot_newell.obj", "messy_soup_synthetic.stl"):
-        assert by[("gwn-solid", mesh)]["not_ties"] == 0
+        assert by[("gwn-solid", mesh)]["not_ties"] == 0 and by[("solid", mesh)]["not_ties"] == 0
         m = glvox.load_mesh(shared_mesh(mesh))
         w = glvox.voxelize(m, 24, method="reference-gwn").fields["winding"]
         assert by[("ss-solid", mesh)]["uncertain_share"] == uncertain_share(w)[1]
     assert by[("ss-solid", "messy_soup_synthetic.stl")]["not_ties"] > 0  # parity of a soup is not w
-    # -m solid runs binvox-solid on open meshes: carving fills what the six views enclose, which the
-    # winding number of a soup does not (measured IoU 0.875 on the teapot, 0.19 on the soup, where
-    # carve-solid gets 0.19 too)
-    assert by[("solid", "messy_teapot_newell.obj")]["iou"] >= 0.85
-    assert by[("solid", "messy_soup_synthetic.stl")]["iou"] >= 0.15
     md = report.markdown(rows, {"gl": {}})
     assert "### Open meshes at 24^3 against `reference-gwn`" in md and "*uncertain share*" in md
     pics = compare.pictures(plan, tmp_path, lambda s: None)
