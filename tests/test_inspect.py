@@ -175,7 +175,7 @@ def test_double_sided_and_misoriented_meshes_are_told(capsys, tmp_path):
     methods = lines[lines.index("solid_methods:") + 1:]
     assert methods[0].split() == ["eisemann-solid:", "empty", "(double-sided", "faces", "cancel)"]  # problems first
     assert [ln.split()[0] for ln in methods if ln.endswith(" ok")] == \
-        ["binvox-solid:", "carve-solid:", "karabassi:", "reference-carve:"]
+        ["binvox-solid:", "carve-solid:", "karabassi:", "reference-binvox:", "reference-carve:"]
 
     flipped = inspect_mesh(defects.flipped_face_cube())
     assert (flipped.inconsistent_parts, flipped.orientation) == (1, "outward")

@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 
 from glvox import cli
 from glvox.methods import get_method, method_infos
@@ -77,6 +78,16 @@ def test_an_approximate_method_outside_its_bound_fails(gl_context, capsys, monke
     assert rc == 1 and not report["ok"]
     (row,) = report["methods"]
     assert row["method"] == "karabassi" and row["status"] == "mismatch" and row["mismatches"] > 0
+
+
+@pytest.mark.parametrize("change, bad", [(_flip_corner, False), (np.zeros_like, True)])
+def test_binvox_solid_may_differ_from_its_twin_by_a_few_voxels_only(gl_context, capsys, monkeypatch, change, bad):
+    """binvox-solid against reference-binvox (no tie set): one voxel off passes as rounding
+    (under AGREE_SHARE of the solid on every case), an emptied grid fails."""
+    _broken(monkeypatch, "binvox-solid", change)
+    rc, out = _run(capsys, "--methods", "binvox-solid", "--json")
+    (row,) = json.loads(out.out)["methods"]
+    assert (rc, row["status"], row["mismatches"] > 0) == ((1, "mismatch", True) if bad else (0, "ok", False)), row
 
 
 def test_every_approximate_method_has_a_bound():

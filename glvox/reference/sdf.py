@@ -17,8 +17,10 @@ import importlib.util
 import math
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from ..errors import GlvoxError
+from .ties import point_triangle_distance
 
 
 def distance_library() -> str:
@@ -69,10 +71,6 @@ def _kdtree_distances(tri: np.ndarray, p: np.ndarray):
     """Exact distances by pruning: a triangle nearer than the nearest centroid c (at
     distance dc) has its centroid within dc + R of the point, R the largest
     centroid-to-vertex distance; those candidates are measured exactly."""
-    from scipy.spatial import cKDTree  # core dependency
-
-    from .ties import point_triangle_distance
-
     cent = tri.mean(axis=1)
     reach = float(np.linalg.norm(tri - cent[:, None], axis=2).max())
     tree = cKDTree(cent)
