@@ -4,8 +4,10 @@ For each model of a folder (a subfolder holding ``model_normalized.obj`` and
 ``model_normalized.solid.binvox``, or a pair ``NAME.obj`` / ``NAME.solid.binvox``)
 the mesh is voxelized on binvox's placement (:func:`glvox.grid.binvox_grid` of
 every ``v`` record's bounding box, the file's resolution) by ``binvox-solid``
-with binvox's own defaults in each mode, with its defaults (ShapeNet's recipe,
-``dilated=True, down=1``: binvox ``-dc -down``), by the ``solid`` alias, by
+with binvox's own defaults in each mode, with ShapeNet's recipe without the
+wireframe (``-dc -down`` plus the voxels holding a crossing, the defaults before
+``-aw``), with its defaults (ShapeNet's recipe, ``wire=True, dilated=True,
+down=1``: binvox ``-aw -dc -down``), by the ``solid`` alias, by
 ``carve-solid`` and ``karabassi``, and compared with the
 file's occupancy (read in binvox's convention; its header is not trusted, some
 files have it rewritten).  Prints one row per model and the mean.
@@ -32,14 +34,16 @@ from glvox.methods import run_method
 from glvox.methods.binvox.solid import BINVOX_DEFAULTS
 
 #: (column, method, options): binvox-solid with binvox's own defaults in each mode, then its
-#: defaults (ShapeNet's recipe, -dc -down), the ``solid`` alias, and two other solids.
+#: recipe without -aw (with the surface instead), its defaults (ShapeNet's recipe,
+#: -aw -dc -down), the ``solid`` alias, and two other solids.
 RUNS = [
     ("binvox default", "binvox-solid", BINVOX_DEFAULTS),
     ("carve (-c)", "binvox-solid", {**BINVOX_DEFAULTS, "mode": "carve"}),
     ("vote (-v)", "binvox-solid", {**BINVOX_DEFAULTS, "mode": "vote"}),
     ("-dc", "binvox-solid", {**BINVOX_DEFAULTS, "dilated": True}),
     ("no surface", "binvox-solid", {**BINVOX_DEFAULTS, "surface": False}),
-    ("ShapeNet (-dc -down, the defaults)", "binvox-solid", {}),
+    ("-dc -down + surface", "binvox-solid", {"wire": False, "surface": True}),
+    ("ShapeNet (-aw -dc -down, the defaults)", "binvox-solid", {}),
     ("-m solid", "solid", {}),
     ("carve-solid", "carve-solid", {}),
     ("karabassi", "karabassi", {}),

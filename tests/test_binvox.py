@@ -149,9 +149,38 @@ def octahedron():
 
 @pytest.mark.parametrize("mode", MODES)
 @pytest.mark.parametrize("dilated", [False, True])
-def test_sloped_mesh_matches_reference(mode, dilated):
+@pytest.mark.parametrize("wire", [False, True])
+def test_sloped_mesh_matches_reference(mode, dilated, wire):
     mesh = octahedron()
-    assert np.array_equal(gpu(mesh, mode=mode, dilated=dilated), ref(mesh, mode=mode, dilated=dilated))
+    options = {"mode": mode, "dilated": dilated, "wire": wire}
+    assert np.array_equal(gpu(mesh, **options), ref(mesh, **options))
+
+
+def plate():
+    """A square plate in the plane x = 5.3, y and z in [2.2, 9.7] (two triangles, one
+    diagonal), on a 12^3 grid: edge-on to the y and z views."""
+    v = np.array([[5.3, 2.2, 2.2], [5.3, 9.7, 2.2], [5.3, 9.7, 9.7], [5.3, 2.2, 9.7]])
+    return load_mesh((v, np.array([[0, 1, 2], [0, 2, 3]])))
+
+
+def test_wireframe_keeps_a_thin_plate():
+    """binvox -aw, hand-worked on the plate.  No pixel-center ray along y or z crosses it
+    (edge-on), so plain carving empties those columns and the carve is empty.  The
+    wireframe draws the plate's edges as lines: seen along y its edges project onto the row
+    x pixel floor(5.3) = 5, the columns z with centers 2.5 .. 9.5 in [2.2, 9.7), at depths
+    2.2 to 9.7 (slots 2 and 10); dilated, y 1..10 survive there, and likewise along z.
+    Along x the plate is one crossing (slot 5) in the columns y, z 2..9: dilated, x 4 and 5.
+    The AND: x = 5, y and z 2..9."""
+    spec = GridSpec((12, 12, 12), (0, 0, 0), 1.0)
+    mesh = plate()
+    expect = np.zeros(spec.dims, bool)
+    expect[5, 2:10, 2:10] = True
+    for name in ("binvox-solid", "reference-binvox"):
+        opts = {**BINVOX_DEFAULTS, "mode": "carve", "surface": False, "dilated": True}
+        with pytest.warns(SuspiciousResultWarning):
+            assert not run_method(name, mesh, spec, **opts, allow_open=True).dense().any()
+        got = run_method(name, mesh, spec, **{**opts, "wire": True}, allow_open=True).dense()
+        assert np.array_equal(got, expect), name
 
 
 def test_dilated_carving_adds_one_voxel_per_end():

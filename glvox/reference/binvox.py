@@ -9,6 +9,8 @@ center lies beyond the crossing, ``floor(q)`` the voxel holding it.
 * carving along an axis keeps ``max(lo - d, 0) <= k < hi + d`` with ``lo``, ``hi`` the
   slots of the nearest and farthest crossings and ``d`` 1 when dilated, 0 otherwise;
   the carve is the AND of the three axes, and a column with no crossing keeps nothing;
+  with ``wire`` (binvox ``-aw``) the points of the wireframe (:func:`wire_hits`) count as
+  crossings for carving (not for voting or the surface);
 * voting: along each axis the parity of the crossings with ``slot <= k`` and the
   parity of the others are two votes;
 * result: ``carve | (votes >= 3)`` (``'default'``), ``carve``, or ``votes >= 3``,
@@ -46,7 +48,46 @@ def _to_grid(a: np.ndarray, axis: int) -> np.ndarray:
     return np.transpose(a, order)
 
 
-def binvox_parts(tris: np.ndarray, dims: Sequence[int], dilated: bool = False):
+def wire_hits(tris: np.ndarray, dims: tuple[int, int, int], axis: int):
+    """(ju, jv, q): the pixels of the wireframe (every triangle edge drawn as a line) in
+    the view along ``axis``, and the line's depth there, in voxel units.
+
+    binvox ``-aw`` also renders the model in wireframe, so that parts thinner than a pixel
+    (edge-on triangles, which no pixel-center ray crosses) still stop the carving.  The
+    line rule, one pixel per column of the line's major axis (as GL's lines): along the
+    major axis (``|du| >= |dv|``: u) the pixel centers ``c = i + 1/2`` with
+    ``min <= c < max`` of the two end points, and along the minor axis the pixel holding
+    the line at ``c``, ``j = floor(p_minor)``; ``p`` is interpolated from the end point
+    with the smaller major coordinate (``t = (c - s) / (e - s)``, ``p = s + t (e - s)``),
+    so both directions of a shared edge give the same pixels.  Edges parallel to the rays
+    draw nothing.  ``shaders/binvox/wire.frag`` decides the same in double.
+    """
+    u, v = (axis + 1) % 3, (axis + 2) % 3
+    ends = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
+    du, dv = ends[:, 1, u] - ends[:, 0, u], ends[:, 1, v] - ends[:, 0, v]
+    out = []
+    for major, minor, sel in ((u, v, np.abs(du) >= np.abs(dv)), (v, u, np.abs(du) < np.abs(dv))):
+        e = ends[sel]
+        first = np.where((e[:, 0, major] <= e[:, 1, major])[:, None], e[:, 0], e[:, 1])
+        last = np.where((e[:, 0, major] <= e[:, 1, major])[:, None], e[:, 1], e[:, 0])
+        i0 = np.ceil(first[:, major] - 0.5).astype(np.int64)
+        i1 = np.ceil(last[:, major] - 0.5).astype(np.int64)  # centers c with first <= c < last
+        i0 = np.maximum(i0, 0)
+        i1 = np.minimum(i1, dims[major])
+        cnt = np.maximum(i1 - i0, 0)
+        idx = np.repeat(np.arange(len(e)), cnt)
+        i = i0[idx] + np.arange(int(cnt.sum())) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+        s, f = first[idx], last[idx]
+        t = (i + 0.5 - s[:, major]) / (f[:, major] - s[:, major])
+        j = np.floor(s[:, minor] + t * (f[:, minor] - s[:, minor]))
+        q = s[:, axis] + t * (f[:, axis] - s[:, axis])
+        ok = (j >= 0) & (j < dims[minor])
+        i, j, q = i[ok], j[ok].astype(np.int64), q[ok]
+        out.append((i, j, q) if major == u else (j, i, q))
+    return tuple(np.concatenate([o[k] for o in out]) for k in range(3))
+
+
+def binvox_parts(tris: np.ndarray, dims: Sequence[int], dilated: bool = False, wire: bool = False):
     """The parts of binvox's solid: (carve, votes, surface).
 
     Parameters
@@ -56,6 +97,8 @@ def binvox_parts(tris: np.ndarray, dims: Sequence[int], dilated: bool = False):
     dims : (3,) int
     dilated : bool
         binvox ``-dc``.
+    wire : bool
+        binvox ``-aw``: the wireframe (:func:`wire_hits`) also stops the carving.
 
     Returns
     -------
@@ -80,6 +123,11 @@ def binvox_parts(tris: np.ndarray, dims: Sequence[int], dilated: bool = False):
         hi = np.full((nu, nv), -1, dtype=np.int64)
         np.minimum.at(lo, (ju, jv), slot)
         np.maximum.at(hi, (ju, jv), slot)
+        if wire:
+            wu, wv, wq = wire_hits(tris, dims, axis)
+            wslot = np.clip(np.floor(wq + 0.5), 0, n).astype(np.int64)
+            np.minimum.at(lo, (wu, wv), wslot)
+            np.maximum.at(hi, (wu, wv), wslot)
         k = np.arange(n)[:, None, None]
         keep = (k >= np.maximum(lo - d, 0)[None]) & (k < (hi + d)[None]) & (hi >= 0)[None]
         carve &= _to_grid(keep, axis)
@@ -105,7 +153,7 @@ def halve(occ: np.ndarray, dmin: int = 4) -> np.ndarray:
 
 
 def binvox_solid(tris: np.ndarray, dims: Sequence[int], mode: str = "default", dilated: bool = False,
-                 surface: bool = True, down: int = 0, dmin: int = 4) -> np.ndarray:
+                 surface: bool = True, down: int = 0, dmin: int = 4, wire: bool = False) -> np.ndarray:
     """binvox's solid of voxel-space triangles (``reference-binvox``; see the module docstring).
 
     Parameters
@@ -118,6 +166,9 @@ def binvox_solid(tris: np.ndarray, dims: Sequence[int], mode: str = "default", d
     down : int
         binvox ``-down`` repeated: computed at ``2**down`` times ``dims``, then halved
         ``down`` times (:func:`halve` with ``dmin``).
+    dmin : int
+    wire : bool
+        binvox ``-aw`` (:func:`wire_hits`).
 
     Returns
     -------
@@ -127,11 +178,12 @@ def binvox_solid(tris: np.ndarray, dims: Sequence[int], mode: str = "default", d
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
     if down:
         f = 2 ** down
-        out = binvox_solid(np.asarray(tris, dtype=np.float64) * f, [d * f for d in dims], mode, dilated, surface)
+        out = binvox_solid(np.asarray(tris, dtype=np.float64) * f, [d * f for d in dims], mode, dilated, surface,
+                          wire=wire)
         for _ in range(down):
             out = halve(out, dmin)
         return out
-    carve, votes, surf = binvox_parts(tris, dims, dilated)
+    carve, votes, surf = binvox_parts(tris, dims, dilated, wire)
     out = np.zeros(carve.shape, dtype=bool)
     if mode in ("default", "carve"):
         out |= carve

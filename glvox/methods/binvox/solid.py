@@ -13,18 +13,23 @@ z-buffer methods, both by default:
 * parity voting (``mode='vote'``, ``-v``; Nooruddin & Turk 2003): along each
   axis the parity of the crossings before a center and the parity of those
   beyond it are two votes, six in all.
+* wireframe (``wire=True``, binvox ``-aw``, "also render the model in wireframe
+  (helps with thin parts)"): every triangle edge is also drawn as a line into the
+  carving z-buffers (``binvox/wire.*``; the line rule is
+  :func:`glvox.reference.binvox.wire_hits`), so parts thinner than a voxel, which
+  no pixel-center ray crosses, still stop the carving.
 
 Default: a voxel surviving carving gets 3 votes and is set when it has more
 than 2, i.e. ``carve | (votes >= 3)``.  ``down=1`` (binvox ``-down``) voxelizes
 at twice the resolution and halves the grid (a voxel set when ``dmin`` = 4 of
-its 8 are).  The defaults are ShapeNet's recipe (``binvox -dc -down``:
-``dilated=True, down=1``), which reproduces its files best;
-:data:`BINVOX_DEFAULTS` are binvox's own.  ``surface=True`` (default) also sets
-every voxel that holds a crossing of the pixel-center rays: the ShapeNet
-``*.solid.binvox`` files contain the surface (measured in
-docs/methods/binvox.md).  Winding plays no part, so double-sided and
-inconsistently oriented meshes give the same solid as their one-sided
-versions; on open meshes carving seals nothing that the six views see through.
+its 8 are).  The defaults are ShapeNet's recipe (``binvox -aw -dc -down``:
+``wire=True, dilated=True, down=1``), which reproduces its files best;
+:data:`BINVOX_DEFAULTS` are binvox's own.  ``surface=True`` (not a binvox step,
+off by default) also sets every voxel that holds a crossing of the pixel-center
+rays: a stand-in for ``-aw`` (measured in docs/methods/binvox.md).  Winding
+plays no part, so double-sided and inconsistently oriented meshes give the same
+solid as their one-sided versions; on open meshes carving seals nothing that
+the six views see through.
 
 Crossings are decided in the fragment shader exactly as the CPU references
 decide them (:mod:`glvox.methods.depth.raster`; ``reference-binvox`` is the
@@ -39,11 +44,13 @@ counters), then ``finish`` and ``readback``.
 from __future__ import annotations
 
 
+import moderngl
 import numpy as np
 
-from ...gl.shaders import compute_program
+from ...gl.shaders import compute_program, render_program
 from ...gpu.buffers import buffer_pool, mesh_buffers, read_grid_words
 from ...gpu.dispatch import barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
+from ...gpu.transform import SNAP_DEFINES
 from ...grid import GridSpec
 from ...reference.binvox import empty_cause
 from ...results.voxels import VoxelGrid
@@ -65,8 +72,11 @@ OPTIONS = {
                               "'carve' (binvox -c), 'vote' (binvox -v)", MODES),
     "dilated": Option(True, "dilated carving (binvox -dc): keep one more voxel at each end of every column "
                             "(default true: ShapeNet's recipe; false for binvox's own default)"),
-    "surface": Option(True, "also set the voxels holding a crossing of the pixel-center rays (the ShapeNet "
-                            "solid.binvox files hold their surface)"),
+    "wire": Option(True, "binvox -aw: also draw the wireframe (every triangle edge as a line) into the carving "
+                         "z-buffers, so that parts thinner than a voxel stop the carving (default true: "
+                         "ShapeNet's recipe; false for binvox's own default)"),
+    "surface": Option(False, "also set the voxels holding a crossing of the pixel-center rays (not a binvox "
+                             "step: a stand-in for -aw without it)"),
     "down": Option(1, "binvox -down, repeated: voxelize at 2^down times the resolution, then halve the grid "
                       "that many times (0 to 2; default 1: ShapeNet's recipe; 0 for binvox's own default)",
                    (0, 1, 2)),
@@ -76,7 +86,7 @@ OPTIONS = {
 
 #: The options that give binvox's own defaults (``binvox -d N``), where OPTIONS' defaults
 #: give ShapeNet's recipe (``binvox -dc -down``), which matches its files best.
-BINVOX_DEFAULTS = {"mode": "default", "dilated": False, "surface": True, "down": 0, "dmin": 4}
+BINVOX_DEFAULTS = {"mode": "default", "dilated": False, "wire": False, "surface": True, "down": 0, "dmin": 4}
 
 
 def fine_spec(spec: GridSpec, down: int) -> GridSpec:
@@ -86,11 +96,53 @@ def fine_spec(spec: GridSpec, down: int) -> GridSpec:
 
 
 class _BinvoxRun(RasterPass):
-    """The raster pass with binvox's recording (``binvox/record.comp``)."""
+    """The raster pass with binvox's recording (``binvox/record.comp``) and, for ``-aw``,
+    the wireframe (``binvox/wire.*``) drawn into the carving z-buffers."""
 
-    def __init__(self, ctx, bufs, uniforms, record, bufs_out: dict):
+    def __init__(self, ctx, bufs, uniforms, record, bufs_out: dict, wire: bool):
         super().__init__(ctx, bufs, uniforms)
         self.record, self.out = record, bufs_out
+        self.wire = None
+        self.wire_vao = None
+        if wire:
+            self.wire = render_program(ctx, "depth/raster.vert", "binvox/wire.frag", "binvox/wire.geom",
+                                       defines=SNAP_DEFINES)
+            set_uniforms(self.wire, uniforms)
+
+    def __enter__(self) -> "_BinvoxRun":
+        super().__enter__()
+        if self.wire is not None:
+            self.wire_vao = self.ctx.mgl.vertex_array(self.wire, [(self.bufs.vertices, "3f", "in_pos")],
+                                                      index_buffer=self.bufs.faces, index_element_size=4)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self.wire_vao is not None:
+            self.wire_vao.release()
+            self.wire_vao = None
+        super().__exit__(*exc)
+
+    def set_view(self, spec, bounds, axis: int, size: tuple[int, int]) -> None:
+        super().set_view(spec, bounds, axis, size)
+        if self.wire is not None:  # the same depth key as the triangles'
+            lo, hi = float(bounds[0, axis]) - 2.0, float(bounds[1, axis]) + 2.0
+            set_uniforms(self.wire, {"u_axis": axis, "u_target_size": size, "u_depth_n": spec.dims[axis],
+                                     "u_key_lo": lo, "u_key_scale": 1.0 / (hi - lo)})
+
+    def set_tile(self, origin: tuple[int, int]) -> None:
+        super().set_tile(origin)
+        if self.wire is not None:
+            set_uniforms(self.wire, {"u_tile_origin": origin})
+
+    def carve_buffer(self, target, layer: int, *, far: bool = False) -> None:
+        """One carving z-buffer: the triangles (:meth:`draw`), then, with ``-aw``, the
+        wireframe on top of them (same depth test, no clear)."""
+        self.draw(target, layer, far=far)
+        if self.wire is not None:
+            target.fbos[layer].use()
+            set_uniforms(self.wire, {"u_far": far})
+            self.wire_vao.render(moderngl.TRIANGLES)
+            self.passes += 1
 
     def record_layer(self, target, size, layer: int, kind: int, *, stencil: bool = False) -> int | None:
         """Record ``target.layers[layer]`` as ``kind`` (0 nearest, 1 farthest, 2 vote);
@@ -122,7 +174,7 @@ class BinvoxSolid(Method):
         options={**OPTIONS, "tile": Option(0, "largest render-target side in pixels (0: the context's limits)")},
     )
 
-    def run(self, mesh, spec, *, ctx, timer, mode, dilated, surface, down, dmin, tile):
+    def run(self, mesh, spec, *, ctx, timer, mode, dilated, surface, down, dmin, wire, tile):
         side = tile_side(ctx, tile)
         target_spec, spec = spec, fine_spec(spec, down)
         pool = buffer_pool(ctx, self.info.name)
@@ -148,7 +200,7 @@ class BinvoxSolid(Method):
         bounds = spec.world_to_voxel(mesh.bounds)
         layers: dict[str, int] = {}
         tiles: dict[str, int] = {}
-        with _BinvoxRun(ctx, bufs, uniforms, record, out) as run:
+        with _BinvoxRun(ctx, bufs, uniforms, record, out, wire and carve) as run:
             for axis in range(3):
                 name = _AXIS_NAMES[axis]
                 n_u, n_v = spec.dims[(axis + 1) % 3], spec.dims[(axis + 2) % 3]
@@ -162,9 +214,9 @@ class BinvoxSolid(Method):
                         for origin in origins:
                             run.set_tile(origin)
                             set_uniforms(record, {"u_tile_origin": origin})
-                            run.draw(target, 0)
+                            run.carve_buffer(target, 0)
                             run.record_layer(target, size, 0, 0)
-                            run.draw(target, 1, far=True)
+                            run.carve_buffer(target, 1, far=True)
                             run.record_layer(target, size, 1, 1)
                         barrier(ctx)
                         self._combine(ctx, spec, axis, 0 if axis == 0 else 1, scan, combine, out["flips_carve"], out)
@@ -204,7 +256,8 @@ class BinvoxSolid(Method):
             # binvox's own output would be empty too; the run envelope warns with this cause
             # (SuspiciousResultWarning) rather than return it silently
             timer.stats["suspicious"] = empty_cause("binvox-solid", mode, target_spec.dims)
-        timer.stats.update({"mode": mode, "dilated": bool(dilated), "surface": bool(surface), "down": down,
+        timer.stats.update({"mode": mode, "dilated": bool(dilated), "wire": bool(wire), "surface": bool(surface),
+                            "down": down,
                             "passes": passes, "layers": layers, "tiles": tiles})
         return VoxelGrid(words=words, spec=target_spec, count=voxels)
 

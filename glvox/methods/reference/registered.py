@@ -164,11 +164,11 @@ class ReferenceBinvox(Method):
         options=BINVOX_OPTIONS,
     )
 
-    def run(self, mesh, spec, *, ctx, timer, mode, dilated, surface, down, dmin):
+    def run(self, mesh, spec, *, ctx, timer, mode, dilated, surface, down, dmin, wire):
         with timer.stage("setup", gpu=False):
             tris = mesh.triangles_voxel(spec)
         with timer.stage("voxelize", gpu=False):
-            occ = binvox_solid(tris, spec.dims, mode, dilated, surface, down, dmin)
+            occ = binvox_solid(tris, spec.dims, mode, dilated, surface, down, dmin, wire)
         grid = VoxelGrid(occ, spec)
         if grid.count == 0:  # the run envelope warns with this cause
             timer.stats["suspicious"] = empty_cause("reference-binvox", mode, grid.spec.dims)
