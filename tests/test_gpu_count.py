@@ -3,7 +3,7 @@
 Issue 23: ``VoxelGrid.count`` of a GPU method's result must come from the
 GPU, fused into a pass that writes the final words anyway (no CPU popcount
 after the readback).  The methods are taken from the registry (every
-surface or solid method not of the ``cpu`` family), so a new dense method is
+surface or solid method not of the ``cpu`` pipeline), so a new dense method is
 covered as soon as it registers; :data:`NOT_COUNTED` lists the exceptions,
 which must then count on the CPU (a stale exception fails too).  Each is run on a generated torus, a shared mesh, an odd-sized
 non-cubic grid that clips the mesh (partial last words and bits past nx),

@@ -133,3 +133,12 @@ def test_separability_helper_on_a_hand_made_shell():
     edge[1, 1, 3] = False
     assert len(separation_leaks(edge, inside, 26)) > 0
     assert len(separation_leaks(edge, inside, 6)) == 0
+
+
+def test_a_filter_that_names_nothing_is_refused():
+    """method_infos(family='compute') once selected nothing, silently: 'compute' is a pipeline."""
+    with pytest.raises(MethodError, match=r"unknown family .compute.; known: depth, .*reference"):
+        method_infos(family="compute")
+    with pytest.raises(MethodError, match=r"unknown pipeline 'ss'"):
+        method_names(pipeline="ss")
+    assert method_names(family="ss") and method_names(pipeline="compute")

@@ -552,6 +552,23 @@ def test_the_collinear_case_needs_the_sliver_clause(gl_context):
     assert (diff & clause).any()
 
 
+#: Found by the closed-solids fuzz test: a lattice-snapped tetrahedron with a face on the grid's
+#: y = 0 boundary plane (dims (15, 5, 8)); binvox-solid sets 8 voxels its float64 twin does not,
+#: along that face and at one voxel inside (the same with and without -aw edges).
+BOUNDARY_FACE_HULL = (np.array([[0.75, 0, 0], [0, 0, 1], [-1, 0, 0], [0, 0.75, 0]]), (15, 5, 8))
+
+
+@pytest.mark.xfail(strict=True, raises=AssertionError, reason="open: binvox-solid differs from reference-binvox "
+                   "by 8 voxels on a hull with a face on the grid's boundary plane (the cause is not found yet); "
+                   "strict: passes once fixed")
+def test_open_binvox_boundary_face(gl_context):
+    pts, dims = BOUNDARY_FACE_HULL
+    hull = trimesh.convex.convex_hull(pts)
+    mesh = load_mesh((hull.vertices, hull.faces), name="hull")
+    spec = glvox.grid_for(mesh, dims=dims)
+    check_approximate("binvox-solid", run_method("binvox-solid", mesh, spec), mesh, spec)
+
+
 @FUZZ
 @given(solid=closed_solids(), dims=grid_dims())
 def test_fuzzed_closed_solids_on_every_solid_method(gl_context, solid, dims):
@@ -564,7 +581,7 @@ def test_fuzzed_closed_solids_on_every_solid_method(gl_context, solid, dims):
 
 # -- limits ----------------------------------------------------------------------
 
-DENSE_COMPUTE = [i.name for i in method_infos(family="compute") if i.kind in ("surface", "solid")]
+DENSE_COMPUTE = [i.name for i in method_infos(pipeline="compute") if i.kind in ("surface", "solid")]
 
 
 @pytest.mark.parametrize("name", DENSE_COMPUTE)

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from ..errors import MethodError
+
 from ..grid import GridSpec
 from ..mesh import Mesh
 from ..reference.attributes import reference_attributes
@@ -25,7 +27,14 @@ __all__ = ["DEFAULT_METHOD", "FAMILIES", "KINDS", "PIPELINES", "Method", "Method
 
 def method_infos(kind: str | None = None, family: str | None = None,
                  pipeline: str | None = None) -> list[MethodInfo]:
-    """Registry entries, sorted by family (:data:`FAMILIES` order) then name, optionally filtered."""
+    """Registry entries, sorted by family (:data:`FAMILIES` order) then name, optionally filtered.
+
+    A filter value that names nothing (a kind, family or pipeline glvox does not have) is a
+    MethodError, not an empty list: ``family='compute'`` is a pipeline, and would select nothing.
+    """
+    for what, value, known in (("kind", kind, KINDS), ("family", family, FAMILIES), ("pipeline", pipeline, PIPELINES)):
+        if value is not None and value not in known:
+            raise MethodError(f"unknown {what} {value!r}; known: {', '.join(known)}")
     discover()
     infos = [m.info for m in _REGISTRY.values()]
     if kind is not None:
