@@ -28,7 +28,7 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 
-from glvox.errors import GlvoxError, NotWatertightWarning
+from glvox.errors import GlvoxError, NotWatertightWarning, SuspiciousResultWarning
 from glvox.gl.context import get_context
 from glvox.grid import grid_for, unpack_bits
 from glvox.inspect import UNCERTAIN_BAND, uncertain_share
@@ -250,6 +250,7 @@ def pictures(plan: Plan, out: Path, log) -> list[Path]:
     paths = []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", NotWatertightWarning)
+        warnings.simplefilter("ignore", SuspiciousResultWarning)  # kept in the row: stats["suspicious"]
         for mesh_path in plan.meshes:
             mesh = load_mesh(mesh_path)
             spec = grid_for(mesh, n)

@@ -48,7 +48,7 @@ import moderngl
 import numpy as np
 
 from glvox._version import __version__
-from glvox.errors import GlvoxError, NotWatertightWarning
+from glvox.errors import GlvoxError, NotWatertightWarning, SuspiciousResultWarning
 from glvox.gl.context import get_context
 from glvox.gpu.buffers import gpu_bytes
 from glvox.grid import GridSpec, grid_for, pack_bits
@@ -205,6 +205,7 @@ class References:
             t0 = time.perf_counter()
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", NotWatertightWarning)
+                warnings.simplefilter("ignore", SuspiciousResultWarning)  # kept in the row: stats["suspicious"]
                 result = run_method(name, self.mesh, self.spec, allow_open=True, **dict(options))
             self._refs[key] = result.words()
             self._fields[key] = getattr(result, "fields", {})
@@ -288,6 +289,7 @@ class _Contestant:
             return time.perf_counter() - t0
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", NotWatertightWarning)
+            warnings.simplefilter("ignore", SuspiciousResultWarning)  # kept in the row: stats["suspicious"]
             t0 = time.perf_counter()
             self.last = run_method(self.c.method, self.mesh, self.spec, ctx=self.ctx, allow_open=True,
                                    **dict(self.c.options))
