@@ -5,7 +5,7 @@
     glvox bench --preset quick --check             # no-regression check against compare/bench_baseline.json
     glvox bench --preset quick --save-baseline compare/bench_baseline.json   # refresh the checkout's baseline
     glvox bench --preset quick --against HEAD~1    # side by side with an earlier revision (:mod:`.ab`)
-    glvox bench --sdf --meshes bunny -r 128        # glvox sdf against Open3D and libigl (:mod:`.sdf_bench`)
+    glvox bench --sdf --meshes stanford_bunny_bun_zipper.ply -r 128   # glvox sdf against its peers (:mod:`.sdf_bench`)
 
 A thin layer over the study's runner (:mod:`glvox.study.harness`, whose
 docstring gives the timing protocol): every glvox GPU method and every
@@ -267,7 +267,7 @@ def main(args) -> int:
     get_peer("cuda-voxelizer").configure(getattr(args, "cuda_voxelizer", None))
     if args.end_to_end is not None:
         return _end_to_end(args, log, Stages(quiet=args.quiet))
-    if args.sdf:
+    if getattr(args, "sdf", False):  # a Namespace built by hand may lack it
         return _sdf(args, log)
     if args.against:
         code = _against(args, log, Stages(quiet=args.quiet))

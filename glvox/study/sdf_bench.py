@@ -1,7 +1,7 @@
 """``glvox bench --sdf``: glvox's signed distance field against the SDF tools people use, on the
 same voxel centers.
 
-    glvox bench --sdf --meshes bunny -r 128
+    glvox bench --sdf --meshes stanford_bunny_bun_zipper.ply -r 128
 
 For each mesh and grid: glvox (:func:`glvox.methods.sdf.field.signed_distance_field`, band of
 3 voxels, sign from the ``solid`` alias) and each installed peer run end to end (load the mesh
