@@ -472,6 +472,8 @@ def validate_compare(args) -> None:
 def validate_bench(args) -> None:
     if args.save_baseline:  # outputs first, as every command does
         output_file(args.save_baseline, (".json",), "baseline")
+    if getattr(args, "sdf", False) and not (args.meshes and args.sizes):
+        raise GlvoxError("glvox bench --sdf takes --meshes and -r/--sizes (no preset)")
     validate_study(args, BENCH_PRESETS, "bench", meshes_needed=args.end_to_end is None)
     if args.end_to_end and not Path(args.end_to_end).is_dir():
         raise GlvoxError(f"--end-to-end takes a folder of meshes, got {args.end_to_end}")

@@ -3,6 +3,9 @@ a hand-worked cube, band, truncation, sign, files, samples and bad input."""
 
 from __future__ import annotations
 
+import contextlib
+import importlib
+import io
 import math
 import warnings
 
@@ -20,6 +23,19 @@ from glvox.reference.winding import winding_direct
 from glvox.tolerances import SDF_DISTANCE_TOL
 
 pytestmark = pytest.mark.usefixtures("gl_context")
+
+
+def _openvdb():
+    with contextlib.redirect_stderr(io.StringIO()):  # Debian's module complains about numpy 2 on import
+        try:
+            return importlib.import_module("pyopenvdb")
+        except ImportError:
+            return None
+
+
+VDB = _openvdb()
+needs_vdb = pytest.mark.skipif(VDB is None, reason="OpenVDB's Python module (pyopenvdb) is not installed: not "
+                                                   "on PyPI; .ci/setup installs Debian's python3-openvdb")
 
 
 def _cube() -> glvox.Mesh:
@@ -143,7 +159,7 @@ def test_bad_arguments_fail_in_one_line(kwargs, match):
 def test_cli_refuses_before_any_work(capsys, tmp_path):
     assert main(["sdf", "no_such_mesh.ply", "-r", "16", "-o", str(tmp_path / "a.binvox")]) == 1
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "saved as .npz, .nrrd, .nii(.gz) or .vti" in err
+    assert err.count("\n") == 1 and "saved as .npz, .nrrd, .nii(.gz), .vti or .vdb" in err
     assert main(["sdf", "gen:torus", "-r", "4000", "-o", str(tmp_path / "a.npz")]) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "GiB" in err and "use a smaller -r" in err
@@ -181,6 +197,87 @@ def test_cli_writes_an_sdf(tmp_path):
     assert main(["sdf", "gen:torus", "-r", "16", "-o", str(out), "--truncation", "2vox", "-q"]) == 0
     r = glvox.load(out)
     assert isinstance(r, glvox.SDFGrid) and np.abs(r.sdf).max() <= 2 * r.voxel_size * (1 + 1e-6)
+
+
+def _level_set(path):
+    """The one grid of a .vdb file glvox wrote for an SDF, and its values on the grid's voxels:
+    (grid, active bool (dims), dense float (dims) of every voxel's value, active or not)."""
+    grids, _ = VDB.readAll(str(path))
+    assert len(grids) == 1
+    g = grids[0]
+    dims = tuple(int(x) for x in str(g["glvox_dims"]).split())
+    active = np.zeros(dims, bool)
+    for item in g.iterOnValues():
+        (x0, y0, z0), (x1, y1, z1) = item.min, item.max
+        active[x0:x1 + 1, y0:y1 + 1, z0:z1 + 1] = True
+    acc = g.getConstAccessor()
+    values = np.array([acc.getValue(tuple(p)) for p in np.indices(dims).reshape(3, -1).T.tolist()],
+                      dtype=np.float32).reshape(dims)
+    return g, active, values
+
+
+@needs_vdb
+@pytest.mark.parametrize("kwargs", [{}, {"band": 2}, {"truncation": "1.5vox"}])
+def test_vdb_level_set(tmp_path, kwargs):
+    spec = GridSpec((40, 39, 11), (-1.4123, -1.3871, -0.39), 0.0713)  # the torus, not round numbers
+    r = _sdf("gen:torus", grid=spec, **kwargs)
+    h = spec.voxel_size
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the torus has no uncertain voxels: nothing is dropped
+        glvox.save(r, tmp_path / "t.vdb")
+    g, active, values = _level_set(tmp_path / "t.vdb")
+    assert g.gridClass == VDB.GridClass.LEVEL_SET and g.name == "surface" and g.valueTypeName == "float"
+    bg = r.truncation if r.truncation is not None else r.band_width * h
+    assert g.background == pytest.approx(bg, rel=1e-6)
+    assert g.activeVoxelCount() == r.band.sum() > 0
+    assert np.array_equal(active, r.band)
+    assert np.array_equal(values[r.band], r.sdf[r.band])              # the exact distances, bit for bit
+    inside, outside = (r.sdf < 0) & ~r.band, (r.sdf > 0) & ~r.band
+    assert inside.any() and outside.any()
+    assert np.allclose(values[inside], -bg) and np.allclose(values[outside], bg)
+    for ijk in ([0, 0, 0], [39, 38, 10], [5, 27, 3]):
+        world = g.transform.indexToWorld(tuple(float(v) for v in ijk))
+        assert np.allclose(world, spec.centers(np.array([ijk]))[0], atol=1e-9 * h, rtol=0)
+
+
+@needs_vdb
+def test_vdb_level_set_by_hand(tmp_path):
+    """Single inside voxels off the band (no x run to fill) still hold -background."""
+    spec = GridSpec((6, 5, 4), (1.0, 2.0, 3.0), 0.5)
+    sdf = np.full(spec.dims, 1.0, np.float32)
+    band = np.zeros(spec.dims, bool)
+    sdf[2, 2, 2] = sdf[4, 1, 1] = -1.0                     # inside, off the band, alone in their x rows
+    sdf[3, 2, 2], sdf[1, 2, 2] = -0.25, 0.375
+    band[3, 2, 2] = band[1, 2, 2] = True
+    glvox.save(glvox.SDFGrid(sdf, spec, band, band_width=2.0), tmp_path / "h.vdb")
+    g, active, values = _level_set(tmp_path / "h.vdb")
+    assert g.background == 1.0 and np.array_equal(active, band)
+    assert np.array_equal(values, np.where(band, sdf, np.sign(sdf)).astype(np.float32))
+
+
+@needs_vdb
+def test_vdb_level_set_from_the_cli_and_not_read_back(tmp_path):
+    out = tmp_path / "t.vdb"
+    assert main(["sdf", "gen:torus", "-r", "16", "-o", str(out), "-q"]) == 0
+    g, active, _ = _level_set(out)
+    assert g.gridClass == VDB.GridClass.LEVEL_SET and active.any()
+    with pytest.raises(glvox.GlvoxError, match="holds the level set 'surface': glvox reads OpenVDB occupancy"):
+        glvox.load(out)
+
+
+def test_vdb_level_set_without_openvdb_is_one_line(tmp_path, monkeypatch, capsys):
+    real = importlib.import_module
+
+    def fake(name, *a, **k):
+        if name in ("pyopenvdb", "openvdb"):
+            raise ImportError(f"No module named {name!r}")
+        return real(name, *a, **k)
+
+    monkeypatch.setattr(importlib, "import_module", fake)
+    assert main(["sdf", "gen:torus", "-r", "16", "-o", str(tmp_path / "t.vdb")]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "apt-get install python3-openvdb" in err
+    assert not any(tmp_path.iterdir())
 
 
 def test_samples_are_reproducible_and_exact(tmp_path):

@@ -94,7 +94,7 @@ def check_writable(path: str | os.PathLike, kind: str | None = None,
     if kind == "ldi" and not fmt.ldi:
         raise FormatError(f"an LDI is saved as .npz (depths per ray), not {fmt.name}: {path}")
     if kind == "sdf" and not fmt.sdf:
-        raise FormatError(f"a signed distance field is saved as .npz, .nrrd, .nii(.gz) or .vti, not {fmt.name}: "
+        raise FormatError(f"a signed distance field is saved as .npz, .nrrd, .nii(.gz), .vti or .vdb, not {fmt.name}: "
                           f"{path}")
     if dims is not None:
         check_dims(path, kind, dims)

@@ -21,6 +21,20 @@ cell (a, b, c) centred at ``origin + (4 (a, b, c) + 2) h``, values those of
 :meth:`SparseOctree.coverage`, zero cells inactive).  A dense grid is
 written as one box per x run.  Trees are pruned (uniform leaves become tiles).
 
+A signed distance field (:class:`SDFGrid`) is written as an OpenVDB narrow-band
+level set: one ``FloatGrid`` named ``surface`` (Houdini's and OpenVDB's tools'
+name for a polygon level set), grid class ``level set``, the same transform,
+values in world units, negative inside.  The active voxels are exactly the
+SDF's band (where glvox's distance is exact); the background is the band's
+half-width in world units (``band_width * h``; the truncation when truncated;
+the largest ``|sdf|`` with ``band='all'``, where every voxel is active), and the
+inactive voxels inside the mesh hold ``-background`` (OpenVDB's sign
+convention), those outside ``+background``.  String metadata
+``glvox_dims``, ``glvox_placement``, ``glvox_band_width`` (voxels) and
+``glvox_truncation`` (world units, ``none``).  The ``uncertain`` mask is not
+written (a warning says so).  glvox does not read level sets back (it refuses
+them by name): load the ``.npz`` for that.
+
 Debian's module is built against numpy 1.x; under numpy 2 every call that
 takes or returns an array (``copyFromArray``, matrices, float metadata)
 crashes, so glvox passes only ints, tuples and strings (box fills and the
@@ -37,13 +51,16 @@ from __future__ import annotations
 import contextlib
 import importlib
 import io
+import math
+import warnings
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import FormatError
+from ..errors import FormatError, FormatWarning
 from ..grid import MAX_VOXELS
 from ..results import Result, SparseOctree, VoxelGrid
+from ..results.sdf import SDFGrid
 from .common import Format, grid_from_matrix, warn_dropped
 
 INSTALL_HINT = ("OpenVDB's Python module is not on PyPI: on Debian/Ubuntu `apt-get install python3-openvdb` "
@@ -220,6 +237,49 @@ def _bool_grid(vdb, name: str, boxes: np.ndarray, result: Result):
     return grid
 
 
+#: The name of the level set glvox writes for an SDF.
+LEVEL_SET_NAME = "surface"
+
+
+def level_set_background(result: SDFGrid) -> float:
+    """The level set's background, world units: the truncation, else the band's half-width
+    ``band_width * voxel_size``, else (``band='all'``) the largest ``|sdf|``."""
+    if result.truncation is not None:
+        return float(result.truncation)
+    if math.isfinite(result.band_width):
+        return float(result.band_width * result.voxel_size)
+    return float(np.abs(result.sdf).max()) if result.sdf.size else float(result.voxel_size)
+
+
+def _level_set(vdb, result: SDFGrid):
+    """The SDF as a narrow-band FloatGrid level set (see the module docstring)."""
+    bg = level_set_background(result)
+    grid = vdb.FloatGrid(bg)
+    grid.gridClass = vdb.GridClass.LEVEL_SET
+    # inactive inside voxels hold -background: box fills over x runs (whole 8^3 blocks become tiles)
+    big, singles = _split(dense_boxes((result.sdf < 0) & ~result.band), result.dims)
+    fill = grid.fill
+    for b in big.tolist():
+        fill((b[0], b[1], b[2]), (b[3], b[4], b[5]), -bg, False)
+    acc = grid.getAccessor()
+    set_off, set_on = acc.setValueOff, acc.setValueOn
+    for p in singles.tolist():
+        set_off((p[0], p[1], p[2]), -bg)
+    # the band's exact distances, one accessor call each (copyFromArray crashes under numpy 2)
+    ijk = np.argwhere(result.band)
+    for p, v in zip(ijk.tolist(), result.sdf[result.band].tolist()):
+        set_on((p[0], p[1], p[2]), v)
+    grid.prune()
+    grid.name = LEVEL_SET_NAME
+    h = result.voxel_size
+    grid.transform = _transform(vdb, h, result.origin + 0.5 * h)
+    grid["glvox_dims"] = " ".join(str(int(d)) for d in result.dims)
+    grid["glvox_placement"] = PLACEMENT_NOTE
+    grid["glvox_band_width"] = repr(float(result.band_width))
+    grid["glvox_truncation"] = "none" if result.truncation is None else repr(float(result.truncation))
+    return grid
+
+
 def write(result: Result, path: Path, *, coverage: bool = True) -> None:
     """Write ``result`` as BoolGrids (and an octree's coverage FloatGrid when ``coverage``).
 
@@ -227,7 +287,13 @@ def write(result: Result, path: Path, *, coverage: bool = True) -> None:
     grid, so any octree glvox makes fits); a VoxelGrid by its x runs.
     """
     vdb = _library()
-    if isinstance(result, SparseOctree):
+    if isinstance(result, SDFGrid):
+        if result.n_uncertain:
+            warnings.warn(FormatWarning(f"OpenVDB keeps the level set (distances, band as active voxels); the "
+                                        f"uncertain mask ({result.n_uncertain} voxels) is not written (.npz "
+                                        "and .vti keep it)"), stacklevel=3)
+        grids = [_level_set(vdb, result)]
+    elif isinstance(result, SparseOctree):
         grids = [_bool_grid(vdb, "occupancy", octree_boxes(result), result)]
         if coverage:
             grids.append(_coverage(vdb, result))
@@ -284,6 +350,10 @@ def read(path: Path) -> VoxelGrid:
     except Exception as exc:  # noqa: BLE001 - OpenVDB raises IOError, KeyError, RuntimeError...
         raise FormatError(f"cannot read {path} as OpenVDB: {exc}") from None
     bools = {g.name: g for g in grids if g.valueTypeName == "bool"}
+    level_sets = [g.name for g in grids if g.gridClass == vdb.GridClass.LEVEL_SET]
+    if not bools and level_sets:
+        raise FormatError(f"{path} holds the level set {level_sets[0]!r}: glvox reads OpenVDB occupancy "
+                          "(BoolGrids), not level sets; load the SDF's .npz, or read the .vdb with pyopenvdb")
     occ = bools.get("occupancy") or (next(iter(bools.values())) if len(bools) == 1 else None)
     if occ is None:
         found = [f"{g.name} ({g.valueTypeName})" for g in grids]
@@ -308,4 +378,5 @@ def read(path: Path) -> VoxelGrid:
     return grid_from_matrix(_fill_dense(occ, lo, dims, path), steps, first, path, extras=extras)
 
 
-FORMAT = Format("OpenVDB", (".vdb",), write, read, library=_library, options=("coverage",), sparse=True)
+FORMAT = Format("OpenVDB", (".vdb",), write, read, library=_library, options=("coverage",), sparse=True,
+                sdf=True)

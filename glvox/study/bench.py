@@ -5,6 +5,7 @@
     glvox bench --preset quick --check             # no-regression check against compare/bench_baseline.json
     glvox bench --preset quick --save-baseline compare/bench_baseline.json   # refresh the checkout's baseline
     glvox bench --preset quick --against HEAD~1    # side by side with an earlier revision (:mod:`.ab`)
+    glvox bench --sdf --meshes stanford_bunny_bun_zipper.ply -r 128   # glvox sdf against its peers (:mod:`.sdf_bench`)
 
 A thin layer over the study's runner (:mod:`glvox.study.harness`, whose
 docstring gives the timing protocol): every glvox GPU method and every
@@ -33,7 +34,7 @@ from glvox.methods import get_method, method_names
 from glvox.progress import Progress, Stages
 from glvox.tolerances import REGRESSION_TOLERANCE
 
-from . import ab, endtoend, harness, regression
+from . import ab, endtoend, harness, regression, sdf_bench
 from .bench_report import report
 from .coldstart import cold_start
 from ..datasets import resolve_mesh
@@ -240,6 +241,21 @@ def _end_to_end(args, log, progress) -> int:
     return 0
 
 
+def _sdf(args, log) -> int:
+    """``--sdf``: signed distance fields against the SDF peers (:mod:`.sdf_bench`)."""
+    load = os.getloadavg()[0]
+    rows = sdf_bench.run(list(args.meshes), sorted(set(args.sizes)), args.repeat or 1, log)
+    text = sdf_bench.report(rows, (load, os.getloadavg()[0]))
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "sdf_bench.md").write_text(text + "\n")
+        (out / "sdf_bench.json").write_text(json.dumps(rows, indent=1))
+        log(f"wrote {out / 'sdf_bench.md'}")
+    print(json.dumps(rows, indent=1) if args.json else text)
+    return 0
+
+
 def main(args) -> int:
     """``glvox bench`` with parsed ``args`` (:func:`glvox.study.options.add_bench_arguments`);
     exit status 3 when ``--check`` or ``--against`` finds a regression."""
@@ -251,6 +267,8 @@ def main(args) -> int:
     get_peer("cuda-voxelizer").configure(getattr(args, "cuda_voxelizer", None))
     if args.end_to_end is not None:
         return _end_to_end(args, log, Stages(quiet=args.quiet))
+    if getattr(args, "sdf", False):  # a Namespace built by hand may lack it
+        return _sdf(args, log)
     if args.against:
         code = _against(args, log, Stages(quiet=args.quiet))
         log(f"done in {time.perf_counter() - t_start:.0f} s")

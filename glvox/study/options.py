@@ -168,5 +168,8 @@ def add_bench_arguments(p: argparse.ArgumentParser) -> None:
                         "occupancy) over FOLDER (default: the shared meshes) at the first -r size (default "
                         "64): glvox's methods (-m, default ss-conservative) against Open3D (--peers "
                         "open3d trimesh-subdivide); meshes/s from best and median of --repeat rounds")
+    p.add_argument("--sdf", action="store_true",
+                   help="signed distance fields: glvox sdf against Open3D, libigl and mesh-to-sdf on the same "
+                        "voxel centers (with --meshes and -r)")
     p.add_argument("--json", action="store_true", help="print the rows as JSON instead of the tables")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
