@@ -1,6 +1,6 @@
 // LOD-C cells along a ray (Leung & Wang 2013 Sec. III-A): cell z is [z, z + 1) in cell
 // units, z = 0 .. u_cells - 1, covering the grid's range along the axis.  The vertices
-// arrive shifted by half a cell (common/transform.comp, scaled and shifted by leung_wang.py), so a crossing q' of
+// arrive shifted by half a cell (common/transform.comp, scaled and shifted by glvox/methods/ldi/leung_wang.py), so a crossing q' of
 // eisemann/column.glsl is at q' + 1/2 cells.
 //
 // A crossing at or beyond the far face (q = u_cells: a face on the grid's boundary, or
