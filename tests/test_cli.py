@@ -13,6 +13,8 @@ import trimesh
 
 from glvox import io
 from glvox.cli import build_parser
+from glvox.cli import main as cli_main
+from glvox.methods import request
 from glvox.study.compare import plan_from
 from glvox.methods import method_names
 
@@ -283,3 +285,23 @@ def test_python_voxelize_without_a_grid_uses_the_default():
     g = glvox.voxelize("gen:torus", method="ss-conservative")
     assert g.dims == (128, 128, 128)
     assert glvox.voxelize("gen:torus", 16, method="ss-conservative").dims == (16, 16, 16)
+
+
+def test_voxelize_checks_each_thing_once(tmp_path, monkeypatch):
+    """One validated request per command: preflight builds the Request (method, options,
+    attributes) and checks the output once; the command and run_method use them as they are."""
+    calls = {"make": 0, "lookup": 0, "attributes": 0, "writable": 0}
+
+    def counting(key, fn):
+        def wrapped(*a, **k):
+            calls[key] += 1
+            return fn(*a, **k)
+        return wrapped
+
+    make = request.Request.make.__func__
+    monkeypatch.setattr(request.Request, "make", classmethod(counting("make", make)))
+    monkeypatch.setattr(request, "get_method", counting("lookup", request.get_method))
+    monkeypatch.setattr(request, "parse_attributes", counting("attributes", request.parse_attributes))
+    monkeypatch.setattr(io, "check_writable", counting("writable", io.check_writable))
+    assert cli_main(["voxelize", "gen:torus", "-r", "8", "-o", str(tmp_path / "t.npz"), "-q"]) == 0
+    assert calls == {"make": 1, "lookup": 1, "attributes": 1, "writable": 1}, calls
