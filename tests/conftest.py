@@ -4,6 +4,9 @@ installed with the package (entry point pytest11)."""
 
 from __future__ import annotations
 
+import contextlib
+import importlib
+import io
 import os
 
 import pytest
@@ -15,6 +18,20 @@ from glvox.datasets import SHARED_MESHES  # noqa: F401
 
 #: Heavier runs (large grids, every shared mesh) are opt-in.
 SLOW = os.environ.get("GLVOX_SLOW", "") not in ("", "0")
+
+
+def _openvdb():
+    """OpenVDB's Python module, or None (for `from conftest import VDB, needs_vdb`)."""
+    with contextlib.redirect_stderr(io.StringIO()):  # Debian's module complains about numpy 2 on import
+        try:
+            return importlib.import_module("pyopenvdb")
+        except ImportError:
+            return None
+
+
+VDB = _openvdb()
+needs_vdb = pytest.mark.skipif(VDB is None, reason="OpenVDB's Python module (pyopenvdb) is not installed: not "
+                                                   "on PyPI; .ci/setup installs Debian's python3-openvdb")
 
 
 def pytest_collection_modifyitems(config, items):

@@ -4,13 +4,12 @@ mesh vertices landing in the voxels glvox set, glvox's readers, refusals."""
 
 from __future__ import annotations
 
-import contextlib
 import importlib
-import io as _io
 import warnings
 
 import numpy as np
 import pytest
+from conftest import VDB, needs_vdb
 
 import glvox
 from glvox import io
@@ -19,18 +18,6 @@ from glvox.formats import check_writable, format_for
 from glvox.grid import GridSpec
 from glvox.results import SparseOctree, VoxelGrid
 
-
-def _openvdb():
-    with contextlib.redirect_stderr(_io.StringIO()):  # Debian's module complains about numpy 2 on import
-        try:
-            return importlib.import_module("pyopenvdb")
-        except ImportError:
-            return None
-
-
-VDB = _openvdb()
-needs_vdb = pytest.mark.skipif(VDB is None, reason="OpenVDB's Python module (pyopenvdb) is not installed: not "
-                                                   "on PyPI; .ci/setup installs Debian's python3-openvdb")
 
 #: A non-cubic grid, origin and voxel size that are not round numbers.
 SPEC = GridSpec((13, 7, 5), (12.3456, -7.891, 0.123), 0.0371)

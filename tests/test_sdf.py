@@ -3,9 +3,7 @@ a hand-worked cube, band, truncation, sign, files, samples and bad input."""
 
 from __future__ import annotations
 
-import contextlib
 import importlib
-import io
 import math
 import warnings
 
@@ -15,7 +13,9 @@ import trimesh
 
 import glvox
 from glvox.cli import main
-from glvox.errors import MethodError, SuspiciousResultWarning
+from conftest import VDB, needs_vdb
+
+from glvox.errors import SuspiciousResultWarning
 from glvox.grid import GridSpec
 from glvox.methods.sdf.samples import sdf_samples
 from glvox.reference.sdf import point_distances, reference_sdf
@@ -24,18 +24,6 @@ from glvox.tolerances import SDF_DISTANCE_TOL
 
 pytestmark = pytest.mark.usefixtures("gl_context")
 
-
-def _openvdb():
-    with contextlib.redirect_stderr(io.StringIO()):  # Debian's module complains about numpy 2 on import
-        try:
-            return importlib.import_module("pyopenvdb")
-        except ImportError:
-            return None
-
-
-VDB = _openvdb()
-needs_vdb = pytest.mark.skipif(VDB is None, reason="OpenVDB's Python module (pyopenvdb) is not installed: not "
-                                                   "on PyPI; .ci/setup installs Debian's python3-openvdb")
 
 
 def _cube() -> glvox.Mesh:

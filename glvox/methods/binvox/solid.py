@@ -55,7 +55,7 @@ from ...grid import GridSpec
 from ...reference.binvox import empty_cause
 from ...results.voxels import VoxelGrid
 from ..base import Method, MethodInfo, Option, Requirements, register
-from ..depth.layers import SCAN_SEGMENT
+from ..depth.layers import prefix_xor
 from ..depth.raster import RasterPass, depth_target, peel_behind, tile_origins, tile_side
 
 MODES = ("default", "carve", "vote")
@@ -283,20 +283,7 @@ class BinvoxSolid(Method):
     def _combine(ctx, spec, axis, mode, scan, combine, flips, out) -> None:
         """Prefix XOR of ``flips`` along ``axis`` (segments along y and z), then
         ``binvox/combine.comp`` in ``mode`` (0/1 carve first/and, 2 vote)."""
-        bind(scan, Flips=flips)
-        set_uniforms(scan, {"u_axis": axis})
-        nx, ny, nz = spec.dims
-        if axis == 0:
-            set_uniforms(scan, {"u_first": 0, "u_count": 0})
-            dispatch_1d(ctx, scan, ny * nz, 64)
-            barrier(ctx)
-        else:
-            lines = spec.words_per_row * (nz if axis == 1 else ny)
-            n = spec.dims[axis]
-            for start in range(0, n, SCAN_SEGMENT):
-                set_uniforms(scan, {"u_first": start, "u_count": min(SCAN_SEGMENT, n - start)})
-                dispatch_1d(ctx, scan, lines, 64)
-                barrier(ctx)
+        prefix_xor(ctx, spec, axis, scan, flips)
         set_uniforms(combine, {"u_axis": axis, "u_mode": mode})
         bind(combine, Flips=flips, Carve=out["carve"], V0=out["v0"], V1=out["v1"], V2=out["v2"], Total=out["total"])
         dispatch_1d(ctx, combine, spec.n_words, 256)

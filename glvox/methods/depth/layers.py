@@ -103,6 +103,26 @@ _OPTIONS = {
 }
 
 
+def prefix_xor(ctx, spec, axis: int, scan, flips) -> None:
+    """``depth/scan.comp``: the prefix XOR of the packed ``flips`` grid along ``axis``, in place
+    (x within each row's words at once; y and z in segments of :data:`SCAN_SEGMENT` slices,
+    one dispatch each, under llvmpipe's loop budget).  Shared with ``binvox-solid``."""
+    set_uniforms(scan, {"u_axis": axis})
+    bind(scan, Flips=flips)
+    nx, ny, nz = spec.dims
+    if axis == 0:
+        set_uniforms(scan, {"u_first": 0, "u_count": 0})
+        dispatch_1d(ctx, scan, ny * nz, 64)
+        barrier(ctx)
+        return
+    lines = spec.words_per_row * (nz if axis == 1 else ny)
+    n = spec.dims[axis]
+    for start in range(0, n, SCAN_SEGMENT):
+        set_uniforms(scan, {"u_first": start, "u_count": min(SCAN_SEGMENT, n - start)})
+        dispatch_1d(ctx, scan, lines, 64)
+        barrier(ctx)
+
+
 @dataclass(eq=False)
 class _Grids:
     """The packed grids and counters of one run (from the method's buffer pool).
@@ -212,21 +232,7 @@ class _DepthLayers(Method):
         """Prefix XOR along ``axis`` (segments for y and z), then AND into the accumulators;
         the ``n_axis``-th of ``n_axes`` directions (the last one's combine counts the result,
         but passalis-stencil's, which :meth:`_finish` finishes and counts)."""
-        set_uniforms(scan, {"u_axis": axis})
-        bind(scan, Flips=grids.flips)
-        wpr = spec.words_per_row
-        nx, ny, nz = spec.dims
-        if axis == 0:
-            set_uniforms(scan, {"u_first": 0, "u_count": 0})
-            dispatch_1d(ctx, scan, ny * nz, 64)
-            barrier(ctx)
-        else:
-            lines = wpr * (nz if axis == 1 else ny)
-            n = spec.dims[axis]
-            for start in range(0, n, SCAN_SEGMENT):
-                set_uniforms(scan, {"u_first": start, "u_count": min(SCAN_SEGMENT, n - start)})
-                dispatch_1d(ctx, scan, lines, 64)
-                barrier(ctx)
+        prefix_xor(ctx, spec, axis, scan, grids.flips)
         stencil = self.algorithm == "stencil"
         set_uniforms(combine, {"u_axis": axis, "u_mode": (2 if stencil else 0) + (0 if n_axis == 0 else 1),
                                "u_last": not stencil and n_axis == n_axes - 1})
