@@ -210,6 +210,16 @@ def snap_to_planes(points: np.ndarray, eps: float = SNAP_EPS) -> np.ndarray:
     return np.where(np.abs(p - r) <= eps, r, p)
 
 
+def _checked_bounds(bounds) -> np.ndarray:
+    """``bounds`` as a finite float64 (2, 3) [min, max] with max >= min; GridError otherwise."""
+    b = np.asarray(bounds, dtype=np.float64)
+    if b.shape != (2, 3) or not np.all(np.isfinite(b)):
+        raise GridError(f"bounds must be a finite (2, 3) array [min, max], got shape {b.shape}")
+    if np.any(b[1] < b[0]):
+        raise GridError(f"bounds max must be >= min on every axis, got min {b[0]} max {b[1]}")
+    return b
+
+
 def fit_grid(
     bounds: np.ndarray,
     resolution: int | None = None,
@@ -248,11 +258,7 @@ def fit_grid(
     -------
     GridSpec
     """
-    b = np.asarray(bounds, dtype=np.float64)
-    if b.shape != (2, 3) or not np.all(np.isfinite(b)):
-        raise GridError(f"bounds must be a finite (2, 3) array [min, max], got shape {b.shape}")
-    if np.any(b[1] < b[0]):
-        raise GridError(f"bounds max must be >= min on every axis, got min {b[0]} max {b[1]}")
+    b = _checked_bounds(bounds)
     padding = int(padding)
     if padding < 0:
         raise GridError(f"padding must be >= 0 voxels, got {padding}")
@@ -333,11 +339,7 @@ def binvox_grid(bounds: np.ndarray, n: int) -> GridSpec:
     -------
     GridSpec
     """
-    b = np.asarray(bounds, dtype=np.float64)
-    if b.shape != (2, 3) or not np.all(np.isfinite(b)):
-        raise GridError(f"bounds must be a finite (2, 3) array [min, max], got shape {b.shape}")
-    if np.any(b[1] < b[0]):
-        raise GridError(f"bounds max must be >= min on every axis, got min {b[0]} max {b[1]}")
+    b = _checked_bounds(bounds)
     if int(n) != n or n < 1:
         raise GridError(f"resolution must be a positive integer, got {n!r}")
     extent = float((b[1] - b[0]).max())
