@@ -374,7 +374,8 @@ APPROXIMATE_SOLIDS = {
                          "4 crossings (every column here)", check_exact),
     "binvox-solid": ("binvox's carving and voting (reference-binvox), whose rounding differs from the parity "
                      "rules on centers exactly on the surface", check_exact),
-    "reference-binvox": ("binvox-solid's float64 twin, its own reference (exact=False: no tie set is defined)",
+    "reference-binvox": ("binvox-solid's float64 twin, its own reference (exact=False: its tie set is whole "
+                         "columns)",
                          check_exact),
     "leung-wang-ldi": ("conservative LDI (samples rounded outwards on the LOD-C cells): inside centers all "
                        "set, extra ones only exactly on the surface", check_conservative_ldi),

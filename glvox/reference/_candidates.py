@@ -257,12 +257,13 @@ def pruned_candidates(tris: np.ndarray, dims: tuple[int, int, int], pad: float,
 
 
 def column_candidates(tris: np.ndarray, dims: tuple[int, int, int], axis: int,
-                      chunk: int = PAIRS_PER_CHUNK) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+                      chunk: int = PAIRS_PER_CHUNK, pad: float = 0.0
+                      ) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Voxel columns along ``axis`` whose center line meets each triangle's projected bounding box.
 
     With ``u = (axis + 1) % 3`` and ``v = (axis + 2) % 3``, column ``(ju, jv)``
     is a candidate when ``(ju + .5, jv + .5)`` lies in the triangle's closed
-    bounding box in the (u, v) plane (S&S Sec. 4.1).
+    bounding box in the (u, v) plane (S&S Sec. 4.1), grown by ``pad`` voxels.
 
     Yields
     ------
@@ -275,8 +276,8 @@ def column_candidates(tris: np.ndarray, dims: tuple[int, int, int], axis: int,
     v = (axis + 2) % 3
     lo = tris.min(axis=1)
     hi = tris.max(axis=1)
-    fu, lu = index_range(lo[:, u] - 0.5, hi[:, u] - 0.5, dims[u])
-    fv, lv = index_range(lo[:, v] - 0.5, hi[:, v] - 0.5, dims[v])
+    fu, lu = index_range(lo[:, u] - 0.5 - pad, hi[:, u] - 0.5 + pad, dims[u])
+    fv, lv = index_range(lo[:, v] - 0.5 - pad, hi[:, v] - 0.5 + pad, dims[v])
     eu = np.maximum(lu - fu + 1, 0)
     ev = np.maximum(lv - fv + 1, 0)
     for tri, local in expand(eu * ev, chunk):

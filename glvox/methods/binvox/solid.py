@@ -50,7 +50,7 @@ import numpy as np
 from ...gl.shaders import compute_program, render_program
 from ...gpu.buffers import buffer_pool, mesh_buffers, read_grid_words
 from ...gpu.dispatch import barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
-from ...gpu.transform import SNAP_DEFINES
+from ...gpu.transform import SNAP_DEFINES, gpu_vertices_voxel
 from ...grid import GridSpec
 from ...reference.binvox import empty_cause
 from ...results.voxels import VoxelGrid
@@ -93,6 +93,14 @@ def fine_spec(spec: GridSpec, down: int) -> GridSpec:
     """The grid voxelized before ``down`` halvings: the same box, 2^down times the dims."""
     f = 2 ** down
     return GridSpec(tuple(d * f for d in spec.dims), spec.origin, spec.voxel_size / f)
+
+
+def gpu_triangles(mesh, spec: GridSpec, down: int) -> np.ndarray:
+    """(T, 3, 3) float64: the triangles exactly as binvox-solid draws them, in the voxel
+    units of ``spec``: the GPU's float32 vertices on :func:`fine_spec` (snapped there),
+    divided by ``2**down`` (exact).  :func:`glvox.reference.binvox.binvox_solid` on
+    them gives binvox-solid's result voxel for voxel (tests/test_binvox.py)."""
+    return gpu_vertices_voxel(mesh, fine_spec(spec, down))[mesh.faces].astype(np.float64) / 2 ** down
 
 
 class _BinvoxRun(RasterPass):

@@ -19,12 +19,13 @@ from ...grid import snap_to_planes
 from ...reference import (conservative_surface, six_separating_surface, solid, solid_ties, solid_vote, surface_ties,
                          winding, winding_ties)
 from ...reference.binvox import binvox_solid, empty_cause
+from ...reference.ties import binvox_ties
 from ...reference.carve import MAX_CLOSE, carve_ties, carved_solid
 from ...reference.ldi import crossings
 from ...results.ldi import LDI, close_odd
 from ...results.voxels import VoxelGrid
 from ..base import Method, MethodInfo, Option, register
-from ..binvox.solid import OPTIONS as BINVOX_OPTIONS
+from ..binvox.solid import OPTIONS as BINVOX_OPTIONS, fine_spec
 from ..ldi.common import AXIS_OPTION, warn_open
 
 _SS = "Schwarz & Seidel 2010"
@@ -150,29 +151,47 @@ class ReferenceCarve(_CpuReference):
 
 @register
 class ReferenceBinvox(Method):
-    """binvox's solid in float64 (:mod:`glvox.reference.binvox`); no tie set is defined
-    (binvox-solid is compared with it on meshes whose crossings are far from centers)."""
+    """binvox's solid in float64 (:mod:`glvox.reference.binvox`); its tie set
+    (:func:`glvox.reference.ties.binvox_ties`) holds the voxels of every column whose
+    crossings, coverage or wireframe pixels a motion of ``eps`` can change."""
+
+    has_ties = True
 
     info = MethodInfo(
         name="reference-binvox", kind="solid", pipeline="cpu",
         paper="binvox (P. Min): z-buffer carving (Karabassi et al. 1999) and parity voting "
               "(Nooruddin & Turk 2003) at the pixel-center rays, in float64",
         summary="exact binvox solid: carving | parity votes >= 3 of 6, surface included (mode, dilated)",
-        # float64, but no tie set enumerates where its rounding (half up) decides, so it
-        # does not claim exactness to the checks that excuse mismatches at ties
+        # its tie set is whole columns (a tie in one crossing moves a column's interval or
+        # parity), coarse where the wireframe is drawn; it does not claim exactness to the
+        # checks that excuse mismatches at ties (binvox-solid is checked against it and
+        # against its float32 twin: tests/test_binvox.py)
         reference="reference-binvox", exact=False, any_mesh=True,
         options=BINVOX_OPTIONS,
     )
 
     def run(self, mesh, spec, *, ctx, timer, mode, dilated, surface, down, dmin, wire):
         with timer.stage("setup", gpu=False):
-            tris = mesh.triangles_voxel(spec)
+            tris = _drawn_triangles(mesh, spec, down)
         with timer.stage("voxelize", gpu=False):
             occ = binvox_solid(tris, spec.dims, mode, dilated, surface, down, dmin, wire)
         grid = VoxelGrid(occ, spec)
         if grid.count == 0:  # the run envelope warns with this cause
             timer.stats["suspicious"] = empty_cause("reference-binvox", mode, grid.spec.dims)
         return grid
+
+    def tie_set(self, mesh, spec, eps, **options):
+        o = {k: opt.default for k, opt in BINVOX_OPTIONS.items()} | options
+        raw = spec.world_to_voxel(mesh.triangles())
+        return binvox_ties(_drawn_triangles(mesh, spec, o["down"]), spec.dims, wire=o["wire"],
+                           surface=o["surface"], down=o["down"], eps=eps, unsnapped=raw)
+
+
+def _drawn_triangles(mesh, spec, down: int) -> np.ndarray:
+    """The triangles in the voxel units of ``spec``, snapped on the grid binvox draws:
+    with ``down``, the finer one (as binvox-solid snaps them), divided by ``2**down``
+    (exact)."""
+    return mesh.triangles_voxel(fine_spec(spec, down)) / 2 ** down
 
 
 class _WindingCache:
