@@ -137,11 +137,15 @@ def test_page_examples_run(page, tmp_path, monkeypatch):
                     f"{_rel(page)}: `{command}` is not a glvox command: put it in a ```text block"
 
 
+#: The README's test command, which .ci/run runs as its last step.
+TEST_COMMAND = ".venv/bin/python -m pytest -q -n 2"
+
+
 def test_the_readme_test_command_is_what_ci_runs():
     readme = [c for lang, body, _ in blocks(TOP / "README.md") if lang == "sh" for c in commands(body)]
     ci = [line.strip() for line in (TOP / ".ci" / "run").read_text().splitlines()
           if line.strip() and not line.startswith("#")]
-    assert ".venv/bin/python -m pytest -q" in readme and ci[-1] == ".venv/bin/python -m pytest -q", ci
+    assert TEST_COMMAND in readme and ci[-1] == TEST_COMMAND, ci
     assert any(c.startswith(".venv/bin/glvox voxelize") for c in readme), "the README's first command"
 
 
