@@ -12,9 +12,14 @@ down=1``: binvox ``-aw -dc -down``), by the ``solid`` alias, by
 file's occupancy (read in binvox's convention; its header is not trusted, some
 files have it rewritten).  Prints one row per model and the mean.
 
+``--twin`` prints instead, per model, how ``binvox-solid`` (its defaults) compares
+with its float64 twin ``reference-binvox``: the voxels that differ, those outside
+the twin's tie set (must be 0), the tie set's share of the grid, and the voxels
+that differ from binvox's rules run on the GPU's own float32 vertices (must be 0).
+
 Usage::
 
-    python compare/binvox_ious.py FOLDER [--markdown]
+    python compare/binvox_ious.py FOLDER [--markdown] [--twin]
 """
 
 from __future__ import annotations
@@ -31,7 +36,9 @@ from glvox.gl.context import get_context
 from glvox.grid import binvox_grid
 from glvox.mesh import binvox_bounds, load_mesh
 from glvox.methods import run_method
-from glvox.methods.binvox.solid import BINVOX_DEFAULTS
+from glvox.methods.binvox.solid import BINVOX_DEFAULTS, OPTIONS, gpu_triangles
+from glvox.metrics import tie_set
+from glvox.reference.binvox import binvox_solid
 
 #: (column, method, options): binvox-solid with binvox's own defaults in each mode, then its
 #: recipe without -aw (with the surface instead), its defaults (ShapeNet's recipe,
@@ -64,11 +71,35 @@ def iou(a: np.ndarray, b: np.ndarray) -> float:
     return int((a & b).sum()) / union if union else 1.0
 
 
+def twin_rows(folder: Path):
+    """(model, differing voxels, outside the ties, tie share, off the float32 twin) per model."""
+    defaults = {k: o.default for k, o in OPTIONS.items()}
+    for name, obj, solid in models(folder):
+        mesh = load_mesh(obj)
+        spec = binvox_grid(binvox_bounds(obj, mesh), read(solid, convention="binvox").spec.dims[0])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            gpu = run_method("binvox-solid", mesh, spec).dense()
+            twin = run_method("reference-binvox", mesh, spec).dense()
+        ties = tie_set("reference-binvox", mesh, spec)
+        mirror = binvox_solid(gpu_triangles(mesh, spec, defaults["down"]), spec.dims, **defaults)
+        diff = gpu ^ twin
+        yield name, int(diff.sum()), int((diff & ~ties).sum()), float(ties.mean()), int((gpu ^ mirror).sum())
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("folder", type=Path)
     ap.add_argument("--markdown", action="store_true", help="print a markdown table")
+    ap.add_argument("--twin", action="store_true", help="binvox-solid against reference-binvox and its ties")
     args = ap.parse_args(argv)
+    if args.twin:
+        print("| model | voxels off reference-binvox | outside its ties | ties (share of the grid) | "
+              "off the float32 twin |\n|---|---|---|---|---|")
+        for name, diff, outside, share, mirror in twin_rows(args.folder):
+            print(f"| {name} | {diff} | {outside} | {share:.3f} | {mirror} |")
+        print(f"\n{get_context().renderer}; {platform.node()}")
+        return 0
     rows, picked = [], {}
     for name, obj, solid in models(args.folder):
         shipped = read(solid, convention="binvox").dense()
