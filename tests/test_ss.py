@@ -23,7 +23,7 @@ import glvox
 from glvox.errors import LimitError, NotWatertightError, NotWatertightWarning
 from glvox.gpu.buffers import buffer_pool, gpu_bytes
 from glvox.gpu.dispatch import LOOP_BUDGET
-from glvox.grid import GridSpec
+from glvox.grid import MAX_VOXELS, GridSpec
 from glvox.mesh import Mesh, load_mesh
 from glvox.methods import run_method
 from glvox.methods.ss import solid as ss_solid
@@ -216,19 +216,72 @@ def test_runs_are_deterministic_and_reuse_buffers(gl_context, shared_mesh):
     assert {k: b.glo for k, b in pool._bufs.items()} == ids  # no reallocation when warm
 
 
-def test_grid_over_the_ssbo_limit_is_refused(ssbo_limit):
-    limit = ssbo_limit
-    # a grid whose bit array is just over the limit
-    nx = 1024
-    rows = limit * 8 // nx + 1
-    ny = 1024
-    nz = (rows + ny - 1) // ny
-    spec = GridSpec((nx, ny, nz), (0, 0, 0), 1.0)
-    assert spec.n_words * 4 > limit
-    mesh = load_mesh("gen:box")
-    with pytest.raises(LimitError, match=r"needs a .* MiB shader storage buffer, over this context's "
-                                         r"GL_MAX_SHADER_STORAGE_BLOCK_SIZE of .* MiB"):
-        run_method("ss-conservative", mesh, spec)
+def _corner_grids(big_dims, small_dims, k: int = 3):
+    """The sphere 20 voxels across, from voxel 3 in x and y and from ``k`` in z, on a big
+    grid and on a small one with the same origin and voxel size: every vertex gets the
+    same voxel coordinates on both (the transform does not depend on the dims), so the
+    big grid's corner must equal the small grid."""
+    mesh = load_mesh("gen:sphere")
+    lo, hi = mesh.bounds
+    h = float((hi - lo).max()) / 20.0
+    origin = (float(lo[0] - 3.3 * h), float(lo[1] - 3.3 * h), float(lo[2] - (k + 0.3) * h))
+    return mesh, GridSpec(big_dims, origin, h), GridSpec(small_dims, origin, h)
+
+
+def test_a_grid_over_the_ssbo_limit_is_voxelized_in_slabs(ssbo_limit):
+    """A grid whose bits are over GL_MAX_SHADER_STORAGE_BLOCK_SIZE: two z slabs, the
+    first ending halfway through the sphere; the voxels equal those of a small grid."""
+    nx = ny = 1024
+    per_slice = ny * nx // 8
+    first = ssbo_limit // per_slice  # slices the first slab holds
+    mesh, big, small = _corner_grids((nx, ny, first + 16), (32, 32, first + 16), k=first - 10)
+    assert big.n_words * 4 > ssbo_limit
+    got = run_method("ss-conservative", mesh, big)
+    want = run_method("ss-conservative", mesh, small)
+    assert got.run.stats["slabs"] == 2 and want.count > 0
+    np.testing.assert_array_equal(got.words()[:, :32, :1], want.words())
+    assert got.count == want.count  # nothing anywhere else
+
+
+@pytest.mark.parametrize("method, variant", [("ss-conservative", "simple"), ("ss-conservative", "specialized"),
+                                             ("ss-conservative", "sorted"), ("ss-6sep", None)])
+def test_slabs_give_the_whole_grid_voxel_for_voxel(gl_context, monkeypatch, method, variant):
+    """With the storage-block limit forced to 4, 5 and 7 z slices of the grid, every
+    variant voxelizes slab by slab (classify sees the whole grid, each slab's dispatch its
+    slices): the same words, count and case counts as in one buffer."""
+    mesh = load_mesh("gen:bunny-like")
+    spec = glvox.grid_for(mesh, dims=(512, 256, 24))  # 16 KiB a slice; the mesh's buffers fit 4
+    opts = {} if variant is None else {"variant": variant}
+    whole = run_method(method, mesh, spec, **opts)
+    real = gl_context.limits()
+    per_slice = spec.dims[1] * spec.words_per_row * 4
+    for nk, slabs in ((4, 6), (5, 5), (7, 4)):
+        monkeypatch.setattr(gl_context, "limits", lambda nk=nk: {**real, "GL_MAX_SHADER_STORAGE_BLOCK_SIZE":
+                                                                  nk * per_slice + 3})
+        g = run_method(method, mesh, spec, **opts)
+        assert g.run.stats["slabs"] == slabs
+        np.testing.assert_array_equal(g.words(), whole.words())
+        assert g.count == whole.count and g.run.stats.get("cases_1d_2d_3d") == whole.run.stats.get("cases_1d_2d_3d")
+    # one slice over the limit: refused in one line before any work
+    monkeypatch.setattr(gl_context, "limits", lambda: {**real, "GL_MAX_SHADER_STORAGE_BLOCK_SIZE": per_slice - 4})
+    with pytest.raises(LimitError, match=r"one z slice of the \(512, 256, 24\) bit grid needs 16384 bytes, over "
+                                         r"GL_MAX_SHADER_STORAGE_BLOCK_SIZE 16380"):
+        run_method(method, mesh, spec, **opts)
+
+
+def test_surfaces_take_grids_over_the_dense_limit(gl_context):
+    """ss-conservative on 2048 x 2048 x 513 voxels (more than MAX_VOXELS, 269 MB of bits:
+    z slabs on llvmpipe): its corner equals a small grid's; ss-solid still refuses it,
+    naming the surfaces that take it and the sparse ss-octree."""
+    mesh, big, small = _corner_grids((2048, 2048, 513), (32, 32, 32))
+    assert big.n_voxels > MAX_VOXELS
+    got = run_method("ss-conservative", mesh, big)
+    want = run_method("ss-conservative", mesh, small)
+    np.testing.assert_array_equal(got.words()[:32, :32, :1], want.words())
+    assert got.count == want.count > 0
+    with pytest.raises(LimitError, match=r"more than the 2147483647 it keeps dense; use a smaller grid or the "
+                                         r"sparse ss-octree"):
+        run_method("ss-solid", load_mesh("gen:box"), big)
 
 
 @pytest.mark.slow
@@ -655,3 +708,14 @@ def test_mesh_rows_outside_the_grid(gl_context):
     assert ss_solid.mesh_rows(cut, run_bufs(gl_context, mesh)) == (0, 0, 6, 8)
     check_solid(mesh, cut)
 
+
+
+def test_slab_stages_are_summed_by_name(gl_context, monkeypatch):
+    """Slab by slab, each stage is reported once: its time summed over the slabs."""
+    mesh = load_mesh("gen:bunny-like")
+    spec = glvox.grid_for(mesh, dims=(512, 256, 24))
+    real = gl_context.limits()
+    monkeypatch.setattr(gl_context, "limits", lambda: {**real, "GL_MAX_SHADER_STORAGE_BLOCK_SIZE": 5 * 16384})
+    g = run_method("ss-conservative", mesh, spec, variant="specialized")
+    assert g.run.stats["slabs"] == 5
+    assert [s.name for s in g.run.timings.stages] == ["transform", "classify", "voxelize", "readback"]

@@ -7,7 +7,7 @@ import pytest
 
 from glvox.errors import GLError
 from glvox.gl.shaders import compute_program
-from glvox.gl.timing import StageTimer
+from glvox.gl.timing import Stage, StageTimer
 
 
 def _dispatch(ctx, defines):
@@ -101,3 +101,10 @@ def test_compute_stage_after_a_draw_is_measured(gl_context):
     tex.release()
     s = timer.finish().stage("busy")
     assert 0.5 * s.wall_s <= s.gpu_s <= s.wall_s, (s.gpu_s, s.wall_s)
+
+
+def test_merge_repeats_sums_stages_by_name():
+    t = StageTimer()
+    t.timings.stages[:] = [Stage("a", 1.0, 0.5), Stage("b", 2.0, None), Stage("a", 3.0, 0.25), Stage("b", 4.0, 1.0)]
+    t.merge_repeats()
+    assert t.timings.stages == [Stage("a", 4.0, 0.75), Stage("b", 6.0, None)]

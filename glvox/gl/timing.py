@@ -118,6 +118,17 @@ class StageTimer:
         if self.debug and self.ctx is not None:
             self.ctx.check_error(f"method {self.method!r}, stage {name!r}")
 
+    def merge_repeats(self) -> None:
+        """Sum the stages that share a name into one, in the order of their first run
+        (a method that runs its passes several times: ss-conservative slab by slab)."""
+        merged: dict[str, Stage] = {}
+        for s in self.timings.stages:
+            m = merged.get(s.name)
+            gpu = None if m is not None and (m.gpu_s is None or s.gpu_s is None) else \
+                (s.gpu_s if m is None else m.gpu_s + s.gpu_s)
+            merged[s.name] = Stage(s.name, s.wall_s + (m.wall_s if m else 0.0), gpu)
+        self.timings.stages[:] = list(merged.values())
+
     def finish(self) -> Timings:
         if self.ctx is not None:
             self.timings.compile_s = self.ctx.compile_seconds - self._compile0

@@ -19,6 +19,7 @@ import numpy as np
 from ..errors import MethodError
 from ..gl.workgroups import ComputeNeeds, needs_of
 from ..gpu.buffers import buffer_pool
+from ..grid import MAX_VOXELS
 
 KINDS = ("surface", "solid", "ldi", "sparse")
 #: How a method runs: the raster pipeline, compute shaders, or numpy on the CPU.
@@ -168,6 +169,11 @@ class Requirements:
         return out
 
 
+def taking_grid(kind: str, n_voxels: int) -> list[str]:
+    """The registered methods of ``kind`` that take a grid of ``n_voxels`` voxels."""
+    return sorted(m.info.name for m in _REGISTRY.values() if m.info.kind == kind and m.info.max_voxels >= n_voxels)
+
+
 def alternative(info: "MethodInfo", ctx) -> str | None:
     """What runs on ``ctx`` instead of ``info``: a registered GL method of the
     same kind checked against the same reference whose requirements ``ctx``
@@ -211,6 +217,10 @@ class MethodInfo:
         the run envelope does not refuse open meshes for it.
     family : str
         The package that registers it (:data:`FAMILIES`); set by :func:`register`.
+    max_voxels : int
+        Largest grid (voxels) it takes; :data:`glvox.grid.MAX_VOXELS` (what glvox
+        keeps dense with int32 flat indices) unless its shaders index only packed
+        words and it streams grids over the storage-block limit.
     """
 
     name: str
@@ -224,6 +234,7 @@ class MethodInfo:
     options: Mapping[str, Option] = field(default_factory=dict)
     any_mesh: bool = False
     family: str = ""
+    max_voxels: int = MAX_VOXELS
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
@@ -241,7 +252,7 @@ class MethodInfo:
         return {
             "name": self.name, "kind": self.kind, "family": self.family, "pipeline": self.pipeline, "paper": self.paper,
             "summary": self.summary, "reference": self.reference, "exact": self.exact,
-            "any_mesh": self.any_mesh,
+            "any_mesh": self.any_mesh, "max_voxels": self.max_voxels,
             "requires": {"gl_version": self.requires.gl_version,
                          "extensions": list(self.requires.extensions),
                          "limits": {k: list(v) if isinstance(v, tuple) else v

@@ -20,10 +20,10 @@ import numpy as np
 from ..errors import CapabilityError, LimitError, NotWatertightError, NotWatertightWarning, SuspiciousResultWarning
 from ..gl.context import get_context
 from ..gl.timing import StageTimer
-from ..grid import MAX_VOXELS, GridSpec
+from ..grid import GridSpec
 from ..results.base import Result, RunInfo
 from ..traits import ALL_SHARE, ROBUST, SOLID_MECHANISMS, mesh_traits, solid_warning
-from .base import MethodInfo, alternative
+from .base import MethodInfo, alternative, taking_grid
 
 #: Kinds whose result depends on an inside: undefined for an open mesh.
 INSIDE_KINDS = ("solid", "sparse", "ldi")
@@ -37,10 +37,12 @@ def check_inputs(info: MethodInfo, meshes: Sequence[Any], spec: GridSpec, allow_
     """The checks done before any work: dense size, closed meshes for inside kinds
     (a warning when ``allow_open`` lets an open one through; none for a
     method with ``any_mesh``)."""
-    if info.kind != "sparse" and spec.n_voxels > MAX_VOXELS:
+    if info.kind != "sparse" and spec.n_voxels > info.max_voxels:
+        larger = taking_grid(info.kind, spec.n_voxels)
+        instead = f"use a smaller grid, {' or '.join(larger)}, or" if larger else "use a smaller grid or"
         raise LimitError(
             f"method {info.name!r} returns a dense grid, and {spec.dims} has {spec.n_voxels} voxels, more "
-            f"than the {MAX_VOXELS} glvox keeps dense; use a smaller grid or the sparse ss-octree"
+            f"than the {info.max_voxels} it keeps dense; {instead} the sparse ss-octree"
         )
     if info.kind not in INSIDE_KINDS or info.any_mesh:
         return

@@ -61,6 +61,12 @@ Tri setup_triangle(uint t) {
     T.ext = ext;
     T.lo = max(first, ivec3(0));
     T.hi = min(last, u_dims - 1);
+#ifdef VOX_SLAB
+    // only this slab's voxels are visited; T.ext (the bounding-box type, the case
+    // axis) stays the whole box's, so every voxel is decided as without slabs
+    T.lo.z = max(T.lo.z, u_slab.x);
+    T.hi.z = min(T.hi.z, u_slab.x + u_slab.y - 1);
+#endif
     return T;
 }
 

@@ -64,6 +64,13 @@ COMPUTE = tuple((f"ss/{name}.comp", {}) for name in ("classify", "dispatch_args"
     + SORT_SHADERS + TRANSFORM_SHADERS
 _REQUIRES = Requirements(gl_version=430, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 7}, compute=COMPUTE)
 
+#: Largest grid of ss-conservative and ss-6sep: their shaders index packed words
+#: (uint32: fewer than 2^32 words, i.e. 2^37 voxels) and a grid over the storage-block
+#: limit is voxelized in z slabs (:func:`z_slabs`), so glvox's dense limit
+#: (glvox.grid.MAX_VOXELS, int32 flat indices) does not bind them; 2^36 voxels
+#: (4096^3, 8 GiB of bits on the host) leaves the word index room.
+MAX_SURFACE_VOXELS = 2**36
+
 #: ``ss-conservative``'s variant ``auto`` (the default) runs ``simple`` where a
 #: grid face has at most 1 / AUTO_SIMPLE_DENSITY voxels per triangle
 #: (F / N^2 >= AUTO_SIMPLE_DENSITY, N^2 = the geometric mean of the grid's
@@ -115,7 +122,24 @@ def surface_defines(criterion: int, variant: str) -> dict:
             "SS_SLIVER_EPS": SLIVER_EPS, "SS_WORK_BITS": WORK_BITS}
 
 
-def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int = 0):
+def z_slabs(ctx, spec) -> list[tuple[int, int]] | None:
+    """The z slabs ``(k0, nk)`` a packed grid over GL_MAX_SHADER_STORAGE_BLOCK_SIZE is
+    voxelized in (as many whole z slices as the limit holds), or None when it fits.
+    A single z slice over the limit is refused in one line."""
+    limit = int(ctx.limits()["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"])
+    if spec.n_words * 4 <= limit:
+        return None
+    per_slice = spec.dims[1] * spec.words_per_row * 4
+    nk = limit // per_slice
+    if nk == 0:
+        raise LimitError(f"one z slice of the {spec.dims} bit grid needs {per_slice} bytes, over "
+                         f"GL_MAX_SHADER_STORAGE_BLOCK_SIZE {limit} of this context; use a smaller grid in x "
+                         f"and y or the sparse ss-octree")
+    return [(k0, min(nk, spec.dims[2] - k0)) for k0 in range(0, spec.dims[2], nk)]
+
+
+def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int = 0,
+                   slab: tuple[int, int] | None = None):
     """The S&S surface of ``mesh`` on ``spec`` in a GPU buffer, nothing read back.
 
     The building block of ``ss-conservative`` and ``ss-6sep`` (stages
@@ -135,12 +159,15 @@ def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int
     criterion : {0, 1}
         0 conservative (26-separating), 1 6-separating.
     variant : {'simple', 'specialized', 'sorted'}
+    slab : (k0, nk), optional
+        Only the z slices k0 .. k0 + nk - 1 (:func:`z_slabs`), voxel for voxel
+        those of the whole grid: the grid buffer holds those slices alone.
 
     Returns
     -------
     grid : moderngl.Buffer
         The packed surface (``common/voxel_space.glsl``'s layout, uint32
-        (nz, ny, words_per_row) words), bits past nx zero.
+        (nz, ny, words_per_row) words, nz = nk with ``slab``), bits past nx zero.
     stats : moderngl.Buffer
         uint32[8]; the first three count the 1D/2D/3D cases (criterion 0).
     """
@@ -153,7 +180,8 @@ def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int
             f"{LOCAL_SIZE}); this mesh has {n}: use variant 'specialized'"
         )
     # the grid first: a grid over the SSBO limit is refused before any other work
-    grid = pool.get("grid", spec.n_words * 4, what=f"the {spec.dims} bit grid")
+    slices = spec.dims[2] if slab is None else slab[1]
+    grid = pool.get("grid", slices * spec.dims[1] * spec.words_per_row * 4, what=f"the {spec.dims} bit grid")
     bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool)
     stats = pool.get("stats", 8 * 4)
     per_tri = pool.get("per_triangle", n * 4, what="per-triangle work", clear=False)
@@ -161,6 +189,9 @@ def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int
     defines = surface_defines(criterion, variant)
     common = {**grid_uniforms(spec, bufs.anchor), "u_triangles": n, "u_tri_offset": 0,
               "u_local_size": LOCAL_SIZE, "u_max_groups": max_groups}
+    # classify sees the whole grid (its case counts and chunks are the triangles'),
+    # the voxelization only the slab
+    vdefines = defines if slab is None else {**defines, "VOX_SLAB": 1}
     keys = None
     if variant == "sorted":
         keys = pool.get("keys", n * 4, what="sort keys", clear=False)
@@ -173,11 +204,13 @@ def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int
         dispatch_1d(ctx, classify, n, LOCAL_SIZE)
         barrier(ctx)
     blocks = {"VoxVerts": vox, "Faces": bufs.faces, "Grid": grid, "Stats": stats}
+    vcommon = common if slab is None else {**common, "u_slab": tuple(slab)}
     if variant != "sorted":
-        voxelize_unsorted(ctx, timer, n, defines, common, {**blocks, "TriChunks": per_tri}, stats, args, max_groups)
+        voxelize_unsorted(ctx, timer, n, vdefines, vcommon, {**blocks, "TriChunks": per_tri}, stats, args,
+                          max_groups)
     else:
         ranges = sort_by_case(ctx, timer, pool, n, (stats, per_tri, keys, args), max_groups)
-        voxelize_sorted(ctx, timer, defines, common, {**blocks, "SortedTris": per_tri, "Ranges": ranges}, args)
+        voxelize_sorted(ctx, timer, vdefines, vcommon, {**blocks, "SortedTris": per_tri, "Ranges": ranges}, args)
     return grid, stats
 
 
@@ -246,20 +279,44 @@ class _SSSurface(Method):
     criterion = 0
 
     def _run(self, ctx, mesh, spec, timer, variant: str):
-        grid, stats = surface_on_gpu(ctx, mesh, spec, timer, buffer_pool(ctx, self.info.name),
-                                     criterion=self.criterion, variant=variant)
-        return self._finish(spec, timer, grid, stats)
+        pool = buffer_pool(ctx, self.info.name)
+        slabs = z_slabs(ctx, spec)
+        if slabs is None:
+            grid, stats = surface_on_gpu(ctx, mesh, spec, timer, pool, criterion=self.criterion, variant=variant)
+            return self._finish(spec, timer, grid, stats)
+        # over the storage-block limit: slab by slab, each read into its part of the result
+        words = np.empty(spec.n_words, dtype="<u4")
+        per_slice = spec.dims[1] * spec.words_per_row
+        voxels = 0 if spec.dims[0] * spec.dims[1] * max(nk for _, nk in slabs) < 2**32 else None
+        for k0, nk in slabs:
+            grid, stats = surface_on_gpu(ctx, mesh, spec, timer, pool, criterion=self.criterion,
+                                         variant=variant, slab=(k0, nk))
+            with timer.stage("readback", gpu=False):
+                part = words[k0 * per_slice:(k0 + nk) * per_slice]
+                grid.read_into(part, size=part.nbytes)
+                stat_words = np.frombuffer(stats.read(size=32), dtype="<u4")
+            if voxels is not None:
+                voxels += int(stat_words[7])
+        timer.stats["slabs"] = len(slabs)
+        timer.merge_repeats()
+        self._case_stats(timer, stat_words[:3])  # every slab classifies every triangle
+        return VoxelGrid(words=words.reshape(spec.dims[2], spec.dims[1], spec.words_per_row), spec=spec,
+                         count=voxels)  # None: popcounted on the host when asked
 
-    def _finish(self, spec, timer, grid, stats):
-        with timer.stage("readback", gpu=False):
-            words = read_grid_words(grid, spec)
-            stat_words = np.frombuffer(stats.read(size=32), dtype="<u4")
-        cases, voxels = stat_words[:3], int(stat_words[7])  # ss/write.glsl counts the voxels
+    def _case_stats(self, timer, cases) -> None:
         if self.criterion == 0:
             total = int(cases.sum())
             timer.stats["cases_1d_2d_3d"] = [int(c) for c in cases]
             timer.stats["case_percent_1d_2d_3d"] = [round(100.0 * int(c) / total, 1) if total else 0.0
                                                     for c in cases]
+
+    def _finish(self, spec, timer, grid, stats):
+        with timer.stage("readback", gpu=False):
+            words = read_grid_words(grid, spec)
+            stat_words = np.frombuffer(stats.read(size=32), dtype="<u4")
+        # ss/write.glsl counts the voxels in a uint32: not where a grid has 2^32 or more
+        voxels = int(stat_words[7]) if spec.n_voxels < 2**32 else None
+        self._case_stats(timer, stat_words[:3])
         return VoxelGrid(words=words, spec=spec, count=voxels)
 
 
@@ -270,7 +327,7 @@ class SSConservative(_SSSurface):
         paper=f"{_PAPER}, Sec. 3.1-3.2 and 6 (triangle-parallel conservative voxelization)",
         summary="conservative (26-separating) surface, one compute invocation per triangle, atomicOr",
         reference="reference-conservative",
-        requires=_REQUIRES,
+        requires=_REQUIRES, max_voxels=MAX_SURFACE_VOXELS,
         options={"variant": Option("auto", "Table 1's realization; auto: the fastest on this GPU where "
                                            "`glvox calibrate` measured it (stored per renderer in "
                                            "~/.cache/glvox/ss_variants.json), else simple where triangles / "
@@ -296,7 +353,7 @@ class SS6Sep(_SSSurface):
         paper=f"{_PAPER}, Sec. 3.4 (6-separating surface voxelization, dominant-axis columns)",
         summary="6-separating (thin) surface, one compute invocation per triangle, atomicOr",
         reference="reference-6sep",
-        requires=_REQUIRES,
+        requires=_REQUIRES, max_voxels=MAX_SURFACE_VOXELS,
     )
     criterion = 1
 
