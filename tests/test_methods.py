@@ -74,6 +74,10 @@ def test_dense_results_beyond_int32_voxels_are_refused_before_any_work():
     huge = glvox.grid_for(mesh, dims=(8192, 4096, 4096))  # 2^37
     with pytest.raises(LimitError, match=r"more than the 68719476736 it keeps dense; use a smaller grid or"):
         run_method("ss-conservative", mesh, huge)
+    # the surface takes 2048^3, its per-voxel attributes do not: refused before any work
+    with pytest.raises(LimitError, match=r"^per-voxel attributes are computed on grids of up to 2147483647 voxels, "
+                                         r"and \(2048, 2048, 2048\) has 8589934592: use a smaller grid$"):
+        run_method("ss-conservative", mesh, spec, attributes="normal")
 
 
 def test_unknown_method_and_options():

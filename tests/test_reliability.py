@@ -7,7 +7,6 @@ without edits here.  Heavier counts are opt-in (GLVOX_SLOW=1).
 
 from __future__ import annotations
 
-import json
 import mmap
 import os
 import re

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..errors import MethodError
+from ..errors import LimitError, MethodError
 
-from ..grid import GridSpec
+from ..grid import MAX_VOXELS, GridSpec
 from ..mesh import Mesh
 from ..reference.attributes import reference_attributes
 from .base import _REGISTRY, FAMILIES, KINDS, PIPELINES, Method, MethodInfo, Option, Requirements, register
@@ -107,6 +107,9 @@ def run_method(name: str | Request, mesh: Mesh, spec: GridSpec, *, ctx=None, bac
     method, opts, names = request.method, dict(request.options), request.attributes
     if names:
         check_mesh(mesh, names, request.normals)
+        if spec.n_voxels > MAX_VOXELS:  # the attribute passes keep int32 voxel counts and ranks
+            raise LimitError(f"per-voxel attributes are computed on grids of up to {MAX_VOXELS} voxels, and "
+                             f"{spec.dims} has {spec.n_voxels}: use a smaller grid")
 
     def work(ctx, timer):
         result = method.run(mesh, spec, ctx=ctx, timer=timer, **opts)

@@ -48,6 +48,13 @@ def check_tris(tris: np.ndarray) -> np.ndarray:
     return arr
 
 
+def check_eps(eps: float) -> float:
+    """A tie tolerance in voxels: 0 < eps < 0.5, else ValueError."""
+    if not 0.0 < eps < 0.5:
+        raise ValueError(f"eps must be in (0, 0.5) voxel, got {eps!r}")
+    return float(eps)
+
+
 def check_dims(dims: Sequence[int]) -> tuple[int, int, int]:
     """Return ``dims`` as a tuple of three positive Python ints, or raise."""
     try:

@@ -29,7 +29,7 @@ from typing import Sequence
 import numpy as np
 
 from ..grid import ldi_axes
-from ._candidates import check_axis, check_dims, check_tris, expand, index_range, normals
+from ._candidates import check_axis, check_dims, check_eps, check_tris, expand, index_range, normals
 from .solid import column_crossings
 from .ties import TIE_EPS
 
@@ -167,8 +167,7 @@ def ray_ties(tris: np.ndarray, dims: Sequence[int], axis: int = 2, eps: float = 
     tris = check_tris(tris)
     dims = check_dims(dims)
     axis = check_axis(axis)
-    if not 0.0 < eps < 0.5:
-        raise ValueError(f"eps must be in (0, 0.5) voxel, got {eps!r}")
+    check_eps(eps)
     u, v = (axis + 1) % 3, (axis + 2) % 3
     p_ax, q_ax = ldi_axes(axis)
     reach = np.sqrt(2.0) * eps

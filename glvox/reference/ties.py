@@ -26,7 +26,8 @@ from typing import Literal, Sequence
 import numpy as np
 
 from ..tolerances import SHORT_EDGE_MOTIONS, SNAP_EPS, TIE_EPS
-from ._candidates import check_dims, check_tris, column_candidates, normals, pruned_candidates, scatter
+from ._candidates import (check_dims, check_eps, check_tris, column_candidates, normals, pruned_candidates,
+                          scatter)
 from .solid import column_crossings
 from .surface import conservative_surface, six_separating_surface
 
@@ -174,8 +175,7 @@ def surface_ties(tris: np.ndarray, dims: Sequence[int],
     funcs = {"conservative": conservative_surface, "6sep": six_separating_surface}
     if criterion not in funcs:
         raise ValueError(f"criterion must be 'conservative' or '6sep', got {criterion!r}")
-    if not 0.0 < eps < 0.5:
-        raise ValueError(f"eps must be in (0, 0.5) voxel, got {eps!r}")
+    check_eps(eps)
     f = funcs[criterion]
     tris = check_tris(tris)
     ties = _rounding_ties(f, tris, dims, criterion, eps)
@@ -401,8 +401,7 @@ def solid_ties(tris: np.ndarray, dims: Sequence[int], eps: float = TIE_EPS,
     """
     tris = check_tris(tris)
     dims = check_dims(dims)
-    if not 0.0 < eps < 0.5:
-        raise ValueError(f"eps must be in (0, 0.5) voxel, got {eps!r}")
+    check_eps(eps)
     out = _near_surface(tris, dims, eps)
     if unsnapped is not None:
         some = snap_ambiguous(_check_unsnapped(unsnapped, tris), dims).any(axis=(1, 2))
@@ -532,8 +531,7 @@ def binvox_ties(tris: np.ndarray, dims: Sequence[int], *, wire: bool = False, su
     """
     tris = check_tris(tris)
     dims = check_dims(dims)
-    if not 0.0 < eps < 0.5:
-        raise ValueError(f"eps must be in (0, 0.5) voxel, got {eps!r}")
+    check_eps(eps)
     f = 2 ** int(down)
     fine = tuple(d * f for d in dims)
     ftris = tris * f
