@@ -24,7 +24,8 @@ from glvox.errors import SuspiciousResultWarning
 from glvox.methods.binvox.solid import BINVOX_DEFAULTS, gpu_triangles
 from glvox.metrics import tie_set
 from glvox.reference import binvox_ties
-from glvox.reference.binvox import binvox_parts, binvox_solid, halve
+from glvox.reference.ties import binvox_axis_ties
+from glvox.reference.binvox import axis_parts, binvox_parts, binvox_solid, halve
 
 SPEC = GridSpec((10, 9, 8), (0, 0, 0), 1.0)
 MODES = ("default", "carve", "vote")
@@ -348,22 +349,23 @@ def test_binvox_solid_is_its_float32_twin(gl_context, shared_mesh, mesh_name):
 
 
 def test_binvox_ties_hand_worked():
-    """Hand-worked cases.  The box: no ties of its triangles (every crossing far from a
-    center or a rounding boundary, in every option), but its wireframe has some: the
+    """Hand-worked cases.  The box: no ties in any option.  Its triangles' crossings are
+    all far from a center or a rounding boundary; its wireframe has tied pixels (the
     diagonal of the face y = 2.25 from (6.3, 2.25, 2.6) to (1.9, 2.25, 4.8) is drawn into
     the x view at the pixels (2, 3) and (2, 4) at depths x = 6.3 - 4.4 (z - 2.6) / 2.2 =
-    4.5 and 2.5, on slot boundaries.  On the 4x5x6 hull, the column along z through the
-    centers (0.5, 1.5) and (3.5, 3.5), which the silhouette edge from (0, 7/6, 1/3) to
-    (4, 23/6, 1/3) (voxel units) passes exactly: y = 7/6 + 2x/3."""
+    4.5 and 2.5, on slot boundaries), but the wireframe counts for carving only, through
+    a column's nearest and farthest slots, and those are the faces x = 1.9 and 6.3 (slots
+    2 and 6): slots 2 to 5 change neither.  On the 4x5x6 hull, the column
+    along z through the centers (0.5, 1.5) and (3.5, 3.5), which the silhouette edge from
+    (0, 7/6, 1/3) to (4, 23/6, 1/3) (voxel units) passes exactly: y = 7/6 + 2x/3."""
     v, f = box_mesh()
     tris = v[f].astype(np.float64)
-    for surface in (False, True):
-        for down in (0, 1):
-            assert not binvox_ties(tris, SPEC.dims, surface=surface, down=down).any(), (surface, down)
-    wire = binvox_ties(tris, SPEC.dims, wire=True)
-    assert wire[:, 2, 3].all() and wire[:, 2, 4].all()
-    # the neighbouring columns along x are not (at x = 0 no other view's column is either)
-    assert not wire[0, 2, 2] and not wire[0, 3, 3]
+    for wire in (False, True):
+        for surface in (False, True):
+            for down in (0, 1):
+                for dilated in (False, True):
+                    assert not binvox_ties(tris, SPEC.dims, wire=wire, surface=surface, down=down,
+                                           dilated=dilated).any(), (wire, surface, down, dilated)
     mesh, spec = lattice_hull("4x5x6")
     raw = spec.world_to_voxel(mesh.triangles())
     corners = np.unique(np.round(raw.reshape(-1, 3) * 6).astype(int), axis=0)  # sixths of a voxel
@@ -385,3 +387,73 @@ def test_binvox_ties_hand_worked_depth():
     assert ties[1, 0, :].all() and ties[1, 1, :].all()
     assert not ties[0, 0, 0] and not ties[0, 1, 0]
     assert np.array_equal(binvox_ties(tri, (4, 4, 5), surface=True), ties)
+
+
+def tilted_plate() -> tuple[np.ndarray, np.ndarray]:
+    """Vertices and faces of a plate edge-on to the y view, tilted in x: x = 4.675 + 0.13 z, y in
+    [2.2, 9.7], z in [0.2, 9.7] (voxel units of a 12^3 grid).  Seen along y only its
+    wireframe is drawn, the line x = 4.675 + 0.13 z, which meets the pixel boundary x = 5
+    at the center z = 2.5: there the wire pixel is x = 4 or 5 as the plate moves."""
+    x = lambda z: 4.675 + 0.13 * z  # noqa: E731
+    v = np.array([[x(0.2), 2.2, 0.2], [x(0.2), 9.7, 0.2], [x(9.7), 9.7, 9.7], [x(9.7), 2.2, 9.7]])
+    return v, np.array([[0, 1, 2], [0, 2, 3]])
+
+
+@pytest.mark.parametrize("dilated", [False, True])
+@pytest.mark.parametrize("shape", ["tilted plate", "15x5x8", "4x5x6"])
+def test_axis_ties_hold_every_jitter(shape, dilated):
+    """binvox_axis_ties, checked by brute force on each axis's parts alone (its carving,
+    votes and surface, wireframe drawn): moving every vertex coordinate off the snap planes
+    by at most eps changes them only inside the axis's ties.  On the plate seen along y,
+    where the wireframe alone stops the carving, the tied wire pixel moves the carving of
+    two whole columns: that is where these ties come from the wireframe."""
+    if shape == "tilted plate":
+        (verts, faces), dims = tilted_plate(), (12, 12, 12)
+    else:
+        mesh, spec = lattice_hull(shape)
+        verts, faces, dims = spec.vertices_to_voxel(mesh.vertices), mesh.faces, spec.dims
+    eps = 1e-4
+    free = np.floor(2.0 * verts) != 2.0 * verts
+    rng = np.random.default_rng(11)
+    for axis in range(3):
+        base = axis_parts(verts[faces], dims, axis, dilated, wire=True)
+        ties = binvox_axis_ties(verts[faces], dims, axis, wire=True, surface=True, dilated=dilated, eps=eps)
+        changed = np.zeros_like(base[0])
+        for _ in range(16):
+            moved = (verts + rng.uniform(-eps, eps, verts.shape) * free)[faces]
+            for a, b in zip(axis_parts(moved, dims, axis, dilated, wire=True), base):
+                changed |= a != b
+        assert not (changed & ~ties).any(), (axis, int((changed & ~ties).sum()))
+        if shape == "tilted plate" and axis == 1:
+            assert changed[:, 2, 4].any() and changed[:, 2, 5].any()  # (z, x) = (2, 4) and (2, 5)
+
+
+@pytest.mark.parametrize("options", OPTION_SETS.values(), ids=OPTION_SETS.keys())
+@pytest.mark.parametrize("name", [*sorted(LATTICE_HULLS), "gen:torus"])
+def test_binvox_ties_hold_every_jitter(name, options):
+    """The tie set's definition, checked by brute force: moving every vertex coordinate
+    off the snap planes by at most eps (random motions, shared vertices moved together;
+    a coordinate on a snap plane is the GPU's exactly, and stays) changes binvox's solid
+    only inside binvox_ties(eps).  The lattice hulls have exact ties, so the motions flip
+    them both ways."""
+    if name in LATTICE_HULLS:
+        mesh, spec = lattice_hull(name)
+    else:
+        mesh = load_mesh(name)
+        spec = glvox.grid_for(mesh, dims=(14, 12, 10))
+    o = {**{k: opt.default for k, opt in get_method("reference-binvox").info.options.items()}, **options}
+    verts = spec.vertices_to_voxel(mesh.vertices)
+    base = binvox_solid(verts[mesh.faces], spec.dims, **o)
+    eps = 1e-4
+    ties = binvox_ties(verts[mesh.faces], spec.dims, wire=o["wire"], surface=o["surface"], down=o["down"],
+                       dilated=o["dilated"], eps=eps)
+    fine = verts * 2 ** o["down"]  # binvox draws (and snaps) on the finer grid
+    free = np.floor(2.0 * fine) != 2.0 * fine
+    rng = np.random.default_rng(7)
+    changed = np.zeros_like(base)
+    for _ in range(24):
+        moved = verts + rng.uniform(-eps, eps, verts.shape) * rng.integers(0, 2, verts.shape) * free
+        changed |= binvox_solid(moved[mesh.faces], spec.dims, **o) ^ base
+    assert not (changed & ~ties).any(), f"{int((changed & ~ties).sum())} voxels changed outside the ties"
+    if name in ("15x5x8", "4x5x6", "5x5x20"):  # exact ties: the motions reach them
+        assert changed.any()

@@ -431,7 +431,7 @@ def check_approximate(name, grid, mesh, spec) -> None:
         t32 = gpu_triangles(mesh, spec, o["down"])
         mirror = binvox_solid(t32, spec.dims, **o)
         ties = binvox_ties(t32, spec.dims, wire=o["wire"], surface=o["surface"], down=o["down"],
-                           eps=BINVOX_DOUBLE_EPS)
+                           dilated=o["dilated"], eps=BINVOX_DOUBLE_EPS)
         bad = (words ^ mirror) & ~ties
         assert not bad.any(), f"{name}: {int(bad.sum())} voxels off the binvox rules on its float32 vertices"
         return

@@ -29,7 +29,7 @@ from .solid import column_crossings
 MODES = ("default", "carve", "vote")
 
 
-def _axis_crossings(tris: np.ndarray, dims: tuple[int, int, int], axis: int):
+def axis_crossings(tris: np.ndarray, dims: tuple[int, int, int], axis: int):
     """(ju, jv, q): every crossing of the column center lines along ``axis``."""
     n = normals(tris)
     keep = n[:, axis] != 0.0
@@ -41,7 +41,7 @@ def _axis_crossings(tris: np.ndarray, dims: tuple[int, int, int], axis: int):
             np.concatenate([p[3] for p in parts]))
 
 
-def _to_grid(a: np.ndarray, axis: int) -> np.ndarray:
+def view_to_grid(a: np.ndarray, axis: int) -> np.ndarray:
     """(n_axis, n_u, n_v) -> (nx, ny, nz) with u = axis + 1, v = axis + 2 (mod 3)."""
     order = [0, 0, 0]
     order[axis], order[(axis + 1) % 3], order[(axis + 2) % 3] = 0, 1, 2
@@ -113,36 +113,44 @@ def binvox_parts(tris: np.ndarray, dims: Sequence[int], dilated: bool = False, w
     carve = np.ones(dims, dtype=bool)
     votes = np.zeros(dims, dtype=np.int8)
     surface = np.zeros(dims, dtype=bool)
-    d = 1 if dilated else 0
     for axis in range(3):
-        n = dims[axis]
-        nu, nv = dims[(axis + 1) % 3], dims[(axis + 2) % 3]
-        ju, jv, q = _axis_crossings(tris, dims, axis)
-        slot = np.clip(np.floor(q + 0.5), 0, n).astype(np.int64)
-        lo = np.full((nu, nv), n + 1, dtype=np.int64)
-        hi = np.full((nu, nv), -1, dtype=np.int64)
-        np.minimum.at(lo, (ju, jv), slot)
-        np.maximum.at(hi, (ju, jv), slot)
-        if wire:
-            wu, wv, wq = wire_hits(tris, dims, axis)
-            wslot = np.clip(np.floor(wq + 0.5), 0, n).astype(np.int64)
-            np.minimum.at(lo, (wu, wv), wslot)
-            np.maximum.at(hi, (wu, wv), wslot)
-        k = np.arange(n)[:, None, None]
-        keep = (k >= np.maximum(lo - d, 0)[None]) & (k < (hi + d)[None]) & (hi >= 0)[None]
-        carve &= _to_grid(keep, axis)
-        flips = np.zeros((n + 1, nu, nv), dtype=np.uint8)
-        np.bitwise_xor.at(flips, (slot, ju, jv), 1)
-        before = np.bitwise_xor.accumulate(flips, axis=0)
-        total = before[n]
-        before = before[:n]
-        votes += _to_grid(before + (before ^ total[None]), axis).astype(np.int8)
-        hold = np.floor(q)
-        ok = (hold >= 0) & (hold < n)
-        s = np.zeros((n, nu, nv), dtype=bool)
-        s[hold[ok].astype(np.int64), ju[ok], jv[ok]] = True
-        surface |= _to_grid(s, axis)
+        keep, vote, held = axis_parts(tris, dims, axis, dilated, wire)
+        carve &= view_to_grid(keep, axis)
+        votes += view_to_grid(vote, axis).astype(np.int8)
+        surface |= view_to_grid(held, axis)
     return carve, votes, surface
+
+
+def axis_parts(tris: np.ndarray, dims: tuple[int, int, int], axis: int, dilated: bool = False,
+               wire: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One axis of :func:`binvox_parts`, in the view's order (k along ``axis``, then the
+    columns (u, v)): (keep (n, n_u, n_v) bool, votes 0-2 uint8, voxels holding a crossing)."""
+    n = dims[axis]
+    nu, nv = dims[(axis + 1) % 3], dims[(axis + 2) % 3]
+    d = 1 if dilated else 0
+    ju, jv, q = axis_crossings(tris, dims, axis)
+    slot = np.clip(np.floor(q + 0.5), 0, n).astype(np.int64)
+    lo = np.full((nu, nv), n + 1, dtype=np.int64)
+    hi = np.full((nu, nv), -1, dtype=np.int64)
+    np.minimum.at(lo, (ju, jv), slot)
+    np.maximum.at(hi, (ju, jv), slot)
+    if wire:
+        wu, wv, wq = wire_hits(tris, dims, axis)
+        wslot = np.clip(np.floor(wq + 0.5), 0, n).astype(np.int64)
+        np.minimum.at(lo, (wu, wv), wslot)
+        np.maximum.at(hi, (wu, wv), wslot)
+    k = np.arange(n)[:, None, None]
+    keep = (k >= np.maximum(lo - d, 0)[None]) & (k < (hi + d)[None]) & (hi >= 0)[None]
+    flips = np.zeros((n + 1, nu, nv), dtype=np.uint8)
+    np.bitwise_xor.at(flips, (slot, ju, jv), 1)
+    before = np.bitwise_xor.accumulate(flips, axis=0)
+    total = before[n]
+    before = before[:n]
+    hold = np.floor(q)
+    ok = (hold >= 0) & (hold < n)
+    held = np.zeros((n, nu, nv), dtype=bool)
+    held[hold[ok].astype(np.int64), ju[ok], jv[ok]] = True
+    return keep, before + (before ^ total[None]), held
 
 
 def halve(occ: np.ndarray, dmin: int = 4) -> np.ndarray:

@@ -28,6 +28,7 @@ import numpy as np
 from ..tolerances import SHORT_EDGE_MOTIONS, SNAP_EPS, TIE_EPS
 from ._candidates import (check_dims, check_eps, check_tris, column_candidates, normals, pruned_candidates,
                           scatter)
+from .binvox import axis_crossings, view_to_grid
 from .solid import column_crossings
 from .surface import conservative_surface, six_separating_surface
 
@@ -469,7 +470,8 @@ def mismatch_is_tie(result: np.ndarray, reference: np.ndarray,
 
 
 def binvox_ties(tris: np.ndarray, dims: Sequence[int], *, wire: bool = False, surface: bool = False,
-                down: int = 0, eps: float = TIE_EPS, unsnapped: np.ndarray | None = None) -> np.ndarray:
+                down: int = 0, dilated: bool = False, eps: float = TIE_EPS,
+                unsnapped: np.ndarray | None = None) -> np.ndarray:
     """Voxels whose binvox verdict (:func:`glvox.reference.binvox.binvox_solid`) can change
     when the mesh moves by at most ``eps`` per coordinate.
 
@@ -496,12 +498,18 @@ def binvox_ties(tris: np.ndarray, dims: Sequence[int], *, wire: bool = False, su
       every pixel of both choices), or a pixel whose center is within ``2 eps`` of
       the edge's extent, whose line position is within ``4 eps`` of a pixel boundary or
       whose depth is within ``4 eps (1 + |dw / d major|)`` of a slot boundary (the pixels
-      holding the line within ``4 eps`` of its position).
+      holding the line within ``4 eps`` of its position).  The wireframe counts for
+      carving only, and carving only through the column's nearest and farthest slots:
+      with its other hits certain (the crossings and the untied wire pixels), a tied
+      wire pixel moves them only between the certain extremes and its own slot range,
+      so the ties are the voxels between (each end moved by one with ``dilated``), and
+      the whole column only where no hit is certain.
 
-    The set is coarse where the wireframe is drawn (every column with a tied wire pixel,
-    whole; measured on the Stanford bunny at 64^3 with ShapeNet's recipe: about a third of
-    the voxels, 6 % without ``-aw``); tests/test_binvox.py also checks binvox-solid voxel
-    for voxel against these rules run on its own float32 vertices.
+    The set is whole columns where a crossing is tied, and so coarse: on the Stanford
+    bunny at 64^3, 6.3 % of the voxels with ShapeNet's recipe (6.1 % without ``-aw``,
+    1.4 % with binvox's own defaults; most of it from ``-down``'s finer columns);
+    tests/test_binvox.py also checks binvox-solid voxel for voxel against these rules run
+    on its own float32 vertices.
 
     With ``down`` (binvox ``-down``) the ties are those of the finer grid (``tris``
     snapped on it, as binvox-solid and reference-binvox draw them), ``eps`` scaled
@@ -520,6 +528,8 @@ def binvox_ties(tris: np.ndarray, dims: Sequence[int], *, wire: bool = False, su
         binvox ``-aw``; the surface voxels (not a binvox step).
     down : int
         binvox ``-down`` repeated (0 to 2).
+    dilated : bool
+        binvox ``-dc`` (moves the carving's ends by one voxel, and so the wire ties).
     eps : float
         Largest motion of a vertex coordinate, in voxels of ``dims``; 0 < eps < 0.5.
     unsnapped : (T, 3, 3) float64, optional
@@ -544,11 +554,7 @@ def binvox_ties(tris: np.ndarray, dims: Sequence[int], *, wire: bool = False, su
     out = np.zeros(fine, dtype=bool)
     flat = flat_axes(ftris)
     for axis in range(3):
-        cols = _binvox_column_ties(ftris, flat, fine, axis, motion, exact, wire, surface)
-        shape = [1, 1, 1]
-        shape[(axis + 1) % 3], shape[(axis + 2) % 3] = fine[(axis + 1) % 3], fine[(axis + 2) % 3]
-        order = np.argsort([(axis + 1) % 3, (axis + 2) % 3])
-        out |= np.transpose(cols, order).reshape(shape)
+        out |= view_to_grid(_axis_view_ties(ftris, flat, fine, axis, motion, exact, wire, surface, dilated), axis)
     for _ in range(int(down)):
         nx, ny, nz = (d // 2 for d in out.shape)
         out = out.reshape(nx, 2, ny, 2, nz, 2).any(axis=(1, 3, 5))
@@ -560,10 +566,67 @@ def _on_lattice(x: np.ndarray) -> np.ndarray:
     return np.floor(2.0 * x) == 2.0 * x
 
 
+def binvox_axis_ties(tris: np.ndarray, dims: Sequence[int], axis: int, *, wire: bool = False,
+                     surface: bool = False, dilated: bool = False, eps: float = TIE_EPS) -> np.ndarray:
+    """The ties of one axis's parts (:func:`glvox.reference.binvox.axis_parts`), in the
+    view's order (k along ``axis``, then the columns): the voxels whose carving, votes or
+    surface along ``axis`` a motion of ``eps`` can change (:func:`binvox_ties` is the OR
+    of the three axes, on the grid binvox draws)."""
+    tris = check_tris(tris)
+    dims = check_dims(dims)
+    check_eps(eps)
+    motion = np.full(len(tris), float(eps))
+    return _axis_view_ties(tris, flat_axes(tris), dims, axis, motion, np.ones(len(tris), dtype=bool), wire,
+                           surface, dilated)
+
+
+def _axis_view_ties(tris, flat, dims, axis, motion, exact, wire, surface, dilated) -> np.ndarray:
+    """:func:`binvox_axis_ties` with per-triangle motions and exactness."""
+    cols, wire_ties = _binvox_column_ties(tris, flat, dims, axis, motion, exact, wire, surface)
+    view = np.zeros((dims[axis], *cols.shape), dtype=bool)  # (k along axis, ju, jv)
+    view[:, cols] = True
+    if wire_ties is not None:
+        view |= _carve_end_ties(tris, dims, axis, cols, wire_ties, 1 if dilated else 0)
+    return view
+
+
+def _carve_end_ties(tris: np.ndarray, dims: tuple[int, int, int], axis: int, whole: np.ndarray,
+                    wire_ties: tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]], d: int) -> np.ndarray:
+    """(n, n_u, n_v) bool: the voxels whose carving verdict along ``axis`` a tied wire
+    pixel can change (:func:`binvox_ties`), in the columns not ``whole``-ly tied.
+
+    ``wire_ties``: the certain wire hits (ju, jv, slot) and the tied wire pixels (ju, jv,
+    slot_lo, slot_hi) of :func:`_wire_pixel_ties`.  Certain: every crossing (its column
+    is not tied) and every certain wire hit."""
+    n = dims[axis]
+    nu, nv = dims[(axis + 1) % 3], dims[(axis + 2) % 3]
+    (wu, wv, wslot), (tu, tv, tlo, thi) = wire_ties
+    tied = np.zeros((nu, nv), dtype=bool)
+    tied[tu, tv] = True
+    tied &= ~whole
+    cu, cv, cq = axis_crossings(tris, dims, axis)
+    su, sv = np.concatenate([cu, wu]), np.concatenate([cv, wv])
+    slot = np.concatenate([np.clip(np.floor(cq + 0.5), 0, n).astype(np.int64), wslot])
+    lo_max = np.full((nu, nv), n + 1, dtype=np.int64)  # the nearest certain slot
+    hi_min = np.full((nu, nv), -1, dtype=np.int64)  # the farthest
+    np.minimum.at(lo_max, (su, sv), slot)
+    np.maximum.at(hi_min, (su, sv), slot)
+    lo_min, hi_max = lo_max.copy(), hi_min.copy()
+    np.minimum.at(lo_min, (tu, tv), tlo)
+    np.maximum.at(hi_max, (tu, tv), thi)
+    k = np.arange(n)[:, None, None]
+    near = (k >= np.maximum(lo_min - d, 0)[None]) & (k < np.maximum(lo_max - d, 0)[None])
+    far = (k >= (hi_min + d)[None]) & (k < (hi_max + d)[None])
+    none_sure = (hi_min < 0)[None]  # the column may have hits or none: all of it
+    return (near | far | none_sure) & tied[None]
+
+
 def _binvox_column_ties(tris: np.ndarray, flat: np.ndarray, dims: tuple[int, int, int], axis: int,
-                        motion: np.ndarray, exact: np.ndarray, wire: bool, surface: bool) -> np.ndarray:
-    """(n_u, n_v) bool: the columns along ``axis`` with a tie (:func:`binvox_ties`);
-    ``exact`` (T,): the triangle's coordinates on snap planes are exactly the GPU's."""
+                        motion: np.ndarray, exact: np.ndarray, wire: bool, surface: bool):
+    """The columns along ``axis`` with a tie of their crossings ((n_u, n_v) bool,
+    :func:`binvox_ties`) and, with ``wire``, the tied wire pixels (ju, jv, slot_lo,
+    slot_hi), else None; ``exact`` (T,): the triangle's coordinates on snap planes are
+    exactly the GPU's."""
     u, v = (axis + 1) % 3, (axis + 2) % 3
     out = np.zeros((dims[u], dims[v]), dtype=bool)
     n = normals(tris)
@@ -615,9 +678,7 @@ def _binvox_column_ties(tris: np.ndarray, flat: np.ndarray, dims: tuple[int, int
     for tri, ju, jv, q in column_crossings(tris[keep], n[keep], dims, axis):
         near = depth_tie(keep[tri], q)
         out[ju[near], jv[near]] = True
-    if wire:
-        _wire_column_ties(out, tris, dims, axis, motion, exact)
-    return out
+    return out, (_wire_pixel_ties(tris, dims, axis, motion, exact) if wire else None)
 
 
 def _plane_depth(tris: np.ndarray, n: np.ndarray, tri: np.ndarray, c: np.ndarray, axis: int) -> np.ndarray:
@@ -670,11 +731,16 @@ def _segment_distance(c: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray
     return np.linalg.norm(c - (a + t[:, None] * e), axis=1)
 
 
-def _wire_column_ties(out: np.ndarray, tris: np.ndarray, dims: tuple[int, int, int], axis: int,
-                      motion: np.ndarray, exact: np.ndarray) -> None:
-    """Mark in ``out`` (n_u, n_v) the columns where a wireframe pixel of
-    :func:`glvox.reference.binvox.wire_hits` can change (:func:`binvox_ties`)."""
+def _wire_pixel_ties(tris: np.ndarray, dims: tuple[int, int, int], axis: int, motion: np.ndarray,
+                     exact: np.ndarray):
+    """The wireframe of :func:`glvox.reference.binvox.wire_hits`, split: its certain hits
+    (ju, jv, slot), those no motion of ``motion`` changes, and the pixels where a hit can
+    appear, vanish or change its slot (:func:`binvox_ties`) with the slots it can have
+    there (ju, jv, slot_lo, slot_hi).  The same centers, lines and depths as wire_hits."""
     u, v = (axis + 1) % 3, (axis + 2) % 3
+    n = dims[axis]
+    found: list[tuple[np.ndarray, ...]] = []
+    certain: list[tuple[np.ndarray, ...]] = []
     ends = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
     r = 2.0 * np.tile(motion, 3)
     fixed = np.tile(exact, 3)[:, None, None] & _on_lattice(ends)  # (edge, end, coordinate) exact
@@ -713,13 +779,24 @@ def _wire_column_ties(out: np.ndarray, tris: np.ndarray, dims: tuple[int, int, i
         tie = (ambiguous[idx][w] | ((np.abs(c - s[:, major]) <= rr) & ~fs) | ((np.abs(c - f[:, major]) <= rr) & ~ff)
                | ((np.abs(p - np.round(p)) <= 2.0 * rr) & ~same_minor)
                | ((np.abs(q + 0.5 - np.round(q + 0.5)) <= qtol) & ~same_depth))
-        # the moved line's minor position lies within 2 r of p: the pixels holding those
-        # positions (every pixel of the line, for an edge whose major axis may flip)
-        i, p, rr = i[tie], p[tie], rr[tie]
+        # untied: the hit wire_hits makes (centers in [first, last)) is certain
+        drawn_here = ~tie & (c >= s[:, major]) & (c < f[:, major])
+        j = np.floor(p[drawn_here]).astype(np.int64)
+        ok = (j >= 0) & (j < dims[minor])
+        ci = i[drawn_here][ok]
+        cslot = np.clip(np.floor(q[drawn_here][ok] + 0.5), 0, n).astype(np.int64)
+        certain.append(((ci, j[ok]) if major == u else (j[ok], ci)) + (cslot,))
+        # tied: the moved line's minor position lies within 2 r of p, so the pixels holding
+        # those positions (every pixel of the line, for an edge whose major axis may flip)
+        i, p, rr, q, qtol = i[tie], p[tie], rr[tie], q[tie], qtol[tie]
+        slo = np.clip(np.floor(q + 0.5 - qtol), 0, n).astype(np.int64)
+        shi = np.clip(np.floor(q + 0.5 + qtol), 0, n).astype(np.int64)
         for jj in (np.floor(p - 2.0 * rr), np.floor(p + 2.0 * rr)):
             jj = jj.astype(np.int64)
             ok = (jj >= 0) & (jj < dims[minor])
-            if major == u:
-                out[i[ok], jj[ok]] = True
-            else:
-                out[jj[ok], i[ok]] = True
+            pix = (i[ok], jj[ok]) if major == u else (jj[ok], i[ok])
+            found.append((*pix, slo[ok], shi[ok]))
+    z = np.zeros(0, dtype=np.int64)
+    sure = tuple(np.concatenate([z] + [h[c] for h in certain]) for c in range(3))
+    tied = tuple(np.concatenate([z] + [h[c] for h in found]) for c in range(4))
+    return sure, tied
