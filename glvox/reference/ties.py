@@ -484,8 +484,9 @@ def binvox_ties(tris: np.ndarray, dims: Sequence[int], *, wire: bool = False, su
     - coverage: the center lies within ``2 eps`` of a projected triangle edge (a vertex
       moves by at most ``eps sqrt(2)`` in the view's plane, and so does the boundary of
       the projected triangle); triangles whose projection stays a segment in float32
-      (two equal coordinates across the view: :func:`flat_axes`) cover nothing either way.
-      Near the inside of an edge shared by two triangles that face the same way along the
+      (two equal coordinates across the view: :func:`flat_axes`) cover nothing either way,
+      and an edge along a snap line (both ends on one multiple of 1/2 across it) keeps
+      its exact distance to every center away from its ends.  Near the inside of an edge shared by two triangles that face the same way along the
       view beyond what the motion can flip, one of them owns the center either way (the
       top-left rule): the column is a tie only if their planes give the center different
       slots, or a slot near a rounding boundary;
@@ -624,9 +625,9 @@ def _carve_end_ties(tris: np.ndarray, dims: tuple[int, int, int], axis: int, who
 def _binvox_column_ties(tris: np.ndarray, flat: np.ndarray, dims: tuple[int, int, int], axis: int,
                         motion: np.ndarray, exact: np.ndarray, wire: bool, surface: bool):
     """The columns along ``axis`` with a tie of their crossings ((n_u, n_v) bool,
-    :func:`binvox_ties`) and, with ``wire``, the tied wire pixels (ju, jv, slot_lo,
-    slot_hi), else None; ``exact`` (T,): the triangle's coordinates on snap planes are
-    exactly the GPU's."""
+    :func:`binvox_ties`) and, with ``wire``, the wireframe's certain hits and tied pixels
+    (:func:`_wire_pixel_ties`), else None; ``exact`` (T,): the triangle's coordinates on
+    snap planes are exactly the GPU's."""
     u, v = (axis + 1) % 3, (axis + 2) % 3
     out = np.zeros((dims[u], dims[v]), dtype=bool)
     n = normals(tris)
@@ -646,7 +647,8 @@ def _binvox_column_ties(tris: np.ndarray, flat: np.ndarray, dims: tuple[int, int
     # except near the inside of an edge across which the projection continues (smooth[t, i]:
     # its two triangles face the same way robustly), where one of the two owns the center
     # either way: there the column is a tie only if the two planes' depths differ in slot
-    smooth, other = _smooth_edges(tris, na, motion)
+    robust = _robust_orientation(tris, na, motion)
+    smooth, other = _smooth_edges(tris, na, robust)
     live = np.flatnonzero(~(flat[:, u] | flat[:, v]))
     for tri, ju, jv in column_candidates(tris[live], dims, axis, pad=float(2.0 * motion.max())):
         tri = live[tri]
@@ -658,8 +660,9 @@ def _binvox_column_ties(tris: np.ndarray, flat: np.ndarray, dims: tuple[int, int
             a, b = p[:, i], p[:, (i + 1) % 3]
             near = _segment_distance(c, a, b) <= r
             off_ends = (np.linalg.norm(c - a, axis=1) > r) & (np.linalg.norm(c - b, axis=1) > r)
-            # an edge along a snap line keeps its exact distance to every center
-            fixed = exact[tri] & (((a[:, 0] == b[:, 0]) & _on_lattice(a[:, 0]))
+            # an edge along a snap line keeps its exact distance to every center (and the
+            # top-left rule its verdict there, while the triangle's orientation holds)
+            fixed = exact[tri] & robust[tri] & (((a[:, 0] == b[:, 0]) & _on_lattice(a[:, 0]))
                                   | ((a[:, 1] == b[:, 1]) & _on_lattice(a[:, 1])))
             near &= ~(fixed & off_ends)
             inner = smooth[tri, i] & off_ends
@@ -688,11 +691,18 @@ def _plane_depth(tris: np.ndarray, n: np.ndarray, tri: np.ndarray, c: np.ndarray
     return v0[:, axis] + (nt[:, u] * (v0[:, u] - c[:, 0]) + nt[:, v] * (v0[:, v] - c[:, 1])) / nt[:, axis]
 
 
-def _smooth_edges(tris: np.ndarray, na: np.ndarray, motion: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _robust_orientation(tris: np.ndarray, na: np.ndarray, motion: np.ndarray) -> np.ndarray:
+    """(T,) bool: ``|n_axis|`` beyond what moving the vertices by ``motion`` can change
+    (:func:`orientation_ambiguous`'s bound), so the projection keeps its orientation."""
+    e0, e1 = tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
+    slack = 4.0 * motion * (np.abs(e0).sum(axis=1) + np.abs(e1).sum(axis=1)) + 16.0 * motion * motion
+    return np.abs(na) > slack
+
+
+def _smooth_edges(tris: np.ndarray, na: np.ndarray, robust: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``smooth`` (T, 3) bool: edge i of a triangle (from vertex i to i + 1) is shared with
     exactly one other triangle, ``other`` (T, 3) int64, and both face the same way along the
-    view robustly (``|n_axis|`` beyond what a motion of ``motion`` can change:
-    :func:`orientation_ambiguous`'s bound), so the projection continues across it."""
+    view, ``robust``-ly (:func:`_robust_orientation`), so the projection continues across it."""
     t = len(tris)
     ends = np.stack([tris, np.roll(tris, -1, axis=1)], axis=2).reshape(3 * t, 2, 3)  # (tri, edge) order
     flip = _lex_less(ends[:, 1], ends[:, 0])[:, None]
@@ -706,10 +716,6 @@ def _smooth_edges(tris: np.ndarray, na: np.ndarray, motion: np.ndarray) -> tuple
     grouped = order[np.isin(inverse[order], np.flatnonzero(counts == 2))].reshape(-1, 2)
     mate[grouped[:, 0]], mate[grouped[:, 1]] = grouped[:, 1], grouped[:, 0]
     other = np.where(pair, mate, -1) // 3
-    e0, e1 = tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]
-    m = motion
-    slack = 4.0 * m * (np.abs(e0).sum(axis=1) + np.abs(e1).sum(axis=1)) + 16.0 * m * m
-    robust = np.abs(na) > slack
     tri_of = np.repeat(np.arange(t), 3)
     ok = pair & robust[tri_of]
     ok[pair] &= robust[other[pair]] & (np.sign(na[tri_of[pair]]) == np.sign(na[other[pair]]))
