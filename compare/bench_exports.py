@@ -79,7 +79,7 @@ def main() -> None:
                 w = median_time(lambda: glvox.save(g, path), args.repeat)
                 rows.append((label, s, w, path.stat().st_size / 2 ** 20))
                 print(rows[-1], flush=True)
-    print(f"\n| result | export | seconds | MiB |\n|---|---|---|---|")
+    print("\n| result | export | seconds | MiB |\n|---|---|---|---|")
     for label, what, t, mib in rows:
         print(f"| {label} | {what} | {t:.3f} | {'' if mib is None else f'{mib:.2f}'} |")
 

@@ -38,7 +38,7 @@ def stage_ms(grid, name):
 
 
 def rounds(args) -> None:
-    print(f"| mesh | tris | " + " | ".join(f"{n}^3 close={k}" for n in args.sizes for k in args.close) + " |")
+    print("| mesh | tris | " + " | ".join(f"{n}^3 close={k}" for n in args.sizes for k in args.close) + " |")
     print("|---|---|" + "---|" * (len(args.sizes) * len(args.close)))
     for name in SHARED_MESHES:
         if not (mesh_dir() / name).is_file():

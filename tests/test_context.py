@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from glvox.errors import BackendError
-from glvox.gl.context import close_context, create_context, get_context
+from glvox.gl.context import create_context, get_context
 from glvox.testing import run_compute, run_fragment
 
 

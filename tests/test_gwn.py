@@ -32,7 +32,6 @@ from glvox.reference import point_triangle_distance, solid_ties
 from glvox.reference.winding import boundary_edges, crossing_counts, winding, winding_direct
 from glvox.results.base import read_npz
 from glvox.results.voxels import VoxelGrid
-from glvox.tolerances import WINDING_TIE
 
 CLOSED = [n for n in SHARED_MESHES if n.startswith(("cad_", "stanford_armadillo", "depth_reduced"))]
 OPEN = [n for n in SHARED_MESHES if n not in CLOSED]
