@@ -24,7 +24,7 @@ from glvox.errors import SuspiciousResultWarning
 from glvox.methods.binvox.solid import BINVOX_DEFAULTS, gpu_triangles
 from glvox.metrics import tie_set
 from glvox.reference import binvox_ties
-from glvox.reference.ties import binvox_axis_ties
+from glvox.reference.binvox_ties import binvox_axis_ties
 from glvox.reference.binvox import axis_parts, binvox_parts, binvox_solid, halve
 
 SPEC = GridSpec((10, 9, 8), (0, 0, 0), 1.0)

@@ -19,7 +19,7 @@ Winding numbers (:mod:`.winding`)
     :func:`winding_direct` (the direct sum, its independent check),
     :func:`winding_ties`.
 Ties (:mod:`.ties`)
-    :func:`surface_ties`, :func:`solid_ties`, :func:`binvox_ties`, :func:`mismatch_is_tie`,
+    :func:`surface_ties`, :func:`solid_ties`, :func:`binvox_ties` (:mod:`.binvox_ties`), :func:`mismatch_is_tie`,
     :func:`orientation_ambiguous`, :func:`rounding_perturbation`, :func:`snap_ambiguous`
     and the tolerance :data:`TIE_EPS`.
 
@@ -27,9 +27,10 @@ The triangles are snapped (:meth:`glvox.mesh.Mesh.triangles_voxel`, the plane
 snap of :func:`glvox.grid.snap_to_planes` that every method applies).
 """
 
+from .binvox_ties import binvox_ties
 from .solid import solid, solid_vote
 from .surface import conservative_surface, conservative_surface_sat, six_separating_surface
-from .ties import (TIE_EPS, binvox_ties, flat_axes, float32_motion, mismatch_is_tie, orientation_ambiguous,
+from .ties import (TIE_EPS, flat_axes, float32_motion, mismatch_is_tie, orientation_ambiguous,
                    point_triangle_distance, rounding_perturbation, short_edges, snap_ambiguous, solid_ties,
                    surface_ties)
 from .winding import boundary_edges, winding, winding_direct, winding_ties

@@ -55,6 +55,24 @@ def check_eps(eps: float) -> float:
     return float(eps)
 
 
+def segment_distance(c: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(M,) distances from the 2D points ``c`` to the segments ``a b``, all (M, 2)."""
+    ab = b - a
+    ll = np.einsum("ij,ij->i", ab, ab)
+    w = np.clip(np.einsum("ij,ij->i", c - a, ab) / np.where(ll > 0.0, ll, 1.0), 0.0, 1.0)
+    return np.linalg.norm(c - (a + w[:, None] * ab), axis=1)
+
+
+def lex_greater(s: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """(P,) bool: row s[m] comes after row t[m] in lexicographic order (rows of 3)."""
+    out = np.zeros(len(s), bool)
+    undecided = np.ones(len(s), bool)
+    for k in range(3):
+        out |= undecided & (s[:, k] > t[:, k])
+        undecided &= s[:, k] == t[:, k]
+    return out
+
+
 def check_dims(dims: Sequence[int]) -> tuple[int, int, int]:
     """Return ``dims`` as a tuple of three positive Python ints, or raise."""
     try:

@@ -20,7 +20,7 @@ import numpy as np
 
 from ..visuals import COLOR_FACE, COLOR_TEXTURE, COLOR_VERTEX, Texture
 from ..tolerances import ATTR_TIE_EPS, TIE_EPS
-from ._candidates import check_dims, check_tris
+from ._candidates import check_dims, check_tris, lex_greater
 from .surface import conservative_pairs
 
 
@@ -79,7 +79,7 @@ def closest_points(tris: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np
     # outside (or a degenerate triangle): the nearest point of the three edges,
     # each walked from its lexicographically smaller end
     for s, t, (ks, kt) in ((a, b, (0, 1)), (b, c, (1, 2)), (c, a, (2, 0))):
-        swap = _lex_greater(s, t)
+        swap = lex_greater(s, t)
         s, t = np.where(swap[:, None], t, s), np.where(swap[:, None], s, t)
         st = t - s
         ll = np.einsum("ij,ij->i", st, st)
@@ -92,16 +92,6 @@ def closest_points(tris: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np
         nb[:, kt] = np.where(swap, 1.0 - f, f)
         bary = np.where(better[:, None], nb, bary)
     return dist, bary
-
-
-def _lex_greater(s: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """(P,) bool: row s[m] comes after row t[m] in lexicographic order."""
-    out = np.zeros(len(s), bool)
-    undecided = np.ones(len(s), bool)
-    for c in range(3):
-        out |= undecided & (s[:, c] > t[:, c])
-        undecided &= s[:, c] == t[:, c]
-    return out
 
 
 def source_triangles(tris: np.ndarray, dims, voxels: np.ndarray, half: float = 0.5) -> Sources:

@@ -29,7 +29,8 @@ from typing import Sequence
 import numpy as np
 
 from ..grid import ldi_axes
-from ._candidates import check_axis, check_dims, check_eps, check_tris, expand, index_range, normals
+from ._candidates import (check_axis, check_dims, check_eps, check_tris, expand, index_range, normals,
+                          segment_distance)
 from .solid import column_crossings
 from .ties import TIE_EPS
 
@@ -130,15 +131,6 @@ def crossings(tris: np.ndarray, dims: Sequence[int], axis: int = 2) -> RayCrossi
                         slopes.reshape(*shape, n_max), axis)
 
 
-def _segment_distance(c: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distance from 2D points ``c`` to segments ``a b``, all (M, 2)."""
-    ab = b - a
-    ll = np.einsum("ij,ij->i", ab, ab)
-    w = np.einsum("ij,ij->i", c - a, ab) / np.where(ll > 0.0, ll, 1.0)
-    w = np.clip(w, 0.0, 1.0)
-    return np.linalg.norm(c - (a + w[:, None] * ab), axis=1)
-
-
 def ray_ties(tris: np.ndarray, dims: Sequence[int], axis: int = 2, eps: float = TIE_EPS) -> np.ndarray:
     """Rays whose set of crossed triangles can change when the mesh moves by at most ``eps``.
 
@@ -177,7 +169,7 @@ def ray_ties(tris: np.ndarray, dims: Sequence[int], axis: int = 2, eps: float = 
         c = np.stack([ju + 0.5, jv + 0.5], axis=1)
         d = np.full(len(tri), np.inf)
         for i in range(3):
-            d = np.minimum(d, _segment_distance(c, uv[tri, i], uv[tri, (i + 1) % 3]))
+            d = np.minimum(d, segment_distance(c, uv[tri, i], uv[tri, (i + 1) % 3]))
         close = d <= reach
         out[_pixel_index(ju[close], jv[close], dims, axis)] = True
     return out.reshape(dims[p_ax], dims[q_ax])

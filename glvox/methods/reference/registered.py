@@ -21,7 +21,7 @@ from ...reference import (conservative_surface, six_separating_surface, solid, s
 from ...reference.binvox import binvox_solid, empty_cause
 from ...reference.carve import MAX_CLOSE, carve_ties, carved_solid
 from ...reference.ldi import crossings
-from ...reference.ties import binvox_ties
+from ...reference.binvox_ties import binvox_ties
 from ...results.ldi import LDI, close_odd
 from ...results.voxels import VoxelGrid
 from ..base import Method, MethodInfo, Option, register
@@ -152,9 +152,9 @@ class ReferenceCarve(_CpuReference):
 @register
 class ReferenceBinvox(Method):
     """binvox's solid in float64 (:mod:`glvox.reference.binvox`); its tie set
-    (:func:`glvox.reference.ties.binvox_ties`) holds the voxels whose verdict a motion of
-    ``eps`` can change: whole columns where a crossing is tied, the carving's ends where
-    a wireframe pixel is."""
+    (:mod:`glvox.reference.binvox_ties`) holds the voxels whose verdict a motion of ``eps``
+    can change: whole columns where a crossing is tied, the carving's ends where a
+    wireframe pixel is."""
 
     has_ties = True
 
