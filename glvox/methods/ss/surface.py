@@ -139,7 +139,7 @@ def z_slabs(ctx, spec) -> list[tuple[int, int]] | None:
 
 
 def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int = 0,
-                   slab: tuple[int, int] | None = None):
+                   slabs: list[tuple[int, int]] | None = None, read_slab=None):
     """The S&S surface of ``mesh`` on ``spec`` in a GPU buffer, nothing read back.
 
     The building block of ``ss-conservative`` and ``ss-6sep`` (stages
@@ -159,17 +159,21 @@ def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int
     criterion : {0, 1}
         0 conservative (26-separating), 1 6-separating.
     variant : {'simple', 'specialized', 'sorted'}
-    slab : (k0, nk), optional
-        Only the z slices k0 .. k0 + nk - 1 (:func:`z_slabs`), voxel for voxel
-        those of the whole grid: the grid buffer holds those slices alone.
+    slabs : list of (k0, nk), optional
+        The grid in z slabs (:func:`z_slabs`): the transform, classify and sort
+        run once, then each slab's voxelization (its voxels, voxel for voxel
+        those of the whole grid) into the grid buffer, which holds one slab,
+        and ``read_slab(k0, nk, grid)`` takes it before the next.
 
     Returns
     -------
     grid : moderngl.Buffer
         The packed surface (``common/voxel_space.glsl``'s layout, uint32
-        (nz, ny, words_per_row) words, nz = nk with ``slab``), bits past nx zero.
+        (nz, ny, words_per_row) words; with ``slabs``, the last slab's), bits past
+        nx zero.
     stats : moderngl.Buffer
-        uint32[8]; the first three count the 1D/2D/3D cases (criterion 0).
+        uint32[8]; the first three count the 1D/2D/3D cases (criterion 0), [7]
+        the voxels set (of every slab).
     """
     n = mesh.n_triangles
     max_groups = int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])
@@ -180,7 +184,7 @@ def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int
             f"{LOCAL_SIZE}); this mesh has {n}: use variant 'specialized'"
         )
     # the grid first: a grid over the SSBO limit is refused before any other work
-    slices = spec.dims[2] if slab is None else slab[1]
+    slices = spec.dims[2] if slabs is None else max(nk for _, nk in slabs)
     grid = pool.get("grid", slices * spec.dims[1] * spec.words_per_row * 4, what=f"the {spec.dims} bit grid")
     bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool)
     stats = pool.get("stats", 8 * 4)
@@ -189,9 +193,6 @@ def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int
     defines = surface_defines(criterion, variant)
     common = {**grid_uniforms(spec, bufs.anchor), "u_triangles": n, "u_tri_offset": 0,
               "u_local_size": LOCAL_SIZE, "u_max_groups": max_groups}
-    # classify sees the whole grid (its case counts and chunks are the triangles'),
-    # the voxelization only the slab
-    vdefines = defines if slab is None else {**defines, "VOX_SLAB": 1}
     keys = None
     if variant == "sorted":
         keys = pool.get("keys", n * 4, what="sort keys", clear=False)
@@ -204,13 +205,29 @@ def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int
         dispatch_1d(ctx, classify, n, LOCAL_SIZE)
         barrier(ctx)
     blocks = {"VoxVerts": vox, "Faces": bufs.faces, "Grid": grid, "Stats": stats}
-    vcommon = common if slab is None else {**common, "u_slab": tuple(slab)}
     if variant != "sorted":
-        voxelize_unsorted(ctx, timer, n, vdefines, vcommon, {**blocks, "TriChunks": per_tri}, stats, args,
-                          max_groups)
+        blocks["TriChunks"] = per_tri
     else:
-        ranges = sort_by_case(ctx, timer, pool, n, (stats, per_tri, keys, args), max_groups)
-        voxelize_sorted(ctx, timer, vdefines, vcommon, {**blocks, "SortedTris": per_tri, "Ranges": ranges}, args)
+        blocks.update(SortedTris=per_tri, Ranges=sort_by_case(ctx, timer, pool, n, (stats, per_tri, keys, args),
+                                                               max_groups))
+
+    def voxelize(vdefines, vcommon):
+        if variant != "sorted":
+            voxelize_unsorted(ctx, timer, n, vdefines, vcommon, blocks, stats, args, max_groups)
+        else:
+            voxelize_sorted(ctx, timer, vdefines, vcommon, blocks, args)
+
+    if slabs is None:
+        voxelize(defines, common)
+        return grid, stats
+    # classify saw the whole grid (its case counts and chunks are the triangles');
+    # each slab's voxelization visits its slices alone
+    per_slice = spec.dims[1] * spec.words_per_row * 4
+    for k0, nk in slabs:
+        if k0:
+            grid.clear(size=nk * per_slice)
+        voxelize({**defines, "VOX_SLAB": 1}, {**common, "u_slab": (k0, nk)})
+        read_slab(k0, nk, grid)
     return grid, stats
 
 
@@ -287,21 +304,18 @@ class _SSSurface(Method):
         # over the storage-block limit: slab by slab, each read into its part of the result
         words = np.empty(spec.n_words, dtype="<u4")
         per_slice = spec.dims[1] * spec.words_per_row
-        voxels = 0 if spec.dims[0] * spec.dims[1] * max(nk for _, nk in slabs) < 2**32 else None
-        for k0, nk in slabs:
-            grid, stats = surface_on_gpu(ctx, mesh, spec, timer, pool, criterion=self.criterion,
-                                         variant=variant, slab=(k0, nk))
+
+        def read_slab(k0, nk, grid):
             with timer.stage("readback", gpu=False):
                 part = words[k0 * per_slice:(k0 + nk) * per_slice]
                 grid.read_into(part, size=part.nbytes)
-                stat_words = np.frombuffer(stats.read(size=32), dtype="<u4")
-            if voxels is not None:
-                voxels += int(stat_words[7])
+
+        grid, stats = surface_on_gpu(ctx, mesh, spec, timer, pool, criterion=self.criterion, variant=variant,
+                                     slabs=slabs, read_slab=read_slab)
         timer.stats["slabs"] = len(slabs)
         timer.merge_repeats()
-        self._case_stats(timer, stat_words[:3])  # every slab classifies every triangle
-        return VoxelGrid(words=words.reshape(spec.dims[2], spec.dims[1], spec.words_per_row), spec=spec,
-                         count=voxels)  # None: popcounted on the host when asked
+        return self._finish_counts(spec, timer, words.reshape(spec.dims[2], spec.dims[1], spec.words_per_row),
+                                   stats)
 
     def _case_stats(self, timer, cases) -> None:
         if self.criterion == 0:
@@ -313,11 +327,14 @@ class _SSSurface(Method):
     def _finish(self, spec, timer, grid, stats):
         with timer.stage("readback", gpu=False):
             words = read_grid_words(grid, spec)
-            stat_words = np.frombuffer(stats.read(size=32), dtype="<u4")
+        return self._finish_counts(spec, timer, words, stats)
+
+    def _finish_counts(self, spec, timer, words, stats):
+        stat_words = np.frombuffer(stats.read(size=32), dtype="<u4")
         # ss/write.glsl counts the voxels in a uint32: not where a grid has 2^32 or more
         voxels = int(stat_words[7]) if spec.n_voxels < 2**32 else None
         self._case_stats(timer, stat_words[:3])
-        return VoxelGrid(words=words, spec=spec, count=voxels)
+        return VoxelGrid(words=words, spec=spec, count=voxels)  # None: popcounted on the host when asked
 
 
 @register
