@@ -7,7 +7,15 @@
 //                 2: one bounding-box type SS_BBOX_TYPE of the sorted list
 // The 6-separating criterion always uses the dominant-axis columns (Sec. 3.4).
 //   SS_ATTR_PASS  (defined) the attribute passes' hook instead of the writes
-// Invocation (t, chunk): t from x (plus u_tri_offset), chunk = y + z * max groups.
+//   SS_FIRST      (simple and specialized, no attribute pass) 1: one invocation
+//                 per triangle (glvox.gpu.dispatch.dispatch_1d) counts its case, does
+//                 its first chunk and lists the triangles with more (nearly none: a
+//                 chunk is thousands of units), so no separate pass sets every
+//                 triangle up only to count its chunks (ss/classify.comp).  0:
+//                 invocation (i, chunk - 1) of an indirect dispatch
+//                 (ss/solid_big_args.comp) does chunk `chunk` of the i-th listed
+//                 triangle, chunk - 1 = y + z * groups y.  As ss/solid.comp does.
+// Otherwise invocation (t, chunk): t from x (plus u_tri_offset), chunk = y + z * max groups.
 #include "common/bits.glsl"
 #include "common/voxel_space.glsl"
 #include "common/edge.glsl"
@@ -23,6 +31,12 @@ layout(local_size_x = 64) in;
 #if SS_VARIANT == 2
 layout(std430, binding = 5) readonly buffer SortedTris { uint sorted_tri[]; };
 layout(std430, binding = 6) readonly buffer Ranges { uint ranges[]; };  // (start, count) per type
+#elif defined(SS_FIRST)
+#if defined(SS_ATTR_PASS)
+#error "SS_FIRST counts cases in Stats: the attribute passes run after ss/classify.comp"
+#endif
+#include "common/dispatch.glsl"
+layout(std430, binding = 5) buffer Big { uint big_count; uint big_max_chunks; uint big_list[]; };
 #else
 layout(std430, binding = 5) readonly buffer TriChunks { uint tri_chunks[]; };
 #endif
@@ -136,6 +150,14 @@ void main() {
 #if SS_VARIANT == 2
     if (g >= ranges[2 * SS_BBOX_TYPE + 1]) return;
     uint t = sorted_tri[ranges[2 * SS_BBOX_TYPE] + g];
+#elif SS_FIRST
+    uint t = global_index_1d();
+    chunk = 0u;
+    if (t >= u_triangles) return;
+#elif defined(SS_FIRST)
+    if (g >= big_count) return;
+    uint t = big_list[g];
+    chunk += 1u;
 #else
     uint t = g + u_tri_offset;
     if (t >= u_triangles || chunk >= tri_chunks[t]) return;
@@ -151,6 +173,16 @@ void main() {
     int type = bbox_type(T);
 #endif
     uint work = work_units(T, type);
+#if defined(SS_FIRST) && SS_FIRST
+#if SS_CRITERION == 0
+    atomicAdd(stats[type], 1u);  // Table 1's case counts, as ss/classify.comp counts them
+#endif
+    uint chunks = chunks_of(work);
+    if (chunks > 1u) {
+        big_list[atomicAdd(big_count, 1u)] = t;
+        atomicMax(big_max_chunks, chunks - 1u);
+    }
+#endif
     uint q0 = chunk * uint(SS_CHUNK);
     if (q0 >= work) return;
     uint q1 = min(work, q0 + uint(SS_CHUNK));

@@ -51,7 +51,8 @@ from ...results.voxels import VoxelGrid
 from ...tolerances import WINDING_TIE
 from ..base import Method, MethodInfo, Option, Requirements, register
 from .tree import ClusterTree, boundary_loops, build_tree
-from ..ss.solid import COMPUTE as SOLID_COMPUTE, COLUMN_CHUNK, crossing_passes, mesh_rows
+from ..ss.chunks import chunked_passes
+from ..ss.solid import COMPUTE as SOLID_COMPUTE, COLUMN_CHUNK, mesh_rows
 from ..carve.sweep import surface_slices
 from ..ss.surface import COMPUTE as SURFACE_COMPUTE, surface_on_gpu
 
@@ -275,8 +276,8 @@ class _Run:
         for prog in (first, rest):
             set_uniforms(prog, {**common, "u_triangles": n})
         with self.timer.stage("crossings"):
-            crossing_passes(ctx, (first, rest), n, self.max_groups,
-                            {"VoxVerts": self.vox, "Faces": self.bufs.faces, "Counts": cells}, big, args)
+            chunked_passes(ctx, (first, rest), n, self.max_groups,
+                           {"VoxVerts": self.vox, "Faces": self.bufs.faces, "Counts": cells}, big, args, _LOCAL)
 
     def _field(self, cells, common, s0, s1, rows):
         ctx, spec, pool, t = self.ctx, self.spec, self.pool, self.gpu_tree

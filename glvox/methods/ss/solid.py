@@ -63,6 +63,7 @@ from ...gpu.transform import SHADERS as TRANSFORM_SHADERS, transform_vertices
 from ...grid import GridSpec
 from ...results.voxels import VoxelGrid
 from ..base import Method, MethodInfo, Requirements, register
+from .chunks import chunked_passes
 from .solid_tuning import fill_defines, fill_rows, voxelize_faces
 
 _PAPER = "Schwarz & Seidel 2010"
@@ -252,30 +253,6 @@ AXIS_SEGMENT = 16384
 assert AXIS_SEGMENT < LOOP_BUDGET
 
 
-def crossing_passes(ctx, progs, n: int, max_groups: int, blocks, big, args) -> None:
-    """The two passes of a per-triangle crossing kernel (``ss/solid.comp``,
-    ``gwn/events.comp``): ``first`` runs every triangle's first chunk of columns
-    and lists the triangles with more in ``big``; ``ss/solid_big_args.comp``
-    sizes the indirect dispatch of ``rest``, which runs their remaining chunks.
-
-    ``blocks``: the kernels' buffers by storage block name (``Big`` among them:
-    the ``big`` list); ``args``: the indirect arguments.  Both kernels have
-    ``local_size_x`` = :data:`_LOCAL`.
-    """
-    first, rest = progs
-    big_args = compute_program(ctx, "ss/solid_big_args.comp")
-    set_uniforms(big_args, {"u_local_size": _LOCAL, "u_max_groups": max_groups})
-    bind(first, **blocks, Big=big)
-    dispatch_1d(ctx, first, n, _LOCAL)
-    barrier(ctx)
-    bind(big_args, Big=big, Args=args)
-    big_args.run(1, 1, 1)
-    barrier(ctx)
-    bind(rest, **blocks, Big=big)
-    rest.run_indirect(args)
-    barrier(ctx)
-
-
 def parity_on_gpu(ctx, mesh, spec, timer, pool, *, axis: int = 0, tag: str = "") -> Parity:
     """ss-solid's parity of crossings along grid axis ``axis`` in GPU buffers, nothing
     read back: stages ``transform``, ``voxelize``, ``fill`` (each name + ``tag``).
@@ -326,8 +303,8 @@ def parity_on_gpu(ctx, mesh, spec, timer, pool, *, axis: int = 0, tag: str = "")
     args = pool.get("args" + tag, 3 * 4, clear=False)
     faces = voxelize_faces(ctx, mesh, spec, bufs)
     with timer.stage("voxelize" + tag):
-        crossing_passes(ctx, (first, rest), n, max_groups, {"VoxVerts": vox, "Faces": faces, "Crossings": grid},
-                        big, args)
+        chunked_passes(ctx, (first, rest), n, max_groups, {"VoxVerts": vox, "Faces": faces, "Crossings": grid},
+                       big, args, _LOCAL)
     rows = mesh_rows(spec, bufs, 0)
     with timer.stage("fill" + tag):
         _fill(ctx, spec, grid, count, rows, axis)

@@ -37,6 +37,7 @@ from ...results.voxels import VoxelGrid
 from ...tolerances import SLIVER_EPS
 from ..base import Method, MethodInfo, Option, Requirements, register
 from . import variant_store
+from .chunks import BIG_ARGS, chunked_passes
 
 _PAPER = "Schwarz & Seidel 2010"
 LOCAL_SIZE = 64  # local_size_x of ss/surface.comp and ss/classify.comp
@@ -61,7 +62,7 @@ WORK_BITS = 12
 #: The compute shaders the surface compiles (what a method reusing
 #: :func:`surface_on_gpu` adds to its requirements).
 COMPUTE = tuple((f"ss/{name}.comp", {}) for name in ("classify", "dispatch_args", "ranges", "surface")) \
-    + SORT_SHADERS + TRANSFORM_SHADERS
+    + (("ss/surface.comp", {"SS_FIRST": 1}), (BIG_ARGS, {})) + SORT_SHADERS + TRANSFORM_SHADERS
 _REQUIRES = Requirements(gl_version=430, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 7}, compute=COMPUTE)
 
 #: Largest grid of ss-conservative and ss-6sep: their shaders index packed words
@@ -143,8 +144,13 @@ def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int
     """The S&S surface of ``mesh`` on ``spec`` in a GPU buffer, nothing read back.
 
     The building block of ``ss-conservative`` and ``ss-6sep`` (stages
-    ``transform``, ``classify``, [``sort``, ``ranges``], ``voxelize``), for
+    ``transform``, [``classify``, ``sort``, ``ranges``], ``voxelize``), for
     methods that go on working on the surface on the GPU (``carve-solid``).
+    The simple and specialized variants set each triangle up once: the first
+    of the two dispatches of ``voxelize`` counts its case and does its first
+    chunk (:mod:`.chunks`).  The sorted variant, and every variant in slabs,
+    run ``classify`` first: the sort needs every triangle's key, and the slabs
+    the case counts of whole triangles, once.
 
     Parameters
     ----------
@@ -155,7 +161,8 @@ def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int
     timer : StageTimer
     pool : BufferPool
         The caller's pool; the surface uses its buffers ``grid``, ``stats``,
-        ``per_triangle``, ``args`` (and ``keys``, ``ranges`` when sorted).
+        ``args`` and ``big`` (simple, specialized) or ``per_triangle`` (and
+        ``keys``, ``ranges`` when sorted).
     criterion : {0, 1}
         0 conservative (26-separating), 1 6-separating.
     variant : {'simple', 'specialized', 'sorted'}
@@ -188,11 +195,23 @@ def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int
     grid = pool.get("grid", slices * spec.dims[1] * spec.words_per_row * 4, what=f"the {spec.dims} bit grid")
     bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool)
     stats = pool.get("stats", 8 * 4)
-    per_tri = pool.get("per_triangle", n * 4, what="per-triangle work", clear=False)
     args = pool.get("args", 9 * 4, clear=False)
     defines = surface_defines(criterion, variant)
     common = {**grid_uniforms(spec, bufs.anchor), "u_triangles": n, "u_tri_offset": 0,
               "u_local_size": LOCAL_SIZE, "u_max_groups": max_groups}
+    if variant != "sorted" and slabs is None:
+        # one pass sets every triangle up, counts its case and does its first chunk
+        big = pool.get("big", (n + 2) * 4, what="the triangles with several chunks", clear=False)
+        big.clear(size=8)
+        first, rest = (compute_program(ctx, "ss/surface.comp", {**defines, "SS_FIRST": f}) for f in (1, 0))
+        for prog in (first, rest):
+            set_uniforms(prog, common)
+        with timer.stage("voxelize"):
+            chunked_passes(ctx, (first, rest), n, max_groups,
+                           {"VoxVerts": vox, "Faces": bufs.faces, "Grid": grid, "Stats": stats}, big, args,
+                           LOCAL_SIZE)
+        return grid, stats
+    per_tri = pool.get("per_triangle", n * 4, what="per-triangle work", clear=False)
     keys = None
     if variant == "sorted":
         keys = pool.get("keys", n * 4, what="sort keys", clear=False)
@@ -300,6 +319,10 @@ class _SSSurface(Method):
         slabs = z_slabs(ctx, spec)
         if slabs is None:
             grid, stats = surface_on_gpu(ctx, mesh, spec, timer, pool, criterion=self.criterion, variant=variant)
+            if variant != "sorted":  # the triangles the first pass listed (.chunks)
+                listed, most = np.frombuffer(pool.get("big", 8, clear=False).read(size=8), dtype="<u4")
+                timer.stats["triangles_with_several_chunks"] = int(listed)
+                timer.stats["max_chunks"] = int(most) + 1 if listed else 1
             return self._finish(spec, timer, grid, stats)
         # over the storage-block limit: slab by slab, each read into its part of the result
         words = np.empty(spec.n_words, dtype="<u4")
