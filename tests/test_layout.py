@@ -174,3 +174,23 @@ def test_storage_buffers_are_bound_by_block_name():
             if rel not in BINDS_BY_NUMBER or literal:
                 bad.append(f"{rel}:{node.lineno}")
     assert not bad, f"bind storage buffers by block name (glvox.gpu.dispatch.bind): {bad}"
+
+
+#: The only module that may call a moderngl buffer's ``clear``: the helper that falls back to it.
+CLEARS_ON_THE_HOST = {"glvox/gpu/buffers.py"}
+
+
+def test_buffers_are_cleared_on_the_gpu():
+    """moderngl's ``Buffer.clear(size=...)`` maps the buffer and fills it on the host (on a GPU
+    with its own memory: a wait and a trip over the bus); passes clear with
+    ``glvox.gpu.buffers.clear_buffer`` (glClearNamedBufferSubData).  A call with ``size=`` or
+    ``chunk=`` is a buffer's clear (a dict's or a framebuffer's takes neither)."""
+    bad = []
+    for path in MODULES:
+        rel = path.relative_to(TOP).as_posix()
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "clear"
+                    and any(k.arg in ("size", "chunk", "offset") for k in node.keywords)
+                    and rel not in CLEARS_ON_THE_HOST):
+                bad.append(f"{rel}:{node.lineno}")
+    assert not bad, f"clear buffers with glvox.gpu.buffers.clear_buffer: {bad}"

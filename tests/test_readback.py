@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import glvox
+from glvox.gpu.buffers import clear_buffer
 from glvox.grid import pack_bits, set_indices, unpack_bits
 from glvox.methods import method_names, get_method, run_method
 from glvox.results.voxels import c_order
@@ -49,3 +50,23 @@ def test_voxel_count_equals_the_set_bits(name, gl_context):
     spec = glvox.grid_for(mesh, 45)  # 45: words with unused high bits in every row
     r = run_method(name, mesh, spec, ctx=gl_context)
     assert r.run.stats["voxels"] == r.count == int(np.bitwise_count(np.asarray(r.words())).sum()) > 0
+
+
+@pytest.mark.parametrize("value", [0, 0xFFFFFFFF, 0x7F7FFFFF])
+def test_buffers_are_cleared_on_the_gpu_to_a_word(gl_context, value):
+    """clear_buffer fills whole words from an offset, leaves the rest alone, and takes
+    moderngl's way for a size that is not whole words (zeros only)."""
+    buf = gl_context.mgl.buffer(np.arange(64, dtype="<u4").tobytes())
+    clear_buffer(gl_context, buf, 100, value, offset=16)
+    got = np.frombuffer(buf.read(), dtype="<u4")
+    want = np.arange(64, dtype="<u4")
+    want[4:29] = value
+    np.testing.assert_array_equal(got, want)
+    clear_buffer(gl_context, buf)  # to its end
+    assert not np.frombuffer(buf.read(), dtype="<u4").any()
+    buf.write(b"\xff" * 256)
+    clear_buffer(gl_context, buf, 6)  # 1.5 words: zeros on the host
+    assert np.frombuffer(buf.read(), dtype="<u1")[:8].tolist() == [0, 0, 0, 0, 0, 0, 255, 255]
+    with pytest.raises(ValueError, match="whole words"):
+        clear_buffer(gl_context, buf, 6, 1)
+    buf.release()

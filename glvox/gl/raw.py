@@ -51,6 +51,13 @@ _SIGNATURES: dict[str, tuple[object, tuple[object, ...]]] = {
     "glGetQueryObjectui64v": (None, (GLuint, GLenum, ctypes.POINTER(ctypes.c_uint64))),
 }
 
+_SIGNATURES["glClearNamedBufferSubData"] = (
+    None, (GLuint, GLenum, ctypes.c_ssize_t, ctypes.c_ssize_t, GLenum, GLenum, ctypes.c_void_p))
+
+GL_R32UI = 0x8236
+GL_RED_INTEGER = 0x8D94
+GL_UNSIGNED_INT = 0x1405
+
 GL_TIMESTAMP = 0x8E28
 GL_QUERY_RESULT = 0x8866
 
@@ -89,6 +96,16 @@ class RawGL:
         out = GLint(0)
         self.fn("glGetIntegerv")(pname, ctypes.byref(out))
         return int(out.value)
+
+    # -- buffers ------------------------------------------------------------
+    def clear_buffer_words(self, buffer: int, offset: int, size: int, value: int) -> None:
+        """Fill bytes ``offset .. offset + size`` of buffer object ``buffer`` with the
+        uint32 ``value`` on the GPU (glClearNamedBufferSubData, GL 4.5): no mapping,
+        no host memory, no wait for earlier commands.  ``offset`` and ``size`` are
+        multiples of 4."""
+        word = GLuint(value & 0xFFFFFFFF)
+        self.fn("glClearNamedBufferSubData")(buffer, GL_R32UI, offset, size, GL_RED_INTEGER, GL_UNSIGNED_INT,
+                                             ctypes.byref(word))
 
     # -- timestamps ---------------------------------------------------------
     def gen_queries(self, n: int) -> list[int]:

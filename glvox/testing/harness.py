@@ -11,6 +11,7 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from ..gl.shaders import compute_program, render_program
+from ..gpu.buffers import clear_buffer
 from ..gpu.dispatch import bind
 
 
@@ -85,7 +86,7 @@ def run_compute(ctx, shader: str, groups: int | Sequence[int], *,
                 count, dtype = spec
                 dtype = np.dtype(dtype)
                 buf = ctx.mgl.buffer(reserve=max(4, int(count) * dtype.itemsize))
-                buf.clear()
+                clear_buffer(ctx, buf)
                 meta[binding] = (dtype, (int(count),))
             else:
                 arr = np.ascontiguousarray(spec)

@@ -37,7 +37,7 @@ import numpy as np
 
 from ...errors import MethodError
 from ...gl.shaders import compute_program
-from ...gpu.buffers import buffer_pool, check_buffer_size, object_cache
+from ...gpu.buffers import buffer_pool, check_buffer_size, clear_buffer, object_cache
 from ...gpu.dispatch import barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
 from ...gpu.sort import exclusive_scan
 from ...gpu.transform import transform_vertices
@@ -173,9 +173,9 @@ def _pairs(ctx, mesh, spec, grid, offsets, count, pool, timer):
     best_dist = pool.get("attr_dist", count * 4, what="the set voxels' distances", clear=False)
     best_tri = pool.get("attr_tri", count * 4, what="the set voxels' source triangles", clear=False)
     slot_voxel = pool.get("attr_slot_voxel", count * 8, what="the set voxels' coordinates", clear=False)
-    slot_voxel.clear(size=count * 8, chunk=b"\xff\xff\xff\xff")  # NONE: no triangle recorded it
-    best_dist.clear(size=count * 4, chunk=b"\xff\xff\xff\xff")
-    best_tri.clear(size=count * 4, chunk=b"\xff\xff\xff\xff")
+    clear_buffer(ctx, slot_voxel, count * 8, 0xFFFFFFFF)  # NONE: no triangle recorded it
+    clear_buffer(ctx, best_dist, count * 4, 0xFFFFFFFF)
+    clear_buffer(ctx, best_tri, count * 4, 0xFFFFFFFF)
     bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool, stage="attr_transform")
     stats = pool.get("stats", 8 * 4)
     per_tri = pool.get("per_triangle", n * 4, what="per-triangle work", clear=False)

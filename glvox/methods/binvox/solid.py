@@ -48,7 +48,7 @@ import moderngl
 import numpy as np
 
 from ...gl.shaders import compute_program, render_program
-from ...gpu.buffers import buffer_pool, mesh_buffers, read_grid_words
+from ...gpu.buffers import buffer_pool, clear_buffer, mesh_buffers, read_grid_words
 from ...gpu.dispatch import barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
 from ...gpu.transform import SNAP_DEFINES, gpu_vertices_voxel
 from ...grid import GridSpec
@@ -162,7 +162,7 @@ class _BinvoxRun(RasterPass):
         bind(self.record, Flips=out["flips_carve" if kind < 2 else "flips_vote"], Stats=out["stats"],
              Total=out["total"], Surface=out["surface"])
         if stencil:
-            out["stats"].clear(size=4)
+            clear_buffer(self.ctx, out["stats"], 4)
         self.record.run((size[0] + 7) // 8, (size[1] + 7) // 8, 1)
         if stencil:
             barrier(self.ctx)
@@ -279,7 +279,7 @@ class BinvoxSolid(Method):
             coarse_spec = fine_spec(spec, down - 1 - step)
             coarse = pool.get(f"down{step}", coarse_spec.n_words * 4, what=f"the {coarse_spec.dims} bit grid",
                               clear=False)
-            count.clear(size=4)
+            clear_buffer(ctx, count, 4)
             set_uniforms(prog, {**grid_uniforms(coarse_spec, np.zeros(3)), "u_dmin": dmin})
             bind(prog, Fine=fine, Coarse=coarse, Count=count)
             dispatch_1d(ctx, prog, coarse_spec.n_words, 64)

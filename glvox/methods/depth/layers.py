@@ -74,7 +74,7 @@ from typing import Any
 import numpy as np
 
 from ...gl.shaders import compute_program
-from ...gpu.buffers import buffer_pool, mesh_buffers, read_grid_words
+from ...gpu.buffers import buffer_pool, clear_buffer, mesh_buffers, read_grid_words
 from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
 from ...results.voxels import VoxelGrid
 from ..base import Method, MethodInfo, Option, Requirements, register
@@ -276,7 +276,7 @@ class _Run(RasterPass):
         set_uniforms(self.record, {"u_use_dedupe": dedupe is not None, "u_stencil_mode": stencil})
         bind(self.record, Flips=grids.flips, Stats=grids.stats, Crowded=grids.crowded)
         if stencil == 1:
-            grids.stats.clear(size=4)
+            clear_buffer(ctx, grids.stats, 4)
         self.record.run((size[0] + 7) // 8, (size[1] + 7) // 8, 1)
         if stencil == 1:
             barrier(ctx)

@@ -44,7 +44,7 @@ import numpy as np
 from ...errors import LimitError, MethodError
 from ...gl.shaders import compute_program
 from ...gl.timing import StageTimer
-from ...gpu.buffers import buffer_pool, mesh_buffers, read_grid_words
+from ...gpu.buffers import buffer_pool, clear_buffer, mesh_buffers, read_grid_words
 from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
 from ...gpu.transform import transform_vertices
 from ...results.voxels import VoxelGrid
@@ -269,7 +269,7 @@ class _Run:
     def _crossings(self, n, cells, common):
         ctx, pool = self.ctx, self.pool
         big = pool.get("big", (n + 2) * 4, what="the triangles with several column chunks", clear=False)
-        big.clear(size=8)
+        clear_buffer(ctx, big, 8)
         args = pool.get("args", 3 * 4, clear=False)
         first, rest = (compute_program(ctx, "gwn/events.comp", {"GWN_CHUNK": COLUMN_CHUNK, "FIRST": f})
                        for f in (1, 0))

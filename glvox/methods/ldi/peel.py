@@ -22,7 +22,7 @@ import numpy as np
 
 from ...errors import MethodError
 from ...gl.shaders import compute_program
-from ...gpu.buffers import buffer_pool, check_buffer_size, mesh_buffers
+from ...gpu.buffers import buffer_pool, check_buffer_size, clear_buffer, mesh_buffers
 from ...gpu.dispatch import barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
 from ...gpu.transform import SNAP_DEFINES
 from ...results.ldi import LDI
@@ -92,7 +92,7 @@ class _Peeling:
         """Layer 0 of a tile with every crossing counted in the stencil; the largest count."""
         run.set_tile(origin)
         run.draw(target, 0, count="restart")
-        self.stats.clear(size=4)
+        clear_buffer(self.ctx, self.stats, 4)
         target.stencil.use(0)
         bind(self.count_prog, Stats=self.stats)
         self.count_prog.run(*self.groups)

@@ -16,7 +16,7 @@ import numpy as np
 
 from ...errors import LimitError
 from ...gl.shaders import compute_program
-from ...gpu.buffers import buffer_pool, check_buffer_size
+from ...gpu.buffers import buffer_pool, check_buffer_size, clear_buffer
 from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, set_uniforms
 
 _LOCAL = 64
@@ -139,7 +139,7 @@ def band_distances(ctx, tri_vox: np.ndarray, dims, radius: float, timer) -> np.n
             buf.write(arr.tobytes())
             bufs[name] = buf
         dist = pool.get("dist", n_vox * 4, what="the SDF distance grid", clear=False)
-        dist.clear(size=n_vox * 4, chunk=np.uint32(FAR_BITS).tobytes())
+        clear_buffer(ctx, dist, n_vox * 4, FAR_BITS)
     with timer.stage("sdf_band"):
         prog = compute_program(ctx, "sdf/band.comp")
         bind(prog, Geo=bufs["geo"], Plane=bufs["plane"], Box=bufs["box"], Items=bufs["items"], Dist=dist)

@@ -56,7 +56,7 @@ import numpy as np
 
 from ...errors import LimitError
 from ...gl.shaders import compute_program
-from ...gpu.buffers import buffer_pool, read_grid_words
+from ...gpu.buffers import buffer_pool, clear_buffer, read_grid_words
 from ...gpu.sort import SHADERS as SORT_SHADERS, exclusive_scan, sort_pairs
 from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
 from ...gpu.transform import SHADERS as TRANSFORM_SHADERS, transform_vertices
@@ -293,7 +293,7 @@ def parity_on_gpu(ctx, mesh, spec, timer, pool, *, axis: int = 0, tag: str = "")
     bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool, axes=rotation(axis), name="vox_vertices" + tag,
                                    stage="transform" + tag)
     big = pool.get("big" + tag, (n + 2) * 4, what="the triangles with several column chunks", clear=False)
-    big.clear(size=8)
+    clear_buffer(ctx, big, 8)
     uniforms = grid_uniforms(rspec, bufs.anchor[list(rotation(axis))])
     first, rest = (compute_program(ctx, "ss/solid.comp", {"SOLID_CHUNK": COLUMN_CHUNK, "FIRST": f,
                                                           "FLIP_AXIS": axis}) for f in (1, 0))

@@ -29,7 +29,7 @@ import numpy as np
 
 from ...errors import LimitError
 from ...gl.shaders import compute_program
-from ...gpu.buffers import buffer_pool, read_grid_words
+from ...gpu.buffers import buffer_pool, clear_buffer, read_grid_words
 from ...gpu.sort import SHADERS as SORT_SHADERS, sort_pairs
 from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
 from ...gpu.transform import SHADERS as TRANSFORM_SHADERS, transform_vertices
@@ -202,7 +202,7 @@ def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int
     if variant != "sorted" and slabs is None:
         # one pass sets every triangle up, counts its case and does its first chunk
         big = pool.get("big", (n + 2) * 4, what="the triangles with several chunks", clear=False)
-        big.clear(size=8)
+        clear_buffer(ctx, big, 8)
         first, rest = (compute_program(ctx, "ss/surface.comp", {**defines, "SS_FIRST": f}) for f in (1, 0))
         for prog in (first, rest):
             set_uniforms(prog, common)
@@ -244,7 +244,7 @@ def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int
     per_slice = spec.dims[1] * spec.words_per_row * 4
     for k0, nk in slabs:
         if k0:
-            grid.clear(size=nk * per_slice)
+            clear_buffer(ctx, grid, nk * per_slice)
         voxelize({**defines, "VOX_SLAB": 1}, {**common, "u_slab": (k0, nk)})
         read_slab(k0, nk, grid)
     return grid, stats
