@@ -7,6 +7,7 @@ without edits here.  Heavier counts are opt-in (GLVOX_SLOW=1).
 
 from __future__ import annotations
 
+import json
 import mmap
 import os
 import re
@@ -35,6 +36,7 @@ from glvox.reference import TIE_EPS, binvox_ties, conservative_surface, orientat
 from glvox.reference.binvox import binvox_solid
 from glvox.reference.scanline import float_variant_ties, scanline_surface
 from glvox.results.voxels import VoxelGrid
+from glvox.testing.contraction import write_overlay
 from glvox.testing.leaks import live_gl_objects, measure_growth, rss_bytes
 from glvox.testing.rational import conservative_surface_rational
 
@@ -528,6 +530,65 @@ def test_gpu_needle_is_the_exact_set(gl_context, variant):
     exact = conservative_surface_rational(mesh.triangles_voxel(spec), spec.dims)
     got = run_method("ss-conservative", mesh, spec, allow_open=True, variant=variant).dense()
     assert exact.sum() == 7 and np.array_equal(got, exact)
+
+
+#: Run in a fresh process with GLVOX_SHADER_PATH set: what the needle pins above give.
+_NEEDLE_PINS_SCRIPT = textwrap.dedent("""
+    import json, sys, warnings
+    import numpy as np
+    import glvox
+    from glvox.metrics import check_against_reference
+    from glvox.methods import run_method
+    from glvox.mesh import load_mesh
+    from glvox.testing.rational import conservative_surface_rational
+    def soup_mesh(tris):
+        v = tris.reshape(-1, 3)
+        return load_mesh((v, np.arange(len(v)).reshape(-1, 3)), name="soup")
+    cases = json.loads(sys.argv[1])
+    out = {}
+    tris, dims = cases.pop("exact")
+    mesh = soup_mesh(np.array(tris))
+    spec = glvox.grid_for(mesh, dims=tuple(dims))
+    exact = conservative_surface_rational(mesh.triangles_voxel(spec), spec.dims)
+    for variant in ("simple", "specialized", "sorted"):
+        got = run_method("ss-conservative", mesh, spec, allow_open=True, variant=variant).dense()
+        out[variant] = int((got ^ exact).sum())
+    for name, (tris, dims) in cases.items():
+        mesh = soup_mesh(np.array(tris))
+        spec = glvox.grid_for(mesh, dims=tuple(dims))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            out[name] = check_against_reference(run_method("ss-6sep", mesh, spec, allow_open=True), mesh).ok
+    print(json.dumps(out))
+""")
+
+
+def _needle_pins(env_extra: dict) -> dict:
+    cases = {"exact": [NEEDLE_REFERENCE_PLANE_ROUNDING[0].tolist(), list(NEEDLE_REFERENCE_PLANE_ROUNDING[1])]}
+    for name, case in (("1e6", NEEDLE_AT_1E6), ("origin", NEEDLES_NEAR_THE_ORIGIN), ("1e-4", NEEDLE_1E4),
+                       ("5e-5", NEEDLE_5E5), ("5e-5-b", NEEDLE_5E5_B)):
+        cases[name] = [case[0].tolist(), list(case[1])]
+    env = {**os.environ, **env_extra}
+    proc = subprocess.run([sys.executable, "-c", _NEEDLE_PINS_SCRIPT, json.dumps(cases)], env=env,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def test_the_needle_pins_catch_a_contracting_compiler(tmp_path):
+    """The needle pins fail on a compiler that fuses the cross product and the edge
+    function into fma where they are not precise (GLSL 4.50 Sec. 4.7.1 allows it; Sec.
+    4.9 forbids it for the precise results glvox keeps), emulated on this GL by
+    glvox.testing.contraction: the exact needle is missed by every variant and two
+    open ss-6sep needles flip to passing, the five results an NVIDIA H100 gave before
+    those results were precise.  Without the overlay the same process gives the pins'
+    own expectations, so the difference is the fusion alone."""
+    plain = _needle_pins({"GLVOX_SHADER_PATH": ""})
+    fused = _needle_pins({"GLVOX_SHADER_PATH": str(write_overlay(tmp_path / "fused"))})
+    assert plain == {"simple": 0, "specialized": 0, "sorted": 0, "1e6": False, "origin": False, "1e-4": False,
+                     "5e-5": False, "5e-5-b": False}
+    assert all(fused[v] > 0 for v in ("simple", "specialized", "sorted")), fused
+    assert fused["5e-5"] and fused["5e-5-b"], fused
 
 
 @pytest.mark.parametrize("case", [NEEDLE_IN_A_DIAGONAL_PLANE, NEEDLE_IN_A_DIAGONAL_PLANE_2], ids=["1", "2"])

@@ -14,6 +14,8 @@ import pytest
 from glvox import cli
 from glvox.methods import get_method, method_infos
 from glvox.results.voxels import VoxelGrid
+from glvox.gpu.arithmetic import PROBES, classify, probe_operands
+from glvox.study import selftest
 from glvox.study.selftest import BOUNDS, _describe
 
 
@@ -28,6 +30,10 @@ def test_selftest_passes_here(gl_context, capsys):
     assert rc == 0, out.out
     assert report["ok"] and report["renderer"] == gl_context.renderer
     rows = {r["method"]: r for r in report["methods"]}
+    arith = rows.pop("arithmetic")  # the compiler's row comes first
+    assert report["methods"][0]["method"] == "arithmetic"
+    assert arith["status"] == "ok" and arith["mismatches"] == 0 and arith["cases"] == 4 * PROBES
+    assert report["arithmetic"]["fused_precise_float"] == report["arithmetic"]["fused_precise_double"] == 0
     assert set(rows) == {"ss-conservative", "peel-ldi", "karabassi"}
     assert all(r["status"] == "ok" and r["mismatches"] == 0 and r["cases"] == len(report["cases"]) >= 4
                for r in rows.values())
@@ -70,14 +76,31 @@ def test_a_flipped_voxel_fails_and_names_the_method(gl_context, capsys, monkeypa
     assert row.split()[-1] == "mismatch" and int(row.split()[-3]) >= 4  # one voxel on each case
 
 
+def test_a_compiler_that_fuses_precise_expressions_fails(gl_context, capsys, monkeypatch):
+    """A compiler that fuses a precise a*b+c (every float32 probe comes back as its
+    rounding error, as one fma gives) fails the arithmetic row and the selftest."""
+    def fusing(ctx, n=PROBES):
+        f, d = probe_operands(n)
+        err = (f[:, 0].astype(np.float64) * f[:, 1] + f[:, 2]).astype(np.float32)
+        fout = np.stack([err, err, err, err], axis=1)
+        return classify(f, d, fout, np.zeros((n, 4)), np.stack([f[:, 0] / f[:, 1], np.zeros(n, np.float32)], 1))
+
+    monkeypatch.setattr(selftest, "probe_arithmetic", fusing)
+    rc, out = _run(capsys, "--methods", "ss-6sep", "-q")
+    assert rc == 1 and "FAILED: arithmetic" in out.out.splitlines()[-1]
+    row = next(l for l in out.out.splitlines() if l.startswith("arithmetic "))
+    assert row.split()[-1] == "mismatch" and int(row.split()[-3]) > PROBES  # both float32 forms, most probes
+    assert "fuses a*b+c inside precise expressions" in out.out
+
+
 def test_an_approximate_method_outside_its_bound_fails(gl_context, capsys, monkeypatch):
     """karabassi may add voxels to the exact solid, never lose them: an emptied grid fails."""
     _broken(monkeypatch, "karabassi", np.zeros_like)
     rc, out = _run(capsys, "--methods", "karabassi", "--json")
     report = json.loads(out.out)
     assert rc == 1 and not report["ok"]
-    (row,) = report["methods"]
-    assert row["method"] == "karabassi" and row["status"] == "mismatch" and row["mismatches"] > 0
+    arith, row = report["methods"]
+    assert arith["status"] == "ok" and row["method"] == "karabassi" and row["status"] == "mismatch" and row["mismatches"] > 0
 
 
 @pytest.mark.parametrize("change, bad", [(lambda d: d, False), (_flip_corner, True), (np.zeros_like, True)])
@@ -86,7 +109,7 @@ def test_binvox_solid_may_differ_from_its_twin_on_ties_only(gl_context, capsys, 
     voxel off in a corner no column of the mesh reaches fails, and so does an emptied grid."""
     _broken(monkeypatch, "binvox-solid", change)
     rc, out = _run(capsys, "--methods", "binvox-solid", "--json")
-    (row,) = json.loads(out.out)["methods"]
+    _, row = json.loads(out.out)["methods"]  # after the compiler's row
     assert (rc, row["status"], row["mismatches"] > 0) == ((1, "mismatch", True) if bad else (0, "ok", False)), row
 
 

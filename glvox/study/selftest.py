@@ -20,6 +20,12 @@ download) on 16^3 to 32^3 grids, checked the way the test suite checks them:
 
 A method that fails (a capability refusal included) is a failure like a
 mismatch.  The figure on llvmpipe (2 shared cores) is in docs/testing.md.
+
+The first row, ``arithmetic``, checks the compiler itself
+(:mod:`glvox.gpu.arithmetic`): whether it keeps ``a * b + c`` unfused where the
+result is ``precise``, as GLSL 4.50 Sec. 4.9 demands and every exact shader
+relies on; a fused probe is a mismatch.  Its detail lines say what GLSL leaves
+free: whether plain expressions are fused, the error of ``a / b``, denormals.
 """
 
 from __future__ import annotations
@@ -35,6 +41,7 @@ import numpy as np
 from ..datasets import find
 from ..errors import GlvoxError, NotWatertightWarning
 from ..gl.context import get_context
+from ..gpu.arithmetic import probe_arithmetic
 from ..grid import grid_for, pack_bits
 from ..mesh import load_mesh
 from ..methods import get_method, method_infos, run_method
@@ -127,11 +134,19 @@ def selftest(methods: Sequence[str] | None = None, progress: Callable[[str], Non
         ``renderer``, ``vendor``, ``version``, ``cases`` (``'mesh@n'``), ``methods``
         (one :class:`Row` as a dict each: method, check, cases, mismatches,
         seconds of the method's runs, status 'ok' / 'mismatch' / 'error',
-        detail lines), ``ok`` and ``seconds`` (the whole test).
+        detail lines; the first is the compiler's ``arithmetic``), ``arithmetic``
+        (:class:`~glvox.gpu.arithmetic.ArithmeticReport` as a dict), ``ok`` and
+        ``seconds`` (the whole test).
     """
     t_all = time.perf_counter()
     ctx = ctx if ctx is not None else get_context()
     names = list(methods) if methods else [i.name for i in method_infos()]
+    progress("arithmetic: precise kept?")
+    t0 = time.perf_counter()
+    arith = probe_arithmetic(ctx)
+    arith_row = Row("arithmetic", "precise a*b+c unfused (GLSL 4.50 Sec. 4.9)", cases=4 * arith.probes,
+                    mismatches=arith.fused_precise_float + arith.fused_precise_double,
+                    seconds=time.perf_counter() - t0, status="ok" if arith.ok else "mismatch", detail=arith.notes)
     rows = {n: Row(n, _describe(n)) for n in names}
     cases = list(CASES)
     shared = find(SHARED_CASE[0])
@@ -165,9 +180,9 @@ def selftest(methods: Sequence[str] | None = None, progress: Callable[[str], Non
                 row.mismatches += bad
                 row.status = "error" if row.status == "error" else "mismatch"
                 row.detail.append(f"{label}: {bad} voxels outside the check")
-    out_rows = [asdict(r) for r in rows.values()]
+    out_rows = [asdict(arith_row)] + [asdict(r) for r in rows.values()]
     return {"renderer": ctx.renderer, "vendor": ctx.vendor, "version": ctx.version, "cases": labels,
-            "methods": out_rows, "ok": all(r["status"] == "ok" for r in out_rows),
+            "methods": out_rows, "arithmetic": asdict(arith), "ok": all(r["status"] == "ok" for r in out_rows),
             "seconds": time.perf_counter() - t_all}
 
 
