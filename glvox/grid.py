@@ -142,10 +142,10 @@ class GridSpec:
         """World points (..., 3) -> voxel-space points (..., 3), float64."""
         return (np.asarray(points, dtype=np.float64) - self.origin) / self.voxel_size
 
-    def vertices_to_voxel(self, points: np.ndarray) -> np.ndarray:
+    def vertices_to_voxel(self, points: np.ndarray, eps: float = SNAP_EPS) -> np.ndarray:
         """Mesh vertices (..., 3) -> voxel space as every method sees them, float64:
-        :meth:`world_to_voxel`, then :func:`snap_to_planes`."""
-        return snap_to_planes(self.world_to_voxel(points))
+        :meth:`world_to_voxel`, then :func:`snap_to_planes` (within ``eps`` voxel)."""
+        return snap_to_planes(self.world_to_voxel(points), eps)
 
     def voxel_to_world(self, points: np.ndarray) -> np.ndarray:
         """Voxel-space points (..., 3) -> world points (..., 3), float64."""

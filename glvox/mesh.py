@@ -23,7 +23,7 @@ import numpy as np
 
 from .errors import EmptyMeshError, FaceIndexError, LimitError, MeshError, MeshLoadError, NonFiniteVertexError
 from .meshfiles import FAST_SUFFIXES, obj_vertex_bounds, read_fast
-from .tolerances import DEGENERATE_AREA_RTOL, MERGE_DIGITS
+from .tolerances import DEGENERATE_AREA_RTOL, MERGE_DIGITS, SNAP_EPS
 
 #: The largest float32, the type of vertices on the GPU.
 FLOAT32_MAX = float(np.finfo(np.float32).max)
@@ -102,10 +102,11 @@ class Mesh:
         """(F, 3, 3) float64 world coordinates of the triangles' vertices."""
         return self.vertices[self.faces]
 
-    def triangles_voxel(self, spec) -> np.ndarray:
+    def triangles_voxel(self, spec, eps: float = SNAP_EPS) -> np.ndarray:
         """(F, 3, 3) float64 triangles in the voxel space of ``spec``, snapped to
-        the lattice as every method sees them (:meth:`GridSpec.vertices_to_voxel`)."""
-        return spec.vertices_to_voxel(self.triangles())
+        the lattice as every method sees them (:meth:`GridSpec.vertices_to_voxel`;
+        ``eps``: the snap distance, voxels of ``spec``)."""
+        return spec.vertices_to_voxel(self.triangles(), eps)
 
     def gpu_arrays(self, anchor: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(V, 3) float32 vertices relative to :attr:`anchor` (pass it when

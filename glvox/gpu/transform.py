@@ -20,6 +20,11 @@ from .dispatch import barrier, bind, dispatch_1d, set_uniforms
 #: Defines of every program that includes ``common/snap.glsl`` (it refuses
 #: to compile without them): the snap distance named once in glvox.tolerances.
 SNAP_DEFINES = {"SNAP_EPS": float(SNAP_EPS)}
+
+
+def snap_defines(eps: float = SNAP_EPS) -> dict:
+    """:data:`SNAP_DEFINES` with another snap distance (binvox-solid's finer grid)."""
+    return {"SNAP_EPS": float(eps)}
 #: The ``(shader, defines)`` :func:`transform_vertices` compiles, for ``Requirements(compute=...)``.
 SHADERS = (("common/transform.comp", {"VOX_DOUBLE": 0, **SNAP_DEFINES}),)
 
@@ -61,15 +66,16 @@ def transform_vertices(ctx, mesh, spec, timer, pool, *, double: bool = False, st
     return bufs, vox
 
 
-def gpu_vertices_voxel(mesh, spec) -> np.ndarray:
+def gpu_vertices_voxel(mesh, spec, eps: float = SNAP_EPS) -> np.ndarray:
     """The mesh's vertices in voxel space exactly as the GPU methods see them, (V, 3) float32.
 
     ``vertex_to_voxel`` of ``shaders/common/snap.glsl`` in numpy: the float32
     upload relative to the anchor (:meth:`glvox.mesh.Mesh.gpu_arrays`),
     ``(v - (origin - anchor)) * (1 / h)`` in float64, the plane snap, one
     rounding to float32.  What :func:`transform_vertices` writes (``double=False``),
-    bit for bit (``tests/test_ties.py`` checks it).
+    bit for bit (``tests/test_ties.py`` checks it).  ``eps``: the snap distance
+    (what ``SNAP_EPS`` the shader was given).
     """
     v32, _ = mesh.gpu_arrays()
     origin = np.asarray(spec.origin, dtype=np.float64) - mesh.anchor
-    return snap_to_planes((v32.astype(np.float64) - origin) * (1.0 / spec.voxel_size)).astype(np.float32)
+    return snap_to_planes((v32.astype(np.float64) - origin) * (1.0 / spec.voxel_size), eps).astype(np.float32)

@@ -23,8 +23,18 @@ from typing import Sequence
 
 import numpy as np
 
+from ..tolerances import SNAP_EPS
 from ._candidates import check_dims, check_tris, normals
 from .solid import column_crossings
+
+
+def fine_snap_eps(down: int) -> float:
+    """The plane snap's distance on the grid binvox draws with ``down`` halvings, in
+    its (finer) voxels: ``SNAP_EPS`` voxels of the grid returned, as for every other
+    method.  The finer grid's own ``SNAP_EPS`` would be ``2**-down`` of that, and a
+    coordinate ``SNAP_EPS / 2`` off a plane, which every method snaps for the rounding
+    of a move by whole voxels, would then sit on binvox's threshold."""
+    return SNAP_EPS * 2 ** int(down)
 
 MODES = ("default", "carve", "vote")
 

@@ -11,10 +11,10 @@ from typing import Sequence
 
 import numpy as np
 
-from ..tolerances import SNAP_EPS, TIE_EPS
+from ..tolerances import TIE_EPS
 from ._candidates import (check_dims, check_eps, check_tris, column_candidates, lex_greater, normals,
                           segment_distance)
-from .binvox import axis_crossings, view_to_grid
+from .binvox import axis_crossings, fine_snap_eps, view_to_grid
 from .solid import column_crossings
 from .ties import _check_unsnapped, flat_axes, float32_motion, snap_ambiguous
 
@@ -100,8 +100,8 @@ def binvox_ties(tris: np.ndarray, dims: Sequence[int], *, wire: bool = False, su
     motion = np.full(len(tris), float(eps) * f)
     exact = np.ones(len(tris), dtype=bool)  # its coordinates on the snap planes are the GPU's too
     if unsnapped is not None:  # the snap is the finer grid's, where binvox draws
-        some = snap_ambiguous(_check_unsnapped(unsnapped, tris) * f, fine).any(axis=(1, 2))
-        motion[some] += SNAP_EPS + float32_motion(fine)
+        some = snap_ambiguous(_check_unsnapped(unsnapped, tris) * f, fine, fine_snap_eps(down)).any(axis=(1, 2))
+        motion[some] += fine_snap_eps(down) + float32_motion(fine)
         exact &= ~some
     out = np.zeros(fine, dtype=bool)
     flat = flat_axes(ftris)

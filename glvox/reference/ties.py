@@ -89,7 +89,7 @@ def rounding_perturbation(tris: np.ndarray, eps: float = TIE_EPS) -> tuple[np.nd
     return half, edge
 
 
-def snap_ambiguous(unsnapped: np.ndarray, dims: Sequence[int]) -> np.ndarray:
+def snap_ambiguous(unsnapped: np.ndarray, dims: Sequence[int], eps: float = SNAP_EPS) -> np.ndarray:
     """(T, 3, 3) bool: coordinates whose snap the GPU's rounding could decide otherwise.
 
     The GPU snaps its own value of a coordinate, computed in double from the
@@ -105,12 +105,14 @@ def snap_ambiguous(unsnapped: np.ndarray, dims: Sequence[int]) -> np.ndarray:
         Voxel-space triangles before :func:`glvox.grid.snap_to_planes` (the
         whole mesh: its extent sets the rounding).
     dims : (3,) int
+    eps : float
+        The snap distance, voxels (``SNAP_EPS`` unless the grid's snap is another's).
     """
     u = check_tris(unsnapped)
     extent = float(np.ptp(u.reshape(-1, 3), axis=0).max()) if len(u) else 0.0
     motion = 2.0 ** -23 * max(extent, max(int(d) for d in dims))
     d = np.abs(u - np.floor(2.0 * u + 0.5) * 0.5)
-    return np.abs(d - SNAP_EPS) <= motion
+    return np.abs(d - eps) <= motion
 
 
 def _other_snap(tris: np.ndarray, unsnapped: np.ndarray, amb: np.ndarray) -> np.ndarray:

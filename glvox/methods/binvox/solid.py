@@ -50,9 +50,9 @@ import numpy as np
 from ...gl.shaders import compute_program, render_program
 from ...gpu.buffers import buffer_pool, clear_buffer, mesh_buffers, read_grid_words
 from ...gpu.dispatch import barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
-from ...gpu.transform import SNAP_DEFINES, gpu_vertices_voxel
+from ...gpu.transform import gpu_vertices_voxel, snap_defines
 from ...grid import GridSpec
-from ...reference.binvox import empty_cause
+from ...reference.binvox import empty_cause, fine_snap_eps
 from ...results.voxels import VoxelGrid
 from ..base import Method, MethodInfo, Option, Requirements, register
 from ..depth.layers import prefix_xor
@@ -97,24 +97,25 @@ def fine_spec(spec: GridSpec, down: int) -> GridSpec:
 
 def gpu_triangles(mesh, spec: GridSpec, down: int) -> np.ndarray:
     """(T, 3, 3) float64: the triangles exactly as binvox-solid draws them, in the voxel
-    units of ``spec``: the GPU's float32 vertices on :func:`fine_spec` (snapped there),
-    divided by ``2**down`` (exact).  :func:`glvox.reference.binvox.binvox_solid` on
+    units of ``spec``: the GPU's float32 vertices on :func:`fine_spec` (snapped there,
+    within :func:`~glvox.reference.binvox.fine_snap_eps`), divided by ``2**down`` (exact).  :func:`glvox.reference.binvox.binvox_solid` on
     them gives binvox-solid's result voxel for voxel (tests/test_binvox.py)."""
-    return gpu_vertices_voxel(mesh, fine_spec(spec, down))[mesh.faces].astype(np.float64) / 2 ** down
+    fine = gpu_vertices_voxel(mesh, fine_spec(spec, down), fine_snap_eps(down))
+    return fine[mesh.faces].astype(np.float64) / 2 ** down
 
 
 class _BinvoxRun(RasterPass):
     """The raster pass with binvox's recording (``binvox/record.comp``) and, for ``-aw``,
     the wireframe (``binvox/wire.*``) drawn into the carving z-buffers."""
 
-    def __init__(self, ctx, bufs, uniforms, record, bufs_out: dict, wire: bool):
-        super().__init__(ctx, bufs, uniforms)
+    def __init__(self, ctx, bufs, uniforms, record, bufs_out: dict, wire: bool, snap: dict):
+        super().__init__(ctx, bufs, uniforms, snap)
         self.record, self.out = record, bufs_out
         self.wire = None
         self.wire_vao = None
         if wire:
             self.wire = render_program(ctx, "depth/raster.vert", "binvox/wire.frag", "binvox/wire.geom",
-                                       defines=SNAP_DEFINES)
+                                       defines=snap)
             set_uniforms(self.wire, uniforms)
 
     def __enter__(self) -> "_BinvoxRun":
@@ -208,7 +209,7 @@ class BinvoxSolid(Method):
         bounds = spec.world_to_voxel(mesh.bounds)
         layers: dict[str, int] = {}
         tiles: dict[str, int] = {}
-        with _BinvoxRun(ctx, bufs, uniforms, record, out, wire and carve) as run:
+        with _BinvoxRun(ctx, bufs, uniforms, record, out, wire and carve, snap_defines(fine_snap_eps(down))) as run:
             for axis in range(3):
                 name = _AXIS_NAMES[axis]
                 n_u, n_v = spec.dims[(axis + 1) % 3], spec.dims[(axis + 2) % 3]

@@ -231,12 +231,14 @@ class RasterPass:
     bufs : glvox.gpu.buffers.MeshBuffers
     uniforms : mapping
         The grid's uniforms (:func:`glvox.gpu.dispatch.grid_uniforms`).
+    snap : mapping
+        The snap distance's define (:func:`glvox.gpu.transform.snap_defines`).
     """
 
-    def __init__(self, ctx, bufs, uniforms) -> None:
+    def __init__(self, ctx, bufs, uniforms, snap: dict = SNAP_DEFINES) -> None:
         self.ctx, self.bufs = ctx, bufs
         self.program = render_program(ctx, "depth/raster.vert", "depth/raster.frag", "depth/raster.geom",
-                                      defines=SNAP_DEFINES)
+                                      defines=snap)
         set_uniforms(self.program, {**uniforms, "u_prev": 0})
         self.vao = None
         #: raster passes drawn so far

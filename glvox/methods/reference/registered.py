@@ -18,7 +18,7 @@ from ...errors import MethodError
 from ...grid import snap_to_planes
 from ...reference import (conservative_surface, six_separating_surface, solid, solid_ties, solid_vote, surface_ties,
                          winding, winding_ties)
-from ...reference.binvox import binvox_solid, empty_cause
+from ...reference.binvox import binvox_solid, empty_cause, fine_snap_eps
 from ...reference.carve import MAX_CLOSE, carve_ties, carved_solid
 from ...reference.ldi import crossings
 from ...reference.binvox_ties import binvox_ties
@@ -190,9 +190,9 @@ class ReferenceBinvox(Method):
 
 def _drawn_triangles(mesh, spec, down: int) -> np.ndarray:
     """The triangles in the voxel units of ``spec``, snapped on the grid binvox draws:
-    with ``down``, the finer one (as binvox-solid snaps them), divided by ``2**down``
-    (exact)."""
-    return mesh.triangles_voxel(fine_spec(spec, down)) / 2 ** down
+    with ``down``, the finer one (as binvox-solid snaps them, within
+    :func:`~glvox.reference.binvox.fine_snap_eps`), divided by ``2**down`` (exact)."""
+    return mesh.triangles_voxel(fine_spec(spec, down), fine_snap_eps(down)) / 2 ** down
 
 
 class _WindingCache:
