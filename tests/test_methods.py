@@ -59,13 +59,13 @@ def test_method_contract_on_a_small_mesh(name, gl_context):
 
 def test_dense_results_beyond_int32_voxels_are_refused_before_any_work():
     """Beyond MAX_VOXELS (int32 flat indices) a dense method is refused in one line that
-    names the methods of its kind that take the grid (ss-conservative and ss-6sep index
-    packed words and stream z slabs: up to 2^36 voxels) and the sparse ss-octree."""
+    names the methods of its kind that take the grid (ss-conservative, ss-6sep and ss-solid
+    index packed words and stream z slabs: up to 2^36 voxels) and the sparse ss-octree."""
     mesh = load_mesh("gen:sphere")
     spec = glvox.grid_for(mesh, 2048)  # 2^33 voxels: a valid spec, too big for most methods
-    for name in ("reference-solid", "ss-solid"):
-        with pytest.raises(LimitError, match=r"more than the 2147483647 it keeps dense; use a smaller grid or the "
-                                             r"sparse ss-octree$"):
+    for name in ("reference-solid", "carve-solid"):
+        with pytest.raises(LimitError, match=r"more than the 2147483647 it keeps dense; use a smaller grid, "
+                                             r"ss-solid, or the sparse ss-octree$"):
             run_method(name, mesh, spec)
     for name in ("reference-conservative", "scanline-ilv"):
         with pytest.raises(LimitError, match=r"more than the 2147483647 it keeps dense; use a smaller grid, "

@@ -246,7 +246,7 @@ def test_a_grid_over_the_ssbo_limit_is_voxelized_in_slabs(ssbo_limit):
 
 
 @pytest.mark.parametrize("method, variant", [("ss-conservative", "simple"), ("ss-conservative", "specialized"),
-                                             ("ss-conservative", "sorted"), ("ss-6sep", None)])
+                                             ("ss-conservative", "sorted"), ("ss-6sep", None), ("ss-solid", None)])
 def test_slabs_give_the_whole_grid_voxel_for_voxel(gl_context, monkeypatch, method, variant):
     """With the storage-block limit forced to 4, 5 and 7 z slices of the grid, every
     variant voxelizes slab by slab (classify sees the whole grid, each slab's dispatch its
@@ -271,19 +271,37 @@ def test_slabs_give_the_whole_grid_voxel_for_voxel(gl_context, monkeypatch, meth
         run_method(method, mesh, spec, **opts)
 
 
+def test_solid_slabs_write_inside_their_slab(gl_context, monkeypatch):
+    """Each slab's crossings stay in the slices its buffer holds: a triangle's columns are
+    clipped to the slab (ss/solid_input.glsl's pass_columns), since a write past the
+    buffer is undefined on a GPU (llvmpipe drops it).  The grid buffer is made the whole
+    grid's size and zeroed, so that a write into a later slab's rows would stay behind
+    the slab: nothing may."""
+    mesh = load_mesh("gen:bunny-like")
+    spec = glvox.grid_for(mesh, dims=(512, 256, 24))
+    per_slice = spec.dims[1] * spec.words_per_row * 4
+    grid = buffer_pool(gl_context, "ss-solid").get("grid", spec.n_words * 4)
+    real = gl_context.limits()
+    monkeypatch.setattr(gl_context, "limits", lambda: {**real, "GL_MAX_SHADER_STORAGE_BLOCK_SIZE": 5 * per_slice})
+    g = run_method("ss-solid", mesh, spec)
+    assert g.run.stats["slabs"] == 5 and g.count > 0
+    assert not np.frombuffer(grid.read(), dtype="<u4")[5 * per_slice // 4:].any()
+
+
 def test_surfaces_take_grids_over_the_dense_limit(gl_context):
     """ss-conservative on 2048 x 2048 x 513 voxels (more than MAX_VOXELS, 269 MB of bits:
-    z slabs on llvmpipe): its corner equals a small grid's; ss-solid still refuses it,
-    naming the surfaces that take it and the sparse ss-octree."""
+    z slabs on llvmpipe), and ss-solid too: their corners equal a small grid's; ss-solid-tiled
+    still refuses it, naming ss-solid and the sparse ss-octree."""
     mesh, big, small = _corner_grids((2048, 2048, 513), (32, 32, 32))
     assert big.n_voxels > MAX_VOXELS
-    got = run_method("ss-conservative", mesh, big)
-    want = run_method("ss-conservative", mesh, small)
-    np.testing.assert_array_equal(got.words()[:32, :32, :1], want.words())
-    assert got.count == want.count > 0
-    with pytest.raises(LimitError, match=r"more than the 2147483647 it keeps dense; use a smaller grid or the "
-                                         r"sparse ss-octree"):
-        run_method("ss-solid", load_mesh("gen:box"), big)
+    for name in ("ss-conservative", "ss-solid"):
+        got = run_method(name, mesh, big)
+        want = run_method(name, mesh, small)
+        np.testing.assert_array_equal(got.words()[:32, :32, :1], want.words())
+        assert got.count == want.count > 0, name
+    with pytest.raises(LimitError, match=r"more than the 2147483647 it keeps dense; use a smaller grid, ss-solid, or "
+                                         r"the sparse ss-octree"):
+        run_method("ss-solid-tiled", load_mesh("gen:box"), big)
 
 
 @pytest.mark.slow
@@ -561,8 +579,8 @@ def test_limits_are_refused_clearly(gl_context, ssbo_limit):
     nz = 8 * limit // (2048 * 1024) + 8
     if 2048 * 1024 * nz > 2**31 - 1:
         pytest.skip(f"GL_MAX_SHADER_STORAGE_BLOCK_SIZE is {limit}: no dense grid exceeds it")
-    with pytest.raises(LimitError, match="GL_MAX_SHADER_STORAGE_BLOCK_SIZE.*ss-octree"):
-        run_method("ss-solid", mesh, glvox.grid_for(mesh, dims=(2048, 1024, nz)))
+    with pytest.raises(LimitError, match="GL_MAX_SHADER_STORAGE_BLOCK_SIZE.*ss-octree"):  # ss-solid: z slabs
+        run_method("ss-solid-tiled", mesh, glvox.grid_for(mesh, dims=(2048, 1024, nz)))
 
 
 def test_stats_and_stages(gl_context):

@@ -12,6 +12,8 @@
   before allocating, naming the size, the limit and what to do instead.
 * :func:`read_grid_words`: a packed grid read back into numpy.
 * :func:`clear_buffer`: fill a buffer with a 32-bit word on the GPU.
+* :func:`z_slabs`: the z slabs a packed grid over the storage-block limit is
+  voxelized in, by the methods that take such grids (:data:`MAX_SLAB_VOXELS`).
 
 All of it lives in the context's declared ``caches`` dict
 (:class:`glvox.gl.context.GLContext`) and is released with the context.
@@ -217,6 +219,31 @@ def check_buffer_size(ctx, nbytes: int, what: str) -> None:
             f"GL_MAX_SHADER_STORAGE_BLOCK_SIZE of {limit / 2**20:.1f} MiB ({ctx.renderer}); "
             "use a smaller grid, a sparse method (ss-octree), or tile the grid"
         )
+
+
+#: Largest grid of the methods that voxelize in z slabs (ss-conservative, ss-6sep,
+#: ss-solid): their shaders index packed words (uint32: fewer than 2^32 words, i.e.
+#: 2^37 voxels) and a grid over the storage-block limit is voxelized in z slabs
+#: (:func:`z_slabs`), so glvox's dense limit (glvox.grid.MAX_VOXELS, int32 flat
+#: indices) does not bind them; 2^36 voxels (4096^3, 8 GiB of bits on the host)
+#: leaves the word index room.
+MAX_SLAB_VOXELS = 2**36
+
+
+def z_slabs(ctx, spec) -> list[tuple[int, int]] | None:
+    """The z slabs ``(k0, nk)`` a packed grid over GL_MAX_SHADER_STORAGE_BLOCK_SIZE is
+    voxelized in (as many whole z slices as the limit holds), or None when it fits.
+    A single z slice over the limit is refused in one line."""
+    limit = int(ctx.limits()["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"])
+    if spec.n_words * 4 <= limit:
+        return None
+    per_slice = spec.dims[1] * spec.words_per_row * 4
+    nk = limit // per_slice
+    if nk == 0:
+        raise LimitError(f"one z slice of the {spec.dims} bit grid needs {per_slice} bytes, over "
+                         f"GL_MAX_SHADER_STORAGE_BLOCK_SIZE {limit} of this context; use a smaller grid in x "
+                         f"and y or the sparse ss-octree")
+    return [(k0, min(nk, spec.dims[2] - k0)) for k0 in range(0, spec.dims[2], nk)]
 
 
 def read_grid_words(buf, spec, slices: tuple[int, int] | None = None) -> np.ndarray:

@@ -7,6 +7,9 @@
 // rows into their prefix XOR afterwards, in place: the same voxels, since XOR
 // commutes.
 //
+// VOX_SLAB (FLIP_AXIS 0 only): the crossing grid holds the z slices of u_slab,
+// and only their rows are visited (ss/solid_input.glsl's pass_columns).
+//
 // FIRST 1: one invocation per triangle (glvox.methods._gpu.dispatch_1d) does
 // the triangle's first chunk and lists the triangles with more (nearly none:
 // a chunk is thousands of columns), so no separate pass sets triangles up
@@ -44,7 +47,7 @@ void flip_from(int first, int j, int k) {
     uint wpr = (uint(u_dims.y) + 31u) >> 5;
     atomicXor(crossings[(f * uint(u_dims.z) + uint(k)) * wpr + (uint(j) >> 5)], bit_of(uint(j)));
 #else
-    atomicXor(crossings[(uint(k) * uint(u_dims.y) + uint(j)) * words_per_row() + (f >> 5)], bit_of(f));
+    atomicXor(crossings[word_index(ivec3(int(f), j, k))], bit_of(f));  // k from u_slab.x with VOX_SLAB
 #endif
 }
 
@@ -85,5 +88,5 @@ void main() {
         atomicMax(big_max_chunks, chunks - 1u);
     }
 #endif
-    voxelize_chunk(T, solid_columns(T, u_dims), n, chunk);
+    voxelize_chunk(T, pass_columns(T), n, chunk);
 }

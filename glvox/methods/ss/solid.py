@@ -56,7 +56,7 @@ import numpy as np
 
 from ...errors import LimitError
 from ...gl.shaders import compute_program
-from ...gpu.buffers import buffer_pool, clear_buffer, read_grid_words
+from ...gpu.buffers import MAX_SLAB_VOXELS, buffer_pool, clear_buffer, read_grid_words, z_slabs
 from ...gpu.sort import SHADERS as SORT_SHADERS, exclusive_scan, sort_pairs
 from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
 from ...gpu.transform import SHADERS as TRANSFORM_SHADERS, transform_vertices
@@ -253,7 +253,8 @@ AXIS_SEGMENT = 16384
 assert AXIS_SEGMENT < LOOP_BUDGET
 
 
-def parity_on_gpu(ctx, mesh, spec, timer, pool, *, axis: int = 0, tag: str = "") -> Parity:
+def parity_on_gpu(ctx, mesh, spec, timer, pool, *, axis: int = 0, tag: str = "",
+                  slabs: list[tuple[int, int]] | None = None, read_slab=None) -> Parity:
     """ss-solid's parity of crossings along grid axis ``axis`` in GPU buffers, nothing
     read back: stages ``transform``, ``voxelize``, ``fill`` (each name + ``tag``).
 
@@ -277,37 +278,66 @@ def parity_on_gpu(ctx, mesh, spec, timer, pool, *, axis: int = 0, tag: str = "")
         Ray direction, as ``reference-solid``'s ``axis``.
     tag : str
         Suffix of the buffer and stage names, so several axes coexist.
+    slabs : list of (k0, nk), optional
+        Along x only: the grid in z slabs (:func:`~glvox.gpu.buffers.z_slabs`).
+        The transform runs once, then each slab's crossings and fill (its rows
+        alone, voxel for voxel those of the whole grid: a row's parity is its
+        own) into the grid buffer, which holds one slab, and
+        ``read_slab(k0, nk, grid)`` takes it before the next.  ``count`` then
+        sums every slab's voxels; ``big`` holds the last slab's list.
 
     Returns
     -------
     Parity
-        ``grid`` holds the uint32 (nz, ny, words_per_row) words of ``spec``;
-        ``count`` and ``rows`` are set along x only.
+        ``grid`` holds the uint32 (nz, ny, words_per_row) words of ``spec`` (with
+        ``slabs``, the last slab's); ``count`` and ``rows`` are set along x only.
     """
     n = mesh.n_triangles
     max_groups = _check_triangles(ctx, n, "ss-solid")
     rspec = rotated_spec(spec, axis)
+    if slabs is not None and axis != 0:
+        raise ValueError("slabs are z slabs of x rows: axis 0 only")
     # one buffer: the voxelize pass flips crossing bits into the cleared
     # grid, the fill pass turns them into voxels in place
-    grid = pool.get("grid" + tag, spec.n_words * 4, what=f"the {spec.dims} bit grid")
+    per_slice = spec.dims[1] * spec.words_per_row * 4
+    slices = spec.dims[2] if slabs is None else max(nk for _, nk in slabs)
+    grid = pool.get("grid" + tag, slices * per_slice, what=f"the {spec.dims} bit grid")
     bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool, axes=rotation(axis), name="vox_vertices" + tag,
                                    stage="transform" + tag)
     big = pool.get("big" + tag, (n + 2) * 4, what="the triangles with several column chunks", clear=False)
     clear_buffer(ctx, big, 8)
     uniforms = grid_uniforms(rspec, bufs.anchor[list(rotation(axis))])
+    slab = {} if slabs is None else {"VOX_SLAB": 1}
     first, rest = (compute_program(ctx, "ss/solid.comp", {"SOLID_CHUNK": COLUMN_CHUNK, "FIRST": f,
-                                                          "FLIP_AXIS": axis}) for f in (1, 0))
+                                                          "FLIP_AXIS": axis, **slab}) for f in (1, 0))
     for prog in (first, rest):
         set_uniforms(prog, {**uniforms, "u_triangles": n})
     count = pool.get("count" + tag, 4)
     args = pool.get("args" + tag, 3 * 4, clear=False)
     faces = voxelize_faces(ctx, mesh, spec, bufs)
-    with timer.stage("voxelize" + tag):
-        chunked_passes(ctx, (first, rest), n, max_groups, {"VoxVerts": vox, "Faces": faces, "Crossings": grid},
-                       big, args, _LOCAL)
+    blocks = {"VoxVerts": vox, "Faces": faces, "Crossings": grid}
     rows = mesh_rows(spec, bufs, 0)
-    with timer.stage("fill" + tag):
-        _fill(ctx, spec, grid, count, rows, axis)
+    if slabs is None:
+        with timer.stage("voxelize" + tag):
+            chunked_passes(ctx, (first, rest), n, max_groups, blocks, big, args, _LOCAL)
+        with timer.stage("fill" + tag):
+            _fill(ctx, spec, grid, count, rows, axis)
+        return Parity(grid, count, big, rows)
+    j0, k0_rows, nj, nk_rows = rows
+    for k0, nk in slabs:
+        if k0:
+            clear_buffer(ctx, grid, nk * per_slice)
+            clear_buffer(ctx, big, 8)
+        for prog in (first, rest):
+            set_uniforms(prog, {"u_slab": (k0, nk)})
+        with timer.stage("voxelize" + tag):
+            chunked_passes(ctx, (first, rest), n, max_groups, blocks, big, args, _LOCAL)
+        # the mesh's rows in this slab, k counted from the slab's first slice
+        lo, hi = max(k0_rows, k0), min(k0_rows + nk_rows, k0 + nk)
+        with timer.stage("fill" + tag):
+            if hi > lo and nj:
+                _fill(ctx, spec, grid, count, (j0, lo - k0, nj, hi - lo), axis)
+        read_slab(k0, nk, grid)
     return Parity(grid, count, big, rows)
 
 
@@ -343,16 +373,34 @@ class SSSolid(Method):
         summary="solid, one compute invocation per triangle, one atomicXor per crossing, then a "
                 "prefix-XOR fill of every row",
         reference="reference-solid",
-        requires=_REQUIRES,
+        requires=_REQUIRES, max_voxels=MAX_SLAB_VOXELS,
     )
 
     def run(self, mesh, spec, *, ctx, timer):
-        p = parity_on_gpu(ctx, mesh, spec, timer, buffer_pool(ctx, self.info.name))
-        with timer.stage("readback", gpu=False):
-            # slices outside the mesh's rows hold nothing: only the others are read
-            words = read_grid_words(p.grid, spec, (p.rows[1], p.rows[3]))
+        pool = buffer_pool(ctx, self.info.name)
+        slabs = z_slabs(ctx, spec)
+        if slabs is None:
+            p = parity_on_gpu(ctx, mesh, spec, timer, pool)
+            with timer.stage("readback", gpu=False):
+                # slices outside the mesh's rows hold nothing: only the others are read
+                words = read_grid_words(p.grid, spec, (p.rows[1], p.rows[3]))
+                voxels = p.read_stats(timer.stats)
+        else:  # over the storage-block limit: slab by slab, each read into its part of the result
+            flat = np.empty(spec.n_words, dtype="<u4")
+            per_slice = spec.dims[1] * spec.words_per_row
+
+            def read_slab(k0, nk, grid):
+                with timer.stage("readback", gpu=False):
+                    part = flat[k0 * per_slice:(k0 + nk) * per_slice]
+                    grid.read_into(part, size=part.nbytes)
+
+            p = parity_on_gpu(ctx, mesh, spec, timer, pool, slabs=slabs, read_slab=read_slab)
             voxels = p.read_stats(timer.stats)
-        return VoxelGrid(words=words, spec=spec, count=voxels)
+            timer.stats["slabs"] = len(slabs)
+            timer.merge_repeats()
+            words = flat.reshape(spec.dims[2], spec.dims[1], spec.words_per_row)
+        # ss/solid_fill.comp counts in a uint32: not where a grid has 2^32 voxels or more
+        return VoxelGrid(words=words, spec=spec, count=voxels if spec.n_voxels < 2**32 else None)
 
 
 @register

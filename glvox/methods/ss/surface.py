@@ -29,7 +29,7 @@ import numpy as np
 
 from ...errors import LimitError
 from ...gl.shaders import compute_program
-from ...gpu.buffers import buffer_pool, clear_buffer, read_grid_words
+from ...gpu.buffers import MAX_SLAB_VOXELS, buffer_pool, clear_buffer, read_grid_words, z_slabs
 from ...gpu.sort import SHADERS as SORT_SHADERS, sort_pairs
 from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
 from ...gpu.transform import SHADERS as TRANSFORM_SHADERS, transform_vertices
@@ -65,12 +65,6 @@ COMPUTE = tuple((f"ss/{name}.comp", {}) for name in ("classify", "dispatch_args"
     + (("ss/surface.comp", {"SS_FIRST": 1}), (BIG_ARGS, {})) + SORT_SHADERS + TRANSFORM_SHADERS
 _REQUIRES = Requirements(gl_version=430, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 7}, compute=COMPUTE)
 
-#: Largest grid of ss-conservative and ss-6sep: their shaders index packed words
-#: (uint32: fewer than 2^32 words, i.e. 2^37 voxels) and a grid over the storage-block
-#: limit is voxelized in z slabs (:func:`z_slabs`), so glvox's dense limit
-#: (glvox.grid.MAX_VOXELS, int32 flat indices) does not bind them; 2^36 voxels
-#: (4096^3, 8 GiB of bits on the host) leaves the word index room.
-MAX_SURFACE_VOXELS = 2**36
 
 #: ``ss-conservative``'s variant ``auto`` (the default) runs ``simple`` where a
 #: grid face has at most 1 / AUTO_SIMPLE_DENSITY voxels per triangle
@@ -123,22 +117,6 @@ def surface_defines(criterion: int, variant: str) -> dict:
             "SS_SLIVER_EPS": SLIVER_EPS, "SS_WORK_BITS": WORK_BITS}
 
 
-def z_slabs(ctx, spec) -> list[tuple[int, int]] | None:
-    """The z slabs ``(k0, nk)`` a packed grid over GL_MAX_SHADER_STORAGE_BLOCK_SIZE is
-    voxelized in (as many whole z slices as the limit holds), or None when it fits.
-    A single z slice over the limit is refused in one line."""
-    limit = int(ctx.limits()["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"])
-    if spec.n_words * 4 <= limit:
-        return None
-    per_slice = spec.dims[1] * spec.words_per_row * 4
-    nk = limit // per_slice
-    if nk == 0:
-        raise LimitError(f"one z slice of the {spec.dims} bit grid needs {per_slice} bytes, over "
-                         f"GL_MAX_SHADER_STORAGE_BLOCK_SIZE {limit} of this context; use a smaller grid in x "
-                         f"and y or the sparse ss-octree")
-    return [(k0, min(nk, spec.dims[2] - k0)) for k0 in range(0, spec.dims[2], nk)]
-
-
 def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int = 0,
                    slabs: list[tuple[int, int]] | None = None, read_slab=None):
     """The S&S surface of ``mesh`` on ``spec`` in a GPU buffer, nothing read back.
@@ -167,7 +145,7 @@ def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int
         0 conservative (26-separating), 1 6-separating.
     variant : {'simple', 'specialized', 'sorted'}
     slabs : list of (k0, nk), optional
-        The grid in z slabs (:func:`z_slabs`): the transform, classify and sort
+        The grid in z slabs (:func:`~glvox.gpu.buffers.z_slabs`): the transform, classify and sort
         run once, then each slab's voxelization (its voxels, voxel for voxel
         those of the whole grid) into the grid buffer, which holds one slab,
         and ``read_slab(k0, nk, grid)`` takes it before the next.
@@ -367,7 +345,7 @@ class SSConservative(_SSSurface):
         paper=f"{_PAPER}, Sec. 3.1-3.2 and 6 (triangle-parallel conservative voxelization)",
         summary="conservative (26-separating) surface, one compute invocation per triangle, atomicOr",
         reference="reference-conservative",
-        requires=_REQUIRES, max_voxels=MAX_SURFACE_VOXELS,
+        requires=_REQUIRES, max_voxels=MAX_SLAB_VOXELS,
         options={"variant": Option("auto", "Table 1's realization; auto: the fastest on this GPU where "
                                            "`glvox calibrate` measured it (stored per renderer in "
                                            "~/.cache/glvox/ss_variants.json), else simple where triangles / "
@@ -393,7 +371,7 @@ class SS6Sep(_SSSurface):
         paper=f"{_PAPER}, Sec. 3.4 (6-separating surface voxelization, dominant-axis columns)",
         summary="6-separating (thin) surface, one compute invocation per triangle, atomicOr",
         reference="reference-6sep",
-        requires=_REQUIRES, max_voxels=MAX_SURFACE_VOXELS,
+        requires=_REQUIRES, max_voxels=MAX_SLAB_VOXELS,
     )
     criterion = 1
 
