@@ -10,7 +10,7 @@ ShapeNet-style solids were made).  ``reference-carve`` is the same on the CPU.
 
 Pipeline, all on the GPU until the final readback:
 
-* ``transform``, ``classify``, ``voxelize``: ss-conservative's surface
+* ``transform``, ``voxelize``: ss-conservative's surface
   (:func:`glvox.methods.ss.surface.surface_on_gpu`, the same passes and
   buffers); the shared transform's plane snap (:func:`glvox.grid.snap_to_planes`)
   puts a face that the default fit lays on the grid's boundary exactly on it, so
