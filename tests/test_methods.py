@@ -67,6 +67,13 @@ def test_dense_results_beyond_int32_voxels_are_refused_before_any_work():
         with pytest.raises(LimitError, match=r"more than the 2147483647 it keeps dense; use a smaller grid, "
                                              r"ss-solid, or the sparse ss-octree$"):
             run_method(name, mesh, spec)
+    # an open mesh: ss-solid takes the grid but has no inside for it, so it is not offered
+    box = load_mesh("gen:box")
+    open_box = load_mesh((box.vertices, box.faces[:-2]))
+    assert not open_box.watertight
+    with pytest.raises(LimitError, match=r"more than the 2147483647 it keeps dense; use a smaller grid or the "
+                                         r"sparse ss-octree$"):
+        run_method("gwn-solid", open_box, glvox.grid_for(open_box, 2048))
     for name in ("reference-conservative", "scanline-ilv"):
         with pytest.raises(LimitError, match=r"more than the 2147483647 it keeps dense; use a smaller grid, "
                                              r"ss-6sep or ss-conservative, or the sparse ss-octree$"):

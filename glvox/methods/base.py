@@ -169,9 +169,11 @@ class Requirements:
         return out
 
 
-def taking_grid(kind: str, n_voxels: int) -> list[str]:
-    """The registered methods of ``kind`` that take a grid of ``n_voxels`` voxels."""
-    return sorted(m.info.name for m in _REGISTRY.values() if m.info.kind == kind and m.info.max_voxels >= n_voxels)
+def taking_grid(kind: str, n_voxels: int, any_mesh: bool = False) -> list[str]:
+    """The registered methods of ``kind`` that take a grid of ``n_voxels`` voxels
+    (with ``any_mesh``, only those that define an inside for an open mesh too)."""
+    return sorted(m.info.name for m in _REGISTRY.values() if m.info.kind == kind and m.info.max_voxels >= n_voxels
+                  and (m.info.any_mesh or not any_mesh))
 
 
 def alternative(info: "MethodInfo", ctx) -> str | None:

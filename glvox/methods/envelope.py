@@ -38,7 +38,9 @@ def check_inputs(info: MethodInfo, meshes: Sequence[Any], spec: GridSpec, allow_
     (a warning when ``allow_open`` lets an open one through; none for a
     method with ``any_mesh``)."""
     if info.kind != "sparse" and spec.n_voxels > info.max_voxels:
-        larger = taking_grid(info.kind, spec.n_voxels)
+        # for an open mesh, only the methods that define an inside for it
+        open_mesh = info.kind in INSIDE_KINDS and not all(m.watertight for m in meshes)
+        larger = taking_grid(info.kind, spec.n_voxels, any_mesh=open_mesh)
         instead = f"use a smaller grid, {' or '.join(larger)}, or" if larger else "use a smaller grid or"
         raise LimitError(
             f"method {info.name!r} returns a dense grid, and {spec.dims} has {spec.n_voxels} voxels, more "
