@@ -13,7 +13,8 @@
 * :func:`read_grid_words`: a packed grid read back into numpy.
 * :func:`clear_buffer`: fill a buffer with a 32-bit word on the GPU.
 * :func:`z_slabs`: the z slabs a packed grid over the storage-block limit is
-  voxelized in, by the methods that take such grids (:data:`MAX_SLAB_VOXELS`).
+  voxelized in, by the methods that take such grids (:data:`MAX_SLAB_VOXELS`),
+  and :func:`slab_reader`, which reads them into one result.
 
 All of it lives in the context's declared ``caches`` dict
 (:class:`glvox.gl.context.GLContext`) and is released with the context.
@@ -244,6 +245,21 @@ def z_slabs(ctx, spec) -> list[tuple[int, int]] | None:
                          f"GL_MAX_SHADER_STORAGE_BLOCK_SIZE {limit} of this context; use a smaller grid in x "
                          f"and y or the sparse ss-octree")
     return [(k0, min(nk, spec.dims[2] - k0)) for k0 in range(0, spec.dims[2], nk)]
+
+
+def slab_reader(spec, timer):
+    """For a grid voxelized in z slabs (:func:`z_slabs`): its packed words, uint32
+    (nz, ny, words_per_row), and ``read_slab(k0, nk, grid)``, which reads a slab's
+    buffer into its slices of them, timed as stage ``readback``."""
+    flat = np.empty(spec.n_words, dtype="<u4")
+    per_slice = spec.dims[1] * spec.words_per_row
+
+    def read_slab(k0: int, nk: int, grid) -> None:
+        with timer.stage("readback", gpu=False):
+            part = flat[k0 * per_slice:(k0 + nk) * per_slice]
+            grid.read_into(part, size=part.nbytes)
+
+    return flat.reshape(spec.dims[2], spec.dims[1], spec.words_per_row), read_slab
 
 
 def read_grid_words(buf, spec, slices: tuple[int, int] | None = None) -> np.ndarray:

@@ -56,7 +56,7 @@ import numpy as np
 
 from ...errors import LimitError
 from ...gl.shaders import compute_program
-from ...gpu.buffers import MAX_SLAB_VOXELS, buffer_pool, clear_buffer, read_grid_words, z_slabs
+from ...gpu.buffers import MAX_SLAB_VOXELS, buffer_pool, clear_buffer, read_grid_words, slab_reader, z_slabs
 from ...gpu.sort import SHADERS as SORT_SHADERS, exclusive_scan, sort_pairs
 from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
 from ...gpu.transform import SHADERS as TRANSFORM_SHADERS, transform_vertices
@@ -386,19 +386,11 @@ class SSSolid(Method):
                 words = read_grid_words(p.grid, spec, (p.rows[1], p.rows[3]))
                 voxels = p.read_stats(timer.stats)
         else:  # over the storage-block limit: slab by slab, each read into its part of the result
-            flat = np.empty(spec.n_words, dtype="<u4")
-            per_slice = spec.dims[1] * spec.words_per_row
-
-            def read_slab(k0, nk, grid):
-                with timer.stage("readback", gpu=False):
-                    part = flat[k0 * per_slice:(k0 + nk) * per_slice]
-                    grid.read_into(part, size=part.nbytes)
-
+            words, read_slab = slab_reader(spec, timer)
             p = parity_on_gpu(ctx, mesh, spec, timer, pool, slabs=slabs, read_slab=read_slab)
             voxels = p.read_stats(timer.stats)
             timer.stats["slabs"] = len(slabs)
             timer.merge_repeats()
-            words = flat.reshape(spec.dims[2], spec.dims[1], spec.words_per_row)
         # ss/solid_fill.comp counts in a uint32: not where a grid has 2^32 voxels or more
         return VoxelGrid(words=words, spec=spec, count=voxels if spec.n_voxels < 2**32 else None)
 

@@ -29,7 +29,7 @@ import numpy as np
 
 from ...errors import LimitError
 from ...gl.shaders import compute_program
-from ...gpu.buffers import MAX_SLAB_VOXELS, buffer_pool, clear_buffer, read_grid_words, z_slabs
+from ...gpu.buffers import MAX_SLAB_VOXELS, buffer_pool, clear_buffer, read_grid_words, slab_reader, z_slabs
 from ...gpu.sort import SHADERS as SORT_SHADERS, sort_pairs
 from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
 from ...gpu.transform import SHADERS as TRANSFORM_SHADERS, transform_vertices
@@ -303,20 +303,12 @@ class _SSSurface(Method):
                 timer.stats["max_chunks"] = int(most) + 1 if listed else 1
             return self._finish(spec, timer, grid, stats)
         # over the storage-block limit: slab by slab, each read into its part of the result
-        words = np.empty(spec.n_words, dtype="<u4")
-        per_slice = spec.dims[1] * spec.words_per_row
-
-        def read_slab(k0, nk, grid):
-            with timer.stage("readback", gpu=False):
-                part = words[k0 * per_slice:(k0 + nk) * per_slice]
-                grid.read_into(part, size=part.nbytes)
-
+        words, read_slab = slab_reader(spec, timer)
         grid, stats = surface_on_gpu(ctx, mesh, spec, timer, pool, criterion=self.criterion, variant=variant,
                                      slabs=slabs, read_slab=read_slab)
         timer.stats["slabs"] = len(slabs)
         timer.merge_repeats()
-        return self._finish_counts(spec, timer, words.reshape(spec.dims[2], spec.dims[1], spec.words_per_row),
-                                   stats)
+        return self._finish_counts(spec, timer, words, stats)
 
     def _case_stats(self, timer, cases) -> None:
         if self.criterion == 0:
