@@ -266,14 +266,20 @@ def test_tree_covers_every_edge_once(shared_mesh):
 
 
 def _check_gwn(mesh, spec, **opts):
-    """gwn-solid against reference-gwn: every mismatch a tie; returns (result, reference, near-surface)."""
+    """gwn-solid against reference-gwn, with the field (the tree at every voxel) and
+    without it (bricks first): every mismatch a tie; returns (result with the field,
+    reference, near-surface)."""
     g = run_method("gwn-solid", mesh, spec, winding=True, **opts)
+    bricks = run_method("gwn-solid", mesh, spec, **opts)
     ref_opts = {k: v for k, v in opts.items() if k in ("threshold", "shell")}
     ref = run_method("reference-gwn", mesh, spec, **ref_opts)
     ties = tie_set("reference-gwn", mesh, spec, **ref_opts)
-    check = check_against_reference(g, mesh, "reference-gwn", reference_grid=ref, ties=ties)
-    assert check.ok, f"{mesh.name} {spec.dims}: {check.describe()}"
-    assert g.count == int(np.bitwise_count(g.words()).sum())
+    for result in (g, bricks):
+        check = check_against_reference(result, mesh, "reference-gwn", reference_grid=ref, ties=ties)
+        assert check.ok, f"{mesh.name} {spec.dims} bricks={result is bricks}: {check.describe()}"
+        assert result.count == int(np.bitwise_count(result.words()).sum())
+    assert g.run.stats["bricks"] == 0
+    assert (bricks.run.stats["bricks"] > 0) == (bricks.run.stats["boundary_edges"] > 0)
     near = solid_ties(mesh.triangles_voxel(spec), spec.dims)
     return g, ref, near
 
@@ -448,3 +454,21 @@ def test_winding_field_round_trips_through_npz(gl_context, tmp_path):
     assert back.fields["winding"].dtype == np.float32
     with pytest.raises(GridError, match=r"field 'winding' must be float32 of shape \(16, 16, 16\)"):
         VoxelGrid(g.dense(), spec, fields={"winding": np.zeros((16, 16, 15), np.float32)})
+
+
+def test_bricks_decide_by_the_gradient_bound(gl_context):
+    """A flat square: its boundary's strips lie in its own plane z = 16, between two
+    layers of bricks (boxes of centers z 8.5 .. 15.5 and 16.5 .. 23.5), so every brick
+    above and below is strip-free and decided by C + F(center) within G |p - p0|.
+    With threshold 0.45 the solid is a layer over the square where w falls from 1/2:
+    its edge lies inside such bricks, and w changes by about 0.1 across a brick there,
+    so a gradient bound a tenth of the true one misplaces voxels."""
+    sq = np.array([[4.0, 4.0, 16.0], [44.0, 4.0, 16.0], [44.0, 44.0, 16.0], [4.0, 44.0, 16.0]])
+    mesh = load_mesh((sq, np.array([[0, 1, 2], [0, 2, 3]])))
+    spec = GridSpec((48, 48, 48), (0.0, 0.0, 0.0), 1.0)
+    g, ref, _ = _check_gwn(mesh, spec, threshold=0.45)
+    bricks = run_method("gwn-solid", mesh, spec, threshold=0.45)
+    assert bricks.equal(ref) and 0 < ref.count < 48 ** 2 * 8
+    # most of the grid was decided by the bricks, not walked voxel by voxel
+    total = 48 * 48 * 2  # rows x segments of 32 voxels
+    assert bricks.run.stats["field_segments"] < 0.5 * total

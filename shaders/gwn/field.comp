@@ -22,6 +22,10 @@
 // set when w >= threshold; a block of 4 voxels with an undecided one is
 // left to gwn/refine.comp, which redoes it exactly (the segment is listed
 // with the mask of such blocks).
+//
+// With BRICKS 1 the invocations take the segments gwn/todo.comp listed (an
+// indirect dispatch), and only their blocks gwn/rows.comp left (the rest are
+// decided and set).
 #include "common/voxel_space.glsl"
 #include "gwn/layout.glsl"
 #include "gwn/strip.glsl"
@@ -35,8 +39,11 @@ layout(std430, binding = 6) readonly buffer Nodes { vec4 nodes[]; };
 layout(std430, binding = 9) readonly buffer Links { ivec4 links[]; };
 layout(std430, binding = 10) readonly buffer Roots { int roots[]; };
 layout(std430, binding = 7) buffer Bits { uint bits[]; };
-layout(std430, binding = 8) buffer Count { uint voxel_count; uint refine_count; };
+layout(std430, binding = 8) buffer Count { uint voxel_count; uint refine_count; uint todo_count; };
 layout(std430, binding = 11) buffer Refine { uint refine_list[]; };
+#if BRICKS
+layout(std430, binding = 2) readonly buffer Todo { uint todo[]; };  // segment id, its blocks left
+#endif
 uniform float u_threshold;
 uniform float u_beta;
 uniform float u_margin;
@@ -51,30 +58,81 @@ uniform ivec2 u_segs;   // s0, ns
 // the walk's stack: a binary tree's depth first walk holds at most one node
 // per level plus one (glvox.methods.gwn.field.TREE_STACK checks the depth)
 const int GWN_STACK = 64;
+#ifndef GWN_AHEAD
+#define GWN_AHEAD 1
+#endif
 
 // The blocks of 4 voxels among `blocks` (bit i: voxels 4 i .. 4 i + 3 of the
-// segment) that are far from the node (c, r) = cr.
-uint far_blocks(vec4 cr, vec2 c, float x0, uint blocks) {
+// segment) at distance >= u_beta r from the node (c, r) = cr, split by where
+// the ball lies: out of reach of their rays towards -x (behind the blocks,
+// or beside the row), or `ahead`: wholly crossed by those rays (the row
+// passes through the ball's (y, z) disk and the block starts past c_x + r).
+uint far_blocks(vec4 cr, vec2 c, float x0, uint blocks, out uint ahead) {
     vec2 d = cr.yz - c;
     float s = dot(d, d);
     float reach = u_beta * cr.w;
     bool beside = s > cr.w * cr.w;
     uint far = 0u;
+    ahead = 0u;
     for (int i = 0; i < GWN_SEGV; ++i) {
         float b0 = x0 + float(4 * i) + 0.5, b1 = b0 + 3.0;
         float dx = max(max(b0 - cr.x, cr.x - b1), 0.0);
-        if (dx * dx + s >= reach * reach && (beside || b1 < cr.x - cr.w)) far |= 1u << i;
+        if (dx * dx + s < reach * reach) continue;
+        if (beside || b1 < cr.x - cr.w) far |= 1u << i;
+        else if (b0 > cr.x + cr.w) ahead |= 1u << i;
     }
+    ahead &= blocks;
     return far & blocks;
+}
+
+// One edge's part of the winding number of a closed polygon's (y, z)
+// projection around c (counterclockwise positive, y right, z up: crossings of
+// the half-line from c towards +y, half-open in z), by the exact edge
+// function of the crossings; `tie` when c lies on the projected edge.
+int edge_winding(vec2 a, vec2 b, vec2 c, inout bool tie) {
+    if ((a.y <= c.y) != (b.y <= c.y)) {
+        double f = gwn_edge(a, b, c);
+        if (f == 0.0lf) tie = true;
+        if (a.y <= c.y) return f > 0.0lf ? 1 : 0;
+        return f < 0.0lf ? -1 : 0;
+    }
+    if (a.y == c.y && b.y == c.y && min(a.x, b.x) <= c.x && c.x <= max(a.x, b.x)) tie = true;
+    return 0;
+}
+
+// The winding number of node n's closed polygons (its edges, a contiguous
+// range, and its chord) projected on (y, z), around the row center c.
+int node_winding(ivec4 lk, ivec4 chord, vec2 c, inout bool tie) {
+    int wn = 0;
+    for (int e = lk.x; e < lk.x + lk.y; ++e) {
+        uvec2 ed = edges[e];
+        wn += edge_winding(vertex(ed.x).yz, vertex(ed.y).yz, c, tie);
+    }
+    if (chord.x >= 0) wn += edge_winding(vertex(uint(chord.x)).yz, vertex(uint(chord.y)).yz, c, tie);
+    return wn;
+}
+
+// Adds `value` to every voxel of the blocks in `blocks`.
+void add_blocks(float value, uint blocks) {
+    for (int i = 0; i < GWN_SEGV; ++i)
+        if ((blocks & (1u << i)) != 0u) seg_f[i] += vec4(value);
 }
 
 void main() {
     uint id = global_index_1d();
     Segment S;
+#if BRICKS
+    if (id >= todo_count) return;
+    uint mask = todo[2u * id + 1u];
+    id = todo[2u * id];
+#endif
     if (!segment_of(id, S)) return;
+#if !BRICKS
+    uint mask = ~0u;
+#endif
     for (int i = 0; i < GWN_SEGV; ++i) { seg_f[i] = vec4(0.0); seg_bnd[i] = vec4(0.0); }
-    // the segment's blocks inside the grid
-    uint all_blocks = (1u << uint(min(GWN_SEGV, (u_dims.x - S.seg * SEG + 3) / 4))) - 1u;
+    // the segment's blocks inside the grid (and left by gwn/rows.comp)
+    uint all_blocks = ((1u << uint(min(GWN_SEGV, (u_dims.x - S.seg * SEG + 3) / 4))) - 1u) & mask;
     ivec2 stack[GWN_STACK];
     for (int r = u_roots.x; r < u_roots.y; ++r) {
         int sp = 0;
@@ -83,14 +141,29 @@ void main() {
             ivec2 top = stack[--sp];
             int n = top.x;
             uint blocks = uint(top.y);
-            vec4 cr = nodes[7 * n];
-            uint far = far_blocks(cr, S.c, S.x0, blocks);
+            vec4 cr = nodes[GWN_NODE_VEC4 * n];
+            uint ahead;
+            uint far = far_blocks(cr, S.c, S.x0, blocks, ahead);
             ivec4 lk = links[2 * n];
+            ivec4 chord = links[2 * n + 1];
+            // blocks ahead of the ball: their rays cross the whole fan P, C_P = -(the
+            // winding number of the node's polygons around the row), so the node
+            // adds w_P + that number minus the chord's strip.  Only when no block
+            // is left near, so that an edge is counted once per walk (the loop
+            // budget's charge, plan_chunks), and not on a row through an edge.
+            if (GWN_AHEAD != 0 && ahead != 0u && (far | ahead) == blocks) {
+                bool tie = false;
+                int wn = node_winding(lk, chord, S.c, tie);
+                if (tie) ahead = 0u;
+                else add_blocks(2.0 * GWN_PI * float(wn), ahead);
+            } else {
+                ahead = 0u;
+            }
+            far |= ahead;
             if (far != 0u) {
                 vec4 rec[7];
-                for (int q = 0; q < 7; ++q) rec[q] = nodes[7 * n + q];
+                for (int q = 0; q < 7; ++q) rec[q] = nodes[GWN_NODE_VEC4 * n + q];
                 add_far(rec, S.c, S.x0, far);
-                ivec4 chord = links[2 * n + 1];
                 if (chord.x >= 0) add_strip(vertex(uint(chord.x)), vertex(uint(chord.y)), S.c, S.x0, -1.0, far);
             }
             uint near = blocks & ~far;

@@ -8,14 +8,30 @@
 // ones), so this pass finishes the job (EDGES 0): bit i of the row's word is
 // set when C >= u_threshold, set voxels are counted, and with WINDING 1 the
 // cells keep w = C as float.  Bits past nx stay zero.
+//
+// With BRICKS 1 (boundary edges, no field asked for) it also decides every
+// voxel of the segments u_segs whose |C + F0 - threshold| exceeds its brick's
+// bound err + G |p - p0| + u_margin (gwn/bricks.comp says why that holds):
+// a block of 4 voxels decided whole gets its bits here; the others keep C in
+// their cells, and Masks gets every segment's mask of such blocks (indexed as
+// gwn/field.comp numbers segments), which gwn/todo.comp lists for
+// gwn/field.comp.
 #include "common/voxel_space.glsl"
 layout(local_size_x = 64) in;
 #include "common/dispatch.glsl"
 #include "gwn/layout.glsl"
 layout(std430, binding = 3) buffer Cells { ivec4 cells[]; };
 layout(std430, binding = 7) buffer Bits { uint bits[]; };
-layout(std430, binding = 8) buffer Count { uint voxel_count; };
+layout(std430, binding = 8) buffer Count { uint voxel_count; uint refine_count; uint todo_count; };
 uniform float u_threshold;
+#if BRICKS
+const float GWN_PI = 3.14159265358979;
+#include "gwn/bricks.glsl"
+layout(std430, binding = 4) readonly buffer Bricks { vec4 bricks[]; };
+layout(std430, binding = 2) writeonly buffer Masks { uint masks[]; };  // per segment: its blocks left
+uniform float u_margin;
+uniform ivec2 u_segs;   // segments s0 .. s0 + ns - 1: the rest is outside (w < threshold)
+#endif
 // the rows visited: j0 .. j0 + nj - 1, k0 .. k0 + nk - 1 (inside the slab);
 // rows without crossings keep C = 0 (cleared cells; their bits stay clear
 // unless 0 >= u_threshold, when the caller passes every row)
@@ -27,9 +43,19 @@ void main() {
     int j = u_rows.x + int(row % uint(u_rows.y)), k = u_rows.z + int(row / uint(u_rows.y));
     uint base = row_base(j, k) / 4u;
     int run = 0;
-#if !EDGES
+#if !EDGES || BRICKS
     uint word = 0u, count = 0u;
     uint wbase = (uint(k) * uint(u_dims.y) + uint(j)) * words_per_row();
+#endif
+#if BRICKS
+    uint todo_mask = 0u;
+    // the row's first brick: its index and center; x moves along the row
+    ivec3 b0 = brick_of(0, j, k);
+    uint brick_row = brick_index(b0);
+    vec3 center = brick_center(b0);
+    vec2 dyz = vec2(j, k) + 0.5 - center.yz;
+    float dyz2 = dot(dyz, dyz);
+    vec4 rec;
 #endif
     for (uint q = 0u; q < row_cells() / 4u; ++q) {
         ivec4 c = cells[base + q];
@@ -38,7 +64,38 @@ void main() {
         c.z += c.y;
         c.w += c.z;
         run = c.w;
-#if EDGES
+#if BRICKS
+        int seg = int(q / 8u);
+        if (seg >= u_segs.x && seg < u_segs.x + u_segs.y) {
+            // the brick of voxel 4 q (GWN_BRICK / 4 blocks per brick along the row)
+            uint bx = q / uint(GWN_BRICK / 4);
+            if (q % uint(GWN_BRICK / 4) == 0u) rec = bricks[brick_row + bx];
+            vec4 dx = vec4(float(4u * q) + 0.5 - center.x) + vec4(0.0, 1.0, 2.0, 3.0) - float(bx * uint(GWN_BRICK));
+            vec4 dist = sqrt(dx * dx + dyz2);
+            vec4 w = vec4(c) + rec.x * (0.5 / GWN_PI);
+            bvec4 near = lessThanEqual(abs(w - u_threshold), rec.y + rec.z * dist + u_margin);
+            if (rec.w != 0.0 || any(near)) {
+                todo_mask |= 1u << (q & 7u);
+                cells[base + q] = c;
+            } else {
+                uint x = 4u * q;
+                uvec4 in4 = uvec4(greaterThanEqual(w, vec4(u_threshold)))
+                            * uvec4(lessThan(uvec4(x) + uvec4(0u, 1u, 2u, 3u), uvec4(u_dims.x)));
+                word |= (in4.x | in4.y << 1u | in4.z << 2u | in4.w << 3u) << (x & 31u);
+            }
+        }
+        if ((q & 7u) == 7u) {
+            if (word != 0u) {
+                bits[wbase + q / 8u] = word;
+                count += uint(bitCount(word));
+                word = 0u;
+            }
+            if (seg >= u_segs.x && seg < u_segs.x + u_segs.y) {
+                masks[uint(seg - u_segs.x) * uint(u_rows.y * u_rows.w) + row] = todo_mask;
+                todo_mask = 0u;
+            }
+        }
+#elif EDGES
         cells[base + q] = c;
 #else
         vec4 w = vec4(c);
@@ -56,7 +113,7 @@ void main() {
         }
 #endif
     }
-#if !EDGES
+#if !EDGES || BRICKS
     if (count != 0u) atomicAdd(voxel_count, count);
 #endif
 }

@@ -11,12 +11,20 @@ et al. 2013) is at least ``threshold``.  The number is ``w = C + F``
 * ``rows`` (``gwn/rows.comp``): prefix sums along each row give ``C``; when
   every half-edge cancels (closed meshes, also nested, overlapping or
   inside-out ones) ``F = 0`` and this pass writes the bits;
+* ``bricks`` (``gwn/bricks.comp``; without ``winding``): per brick of
+  :data:`BRICK`^3 voxels, ``F`` at its center from the tree, that value's
+  error bound and a bound of ``|grad F|`` over the brick (the Biot-Savart
+  integral over the boundary chain, valid where no boundary strip reaches the
+  brick); ``rows`` then decides every voxel whose ``C + F(center)`` is
+  farther from ``threshold`` than those bounds allow, and lists the row
+  segments with blocks of 4 voxels left;
 * ``far`` (``gwn/field.comp``): ``F``, the strips of the boundary chain,
   from its cluster tree (:mod:`.tree`): far clusters by a second-order
   expansion, near ones by exact strips.  The expansion has a proven error
   bound; where ``|C + F - threshold|`` does not exceed it (plus
   :data:`~glvox.tolerances.WINDING_TIE`), the block of 4 voxels is left
-  undecided and its row segment listed with a mask of such blocks;
+  undecided and its row segment listed with a mask of such blocks (with
+  bricks, only over the segments and blocks ``rows`` left);
 * ``refine`` (``gwn/refine.comp``): the listed blocks get the exact sum over
   every boundary edge.
 
@@ -50,7 +58,7 @@ from ...gpu.transform import transform_vertices
 from ...results.voxels import VoxelGrid
 from ...tolerances import WINDING_TIE
 from ..base import Method, MethodInfo, Option, Requirements, register
-from .tree import ClusterTree, boundary_loops, build_tree
+from .tree import NODE_VEC4, ClusterTree, boundary_loops, build_tree
 from ..ss.chunks import chunked_passes
 from ..ss.solid import COMPUTE as SOLID_COMPUTE, COLUMN_CHUNK, mesh_rows
 from ..carve.sweep import surface_slices
@@ -80,6 +88,14 @@ REFINE_EDGES = (LOOP_BUDGET // 2 - 4 * SEGV) // EDGE_COST
 #: this - 1 are refused (the loop grouping is balanced by edge count, so the
 #: depth grows as log2 of the boundary edges: 12 for the 1,280 of the tower).
 TREE_STACK = 64
+
+#: Edge of a brick (voxels): gwn/bricks.comp bounds F over cubes of BRICK^3
+#: voxels.  A brick of 8 needs one tree walk per 512 voxels, and leaves
+#: 2-6% of the voxels of the bunny and the teapot at 256^3 to the per-voxel
+#: walk (4 walks 4 times as many bricks for a few percent fewer voxels;
+#: 16 leaves twice as many).  It divides 4 * SEGV: a block of 4 voxels lies in
+#: one brick.
+BRICK = 8
 
 #: Cells (voxels of padded rows) per slab: the slab buffer takes 4 bytes a
 #: cell, the chunk sums (several tree chunks only) 8.
@@ -183,7 +199,9 @@ class GwnSolid(Method):
                 self._add_shell(ctx, mesh, spec, bits, run.count)
         with timer.stage("readback", gpu=False):
             words = read_grid_words(bits, spec)
-            voxels = int(np.frombuffer(run.count.read(size=4), dtype="<u4")[0])
+            voxels, _, _, left = (int(x) for x in np.frombuffer(run.count.read(size=16), dtype="<u4"))
+        if run.bricks:
+            run.stats["field_segments"] = left  # the segments the bricks left to the tree walk
         timer.stats.update(boundary_edges=loops.n_edges, loops=len(loops.loops), **run.stats)
         return VoxelGrid(words=words, spec=spec, count=voxels, fields={"winding": field} if winding else None)
 
@@ -208,9 +226,11 @@ class _Run:
     def __init__(self, ctx, spec, pool, bufs, vox, bits, tree, timer, threshold, beta, winding):
         self.ctx, self.spec, self.pool, self.bufs, self.vox, self.bits = ctx, spec, pool, bufs, vox, bits
         self.tree, self.timer, self.threshold, self.beta, self.winding = tree, timer, threshold, beta, winding
-        self.count = pool.get("count", 8)
+        self.count = pool.get("count", 16)  # voxels, refine list, todo list (slab), todo total
+        # bricks need the voxels alone: the field asked for is the tree's everywhere
+        self.bricks = tree is not None and not winding
         self.stats = {"slabs": 0, "tree_nodes": tree.n_nodes if tree else 0, "tree_chunks": 0,
-                      "refined_segments": 0, "field_segments": 0}
+                      "bricks": 0, "refined_segments": 0, "field_segments": 0}
         self.uniforms = grid_uniforms(spec, bufs.anchor)
         self.max_groups = int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])
         if tree is not None:
@@ -248,20 +268,31 @@ class _Run:
         common = {**self.uniforms, "u_slab": (s0, s1), "u_threshold": self.threshold}
         self._crossings(n, cells, common)
         j0, k0, nj, nk = rows
-        # rows outside the mesh's projection hold no crossing; all of them
-        # only when C = 0 itself is inside
-        full = self.threshold <= 0.0
-        kk0, kk1 = (s0, s1) if full else (max(s0, k0), min(s1, k0 + nk))
-        box = (0, ny, kk0, max(0, kk1 - kk0)) if full else (j0, nj, kk0, max(0, kk1 - kk0))
+        fbox, segs = self._field_part(s0, s1, rows) if self.tree is not None else (None, None)
+        if self.bricks:
+            box = fbox
+            bricks = self._bricks(common, s0, s1, fbox, segs)
+        else:
+            # rows outside the mesh's projection hold no crossing; all of them
+            # only when C = 0 itself is inside
+            full = self.threshold <= 0.0
+            kk0, kk1 = (s0, s1) if full else (max(s0, k0), min(s1, k0 + nk))
+            box = (0, ny, kk0, max(0, kk1 - kk0)) if full else (j0, nj, kk0, max(0, kk1 - kk0))
         with self.timer.stage("rows"):
             prog = compute_program(ctx, "gwn/rows.comp", {"EDGES": int(self.tree is not None),
-                                                          "WINDING": int(self.winding)})
+                                                          "WINDING": int(self.winding),
+                                                          "BRICKS": int(self.bricks), "GWN_BRICK": BRICK})
             set_uniforms(prog, {**common, "u_rows": box})
-            bind(prog, Cells=cells, Bits=self.bits, Count=self.count)
-            dispatch_1d(ctx, prog, box[1] * box[3], _LOCAL)
+            blocks = {"Cells": cells, "Bits": self.bits, "Count": self.count}
+            if self.bricks:
+                set_uniforms(prog, {"u_segs": segs, "u_margin": WINDING_TIE})
+                blocks.update(Bricks=bricks, Masks=self._masks(box, segs))
+            bind(prog, **blocks)
+            if box[1] * box[3]:
+                dispatch_1d(ctx, prog, box[1] * box[3], _LOCAL)
             barrier(ctx)
         if self.tree is not None:
-            self._field(cells, common, s0, s1, rows)
+            self._field(cells, common, s0, s1, fbox, segs)
         if field is not None:
             with self.timer.stage("readback_field", gpu=False):
                 cells.read_into(field[s0:s1], size=cells_n * 4)
@@ -279,31 +310,94 @@ class _Run:
             chunked_passes(ctx, (first, rest), n, self.max_groups,
                            {"VoxVerts": self.vox, "Faces": self.bufs.faces, "Counts": cells}, big, args, _LOCAL)
 
-    def _field(self, cells, common, s0, s1, rows):
-        ctx, spec, pool, t = self.ctx, self.spec, self.pool, self.gpu_tree
+    def _field_part(self, s0, s1, rows):
+        """The part of the slab the field is evaluated over: rows ``(j0, nj, k0, nk)``
+        and segments ``(s0, ns)``."""
+        spec = self.spec
         ny = spec.dims[1]
-        seg = 4 * SEGV
-        n_segs = -(-spec.dims[0] // seg)
         j0, k0, nj, nk = rows
         if self.winding or self.threshold < 0.5:
             # outside the mesh's box w < 1/2 (strictly, outside its convex hull): skipped
             # only when those voxels are outside anyway and w itself is not asked for
-            box, segs = (0, ny, s0, s1 - s0), (0, n_segs)
-        else:
-            kk0, kk1 = max(s0, k0), min(s1, k0 + nk)
-            box, segs = (j0, nj, kk0, max(0, kk1 - kk0)), _x_range(spec, self.bufs)
+            return (0, ny, s0, s1 - s0), (0, -(-spec.dims[0] // (4 * SEGV)))
+        kk0, kk1 = max(s0, k0), min(s1, k0 + nk)
+        return (j0, nj, kk0, max(0, kk1 - kk0)), _x_range(self.spec, self.bufs)
+
+    def _masks(self, box, segs):
+        """The masks of blocks gwn/rows.comp leaves per segment (every segment written)."""
+        return self.pool.get("masks", box[1] * box[3] * segs[1] * 4, what="blocks left by the bricks",
+                             clear=False)
+
+    def _list_todo(self, box, segs):
+        """gwn/todo.comp and gwn/todo_args.comp: the segments with blocks left, listed,
+        and the indirect dispatch arguments of the field pass over them (a buffer)."""
+        ctx, pool = self.ctx, self.pool
+        n = box[1] * box[3] * segs[1]
+        todo = pool.get("todo", n * 8, what="segments left by the bricks", clear=False)
+        args = pool.get("todo_args", 12, clear=False)
+        clear_buffer(ctx, self.count, 4, offset=8)
+        prog = compute_program(ctx, "gwn/todo.comp")
+        set_uniforms(prog, {"u_items": n})
+        bind(prog, Masks=self._masks(box, segs), Count=self.count, Todo=todo)
+        dispatch_1d(ctx, prog, n, _LOCAL)
+        barrier(ctx)
+        prog = compute_program(ctx, "gwn/todo_args.comp")
+        set_uniforms(prog, {"u_local_size": _LOCAL, "u_max_groups": self.max_groups})
+        bind(prog, Count=self.count, Args=args)
+        prog.run(1, 1, 1)
+        barrier(ctx)
+        return args
+
+    def _bricks(self, common, s0, s1, box, segs):
+        """gwn/bricks.comp over the bricks of the evaluated part; the Bricks buffer."""
+        ctx, spec = self.ctx, self.spec
+        ny = spec.dims[1]
+        per_seg = 4 * SEGV // BRICK
+        nbx = -(-32 * spec.words_per_row // BRICK)
+        nby = -(-ny // BRICK)
+        nbz = -(-(s1 - s0) // BRICK)
+        buf = self.pool.get("bricks", nbx * nby * nbz * 16, what="bricks", clear=False)
+        j0, nj, k0, nk = box
+        first = (segs[0] * per_seg, j0 // BRICK, (k0 - s0) // BRICK)
+        last = ((segs[0] + segs[1]) * per_seg - 1, (j0 + nj - 1) // BRICK, (k0 + nk - 1 - s0) // BRICK)
+        counts = tuple(max(0, b - a + 1) for a, b in zip(first, last))
+        n = counts[0] * counts[1] * counts[2]
+        if not (nj and nk and segs[1]):
+            return buf
+        self.stats["bricks"] += n
+        prog = compute_program(ctx, "gwn/bricks.comp", {"GWN_SEGV": SEGV, "GWN_BRICK": BRICK,
+                                                         "GWN_NODE_VEC4": NODE_VEC4})
+        t = self.gpu_tree
+        bind(prog, VoxVerts=self.vox, Bricks=buf, Edges=t["edges"], Nodes=t["nodes"], Links=t["links"],
+             Roots=t["roots"])
+        with self.timer.stage("bricks"):
+            start = 0
+            for i, chunk in enumerate(self.chunks):
+                set_uniforms(prog, {**common, "u_beta": self.beta, "u_roots": (start, start + len(chunk)),
+                                    "u_first": i == 0, "u_brick0": first, "u_bricks": counts})
+                start += len(chunk)
+                dispatch_1d(ctx, prog, n, _LOCAL)
+                barrier(ctx)
+        return buf
+
+    def _field(self, cells, common, s0, s1, box, segs):
+        ctx, spec, pool = self.ctx, self.spec, self.pool
+        ny = spec.dims[1]
         n_inv = box[1] * box[3] * segs[1]
         if n_inv == 0:
             return
-        self.stats["field_segments"] += n_inv
-        defines = {"GWN_SEGV": SEGV, "WINDING": int(self.winding)}
+        if not self.bricks:
+            self.stats["field_segments"] += n_inv
+        defines = {"GWN_SEGV": SEGV, "WINDING": int(self.winding), "BRICKS": int(self.bricks),
+                   "GWN_NODE_VEC4": NODE_VEC4}
         uni = {**common, "u_rows": box, "u_segs": segs, "u_beta": self.beta, "u_margin": WINDING_TIE}
         acc = None
         if len(self.chunks) > 1:
             acc = pool.get("acc", (s1 - s0) * ny * 32 * spec.words_per_row * 8, what="tree chunk sums",
                            clear=False)
         with self.timer.stage("far"):
-            listed, n_list = self._tree_pass(cells, acc, uni, defines, n_inv)
+            args = self._list_todo(box, segs) if self.bricks else None
+            listed, n_list = self._tree_pass(cells, acc, uni, defines, n_inv, args)
         if n_list == 0:
             return
         self.stats["refined_segments"] += n_list
@@ -311,7 +405,7 @@ class _Run:
         sums = pool.get("sums", n_list * SEGV * 16, what="refinement sums", clear=False) \
             if edges > REFINE_EDGES else None
         with self.timer.stage("refine"):
-            prog = compute_program(ctx, "gwn/refine.comp", defines)
+            prog = compute_program(ctx, "gwn/refine.comp", {"GWN_SEGV": SEGV, "WINDING": int(self.winding)})
             bind(prog, **self._blocks(cells, listed), **({"Sums": sums} if sums is not None else {}))
             for e0 in range(0, edges, REFINE_EDGES):
                 e1 = min(edges, e0 + REFINE_EDGES)
@@ -320,23 +414,28 @@ class _Run:
                 dispatch_1d(ctx, prog, n_list, _LOCAL)
                 barrier(ctx)
 
-    def _tree_pass(self, cells, acc, uni, defines, n):
+    def _tree_pass(self, cells, acc, uni, defines, n, args=None):
         """The walk of the tree (every chunk) over the ``n`` segments of the
-        evaluated part.  Returns the list of segments with undecided blocks
-        (buffer) and its length: the one size read inside the pipeline, which
-        sizes the refinement."""
+        evaluated part, or with bricks over those listed (``args``: the indirect
+        dispatch).  Returns the list of segments with undecided blocks (buffer)
+        and its length: the one size read inside the pipeline, which sizes the
+        refinement."""
         ctx = self.ctx
         out = self.pool.get("refine", n * 8, what="segments left undecided", clear=False)
         prog = compute_program(ctx, "gwn/field.comp", defines)
         t = self.gpu_tree
         bind(prog, **self._blocks(cells, out), Nodes=t["nodes"], Links=t["links"], Roots=t["roots"],
-             **({"Acc": acc} if acc is not None else {}))
+             **({"Acc": acc} if acc is not None else {}), **({"Todo": self.pool.get("todo", 8, clear=False)}
+                                                               if self.bricks else {}))
         start = 0
         for i, chunk in enumerate(self.chunks):
             set_uniforms(prog, {**uni, "u_roots": (start, start + len(chunk)), "u_first": i == 0,
                                 "u_last": i == len(self.chunks) - 1})
             start += len(chunk)
-            dispatch_1d(ctx, prog, n, _LOCAL)
+            if args is None:
+                dispatch_1d(ctx, prog, n, _LOCAL)
+            else:
+                prog.run_indirect(args)
             barrier(ctx)
         n_out = int(np.frombuffer(self.count.read(size=8), dtype="<u4")[1])
         self.count.write(np.zeros(1, "<u4").tobytes(), offset=4)

@@ -50,8 +50,10 @@ import numpy as np
 LEAF_EDGES = 8
 
 #: vec4 records per node: (c, r), (D, tr Q), symmetric Q (6), g = 2a + b (3),
-#: symmetric T (10), padding.
-NODE_VEC4 = 7
+#: symmetric T (10), the fan's unsigned area; then (L, 0, 0, 0), L the total
+#: length of the node's boundary edges (its chord excluded), which bounds the
+#: gradient of their strips (``shaders/gwn/bricks.comp``).
+NODE_VEC4 = 8
 
 #: (voxels) Added to every node radius: the GPU's float32 vertices differ from
 #: the float64 ones used here by far less (2^-24 of coordinates below 2^16).
@@ -149,7 +151,8 @@ class ClusterTree:
         float32 voxel-space positions as its triangles) of each boundary
         edge, in tree order: every node's edges are a contiguous range.
     nodes : (M, NODE_VEC4, 4) float32
-        Per node: center c and radius r (voxels), then the fan's moments.
+        Per node: center c and radius r (voxels), then the fan's moments,
+        then the length of its boundary edges.
     links : (M, 2, 4) int32
         Per node: (first edge, edge count, left child, right child) with
         children -1 for a leaf; (chord start, chord end, 0, 0) vertex indices,
@@ -274,8 +277,10 @@ def _node_records(polys, edges: np.ndarray, edge_loop: np.ndarray, loop_cent: np
     r2 = np.maximum((a * a).sum(axis=1), (b * b).sum(axis=1))
     r = np.sqrt(np.maximum.reduceat(r2, start)) * (1 + 1e-6) + RADIUS_MARGIN
     D, Q, T, area = fan_moments(a, b, apex, start)
+    length = np.add.reduceat(np.where(chord, 0.0, np.linalg.norm(v - u, axis=1)), start)
     for k in range(len(p)):
-        out[k] = pack_moments(c[k], r[k], D[k], Q[k], T[k], area[k])
+        out[k, :7] = pack_moments(c[k], r[k], D[k], Q[k], T[k], area[k])
+        out[k, 7, 0] = length[k] * (1 + 1e-6)  # rounded up: a bound's input
     return out
 
 
@@ -317,8 +322,8 @@ def fan_moments(a: np.ndarray, b: np.ndarray, apex: np.ndarray | None = None,
 
 
 def pack_moments(c, r, D, Q, T, area) -> np.ndarray:
-    """One node record: what the GPU's expansion needs, symmetrized, and the
-    fan's unsigned area last (:func:`far_bound`)."""
+    """One node record's first 7 vec4: what the GPU's expansion needs,
+    symmetrized, and the fan's unsigned area last (:func:`far_bound`)."""
     Qs = 0.5 * (Q + Q.T)
     g = 2.0 * np.einsum("iki->k", T) + np.einsum("jji->i", T)
     S = (T + T.transpose(0, 2, 1) + T.transpose(1, 0, 2) + T.transpose(1, 2, 0) + T.transpose(2, 0, 1)
@@ -327,7 +332,7 @@ def pack_moments(c, r, D, Q, T, area) -> np.ndarray:
            Qs[0, 0], Qs[1, 1], Qs[2, 2], Qs[0, 1], Qs[0, 2], Qs[1, 2], g[0], g[1],
            g[2], S[0, 0, 0], S[1, 1, 1], S[2, 2, 2], S[0, 0, 1], S[0, 0, 2], S[0, 1, 1], S[0, 2, 2],
            S[1, 1, 2], S[1, 2, 2], S[0, 1, 2], area]
-    return np.asarray(rec, dtype=np.float64).reshape(NODE_VEC4, 4)
+    return np.asarray(rec, dtype=np.float64).reshape(7, 4)
 
 
 def far_field(rec: np.ndarray, p: np.ndarray) -> np.ndarray:

@@ -1,0 +1,131 @@
+#version 450
+// gwn-solid, pass 2 (before the row sums): F, its error and a bound of its
+// gradient per brick (gwn/bricks.glsl), so that gwn/rows.comp decides most
+// voxels from C and the brick's F, and gwn/field.comp walks the tree only for
+// the blocks left.
+//
+// Why it holds.  F sums the strips that the boundary edges sweep along +x.
+// Off those strips F is smooth, and its gradient is the Biot-Savart integral
+// over the boundary chain (a strip's boundary is its edge, two rays along +x
+// and an edge at infinity; at every vertex of the chain as many edges start
+// as end, so the rays cancel): |grad F(p)| <= 1 / (4 pi) sum over edges of
+// the integral of |dl| / |x - p|^2.  Where no strip reaches the brick's box
+// of voxel centers (convex), the segment from p0 to any voxel center p of it
+// crosses none, so |F(p) - F(p0)| <= G |p - p0| with G that sum's bound over
+// the box: a node of length L whose ball (c, r) is at distance d from the box
+// adds L / (4 pi (d - r)^2), a near edge of length l at distance g at least
+// min(l / g^2, 4 / g) / (4 pi) (|x - p| >= max(g, |s|) along the edge's line,
+// s from the foot of the perpendicular: the integral of 1 / max(g, |s|)^2 over
+// all s is 4 / g).
+// C(p) is exact (the row sums), so w(p) = C(p) + F(p) lies within
+// err + G |p - p0| of C(p) + F(p0).
+//
+// One invocation per brick of the evaluated part (u_brick0 .. + u_bricks),
+// walking the tree's roots u_roots (a chunk; glvox.methods.gwn.field.plan_chunks):
+// a node whose ball no strip-reach touches and that lies at distance
+// >= u_beta r from the box adds its expansion at p0 (and its error bound),
+// minus its chord's strip, and L / (d - r)^2 to G; a near leaf's edges add
+// their exact strips at p0, or mark the brick when a strip can reach it; a near
+// inner node is replaced by its children.  Chunks after the first add to the
+// brick's record.
+#include "common/voxel_space.glsl"
+#include "gwn/layout.glsl"
+#include "gwn/strip.glsl"
+#include "gwn/bricks.glsl"
+layout(local_size_x = 64) in;
+#include "common/dispatch.glsl"
+layout(std430, binding = 1) readonly buffer VoxVerts { float vox[]; };
+layout(std430, binding = 4) buffer Bricks { vec4 bricks[]; };
+layout(std430, binding = 5) readonly buffer Edges { uvec2 edges[]; };
+layout(std430, binding = 6) readonly buffer Nodes { vec4 nodes[]; };
+layout(std430, binding = 9) readonly buffer Links { ivec4 links[]; };
+layout(std430, binding = 10) readonly buffer Roots { int roots[]; };
+uniform float u_beta;
+uniform ivec2 u_roots;
+uniform bool u_first;
+uniform ivec3 u_brick0;   // first brick of the evaluated part (x, y, z in the slab)
+uniform ivec3 u_bricks;   // bricks of it per axis
+
+const int GWN_STACK = 64;
+
+vec3 vertex(uint i) { return vec3(vox[3u * i], vox[3u * i + 1u], vox[3u * i + 2u]); }
+
+// Distance from p to the box [lo, hi].
+float box_distance(vec3 p, vec3 lo, vec3 hi) { return length(max(max(lo - p, p - hi), vec3(0.0))); }
+
+// Whether the strip swept along +x from a point of the ball (c, r) can meet
+// the box: the ball's (y, z) disk meets the box's (y, z) rectangle and part
+// of the ball lies at x <= the box's last x.
+bool ball_reaches(vec3 c, float r, vec3 lo, vec3 hi) {
+    vec2 d = max(max(lo.yz - c.yz, c.yz - hi.yz), vec2(0.0));
+    return dot(d, d) <= r * r && c.x - r <= hi.x;
+}
+
+// The same for the strip of the edge u -> v, by its bounding box.
+bool edge_reaches(vec3 u, vec3 v, vec3 lo, vec3 hi) {
+    vec3 a = min(u, v), b = max(u, v);
+    return a.x <= hi.x && all(lessThanEqual(a.yz, hi.yz)) && all(greaterThanEqual(b.yz, lo.yz));
+}
+
+// A lower bound of the distance from the edge u -> v (of length len) to the
+// box: the larger of its bounding ball's and its bounding box's distances.
+float edge_gap(vec3 u, vec3 v, float len, vec3 lo, vec3 hi) {
+    vec3 sep = max(max(lo - max(u, v), min(u, v) - hi), vec3(0.0));
+    return max(box_distance(0.5 * (u + v), lo, hi) - 0.5 * len, length(sep));
+}
+
+void main() {
+    uint id = global_index_1d();
+    uint nxy = uint(u_bricks.x * u_bricks.y);
+    if (id >= nxy * uint(u_bricks.z)) return;
+    ivec3 b = u_brick0 + ivec3(int(id % uint(u_bricks.x)), int((id % nxy) / uint(u_bricks.x)), int(id / nxy));
+    vec3 lo = brick_low(b), hi = lo + float(GWN_BRICK - 1), p0 = brick_center(b);
+    float f = 0.0, err = 0.0, grad = 0.0;
+    bool open = false;  // a strip can reach the box
+    int stack[GWN_STACK];
+    for (int r = u_roots.x; r < u_roots.y && !open; ++r) {
+        int sp = 0;
+        stack[sp++] = roots[r];
+        while (sp > 0) {
+            int n = stack[--sp];
+            vec4 cr = nodes[GWN_NODE_VEC4 * n];
+            float d = box_distance(cr.xyz, lo, hi);
+            ivec4 lk = links[2 * n];
+            if (!ball_reaches(cr.xyz, cr.w, lo, hi) && d >= u_beta * cr.w) {
+                vec4 rec[7];
+                for (int q = 0; q < 7; ++q) rec[q] = nodes[GWN_NODE_VEC4 * n + q];
+                vec2 fb = far_at(rec, p0);
+                f += fb.x;
+                err += fb.y;
+                ivec4 chord = links[2 * n + 1];
+                if (chord.x >= 0) f -= strip_at(vertex(uint(chord.x)), vertex(uint(chord.y)), p0);
+                float gap = d - cr.w;
+                grad += nodes[GWN_NODE_VEC4 * n + 7].x / (gap * gap);
+                continue;
+            }
+            if (lk.z < 0) {
+                for (int e = lk.x; e < lk.x + lk.y; ++e) {
+                    uvec2 ed = edges[e];
+                    vec3 u = vertex(ed.x), v = vertex(ed.y);
+                    float len = length(v - u);
+                    float gap = edge_gap(u, v, len, lo, hi);
+                    if (edge_reaches(u, v, lo, hi) || !(gap > 0.0)) { open = true; break; }
+                    f += strip_at(u, v, p0);
+                    grad += min(len / (gap * gap), 4.0 / gap);
+                }
+                if (open) break;
+            } else {
+                stack[sp++] = lk.w;
+                stack[sp++] = lk.z;
+            }
+        }
+    }
+    // G in turns per voxel, rounded up a little (float32 sums of a bound)
+    vec4 rec = vec4(f, err, grad * (1.0001 * 0.25 / GWN_PI), open ? 1.0 : 0.0);
+    uint at = brick_index(b);
+    if (!u_first) {
+        vec4 prev = bricks[at];
+        rec = vec4(rec.xyz + prev.xyz, max(rec.w, prev.w));
+    }
+    bricks[at] = rec;
+}
