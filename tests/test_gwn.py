@@ -279,7 +279,8 @@ def _check_gwn(mesh, spec, **opts):
         assert check.ok, f"{mesh.name} {spec.dims} bricks={result is bricks}: {check.describe()}"
         assert result.count == int(np.bitwise_count(result.words()).sum())
     assert g.run.stats["bricks"] == 0
-    assert (bricks.run.stats["bricks"] > 0) == (bricks.run.stats["boundary_edges"] > 0)
+    stats = bricks.run.stats
+    assert (stats["bricks"] > 0) == (stats["boundary_edges"] > 0 and stats["strip_free"] >= gwn.BRICKS_MIN_FREE)
     near = solid_ties(mesh.triangles_voxel(spec), spec.dims)
     return g, ref, near
 
@@ -472,3 +473,20 @@ def test_bricks_decide_by_the_gradient_bound(gl_context):
     # most of the grid was decided by the bricks, not walked voxel by voxel
     total = 48 * 48 * 2  # rows x segments of 32 voxels
     assert bricks.run.stats["field_segments"] < 0.5 * total
+    # the strips cover the brick columns y 0 .. 5 (y 4 .. 44) at z 2 (z 16): 6 of 36
+    assert bricks.run.stats["strip_free"] == pytest.approx(30 / 36, abs=1e-3)
+
+
+def test_bricks_skipped_where_strips_cover_the_columns(gl_context, shared_mesh):
+    """The gyroid's boundary loops lie on all six faces of its box: at 64^3 their strips
+    can enter three quarters of the brick columns, so gwn-solid walks every voxel
+    (bricks would only add passes); the bunny's holes leave nine tenths free."""
+    rows = {}
+    for name in ("depth_gyroid_tpms_sheet.stl", "stanford_bunny_bun_zipper.ply"):
+        mesh = load_mesh(shared_mesh(name))
+        stats = run_method("gwn-solid", mesh, glvox.grid_for(mesh, 64)).run.stats
+        rows[name] = (stats["strip_free"], stats["bricks"])
+    free, bricks = rows["depth_gyroid_tpms_sheet.stl"]
+    assert free < gwn.BRICKS_MIN_FREE and bricks == 0
+    free, bricks = rows["stanford_bunny_bun_zipper.ply"]
+    assert free > 0.85 and bricks > 0

@@ -41,23 +41,24 @@ float vertex_angle(vec2 e, float x_sign) {
 }
 
 // A strip's set-up at row center c = (y, z): what its value at the voxels of
-// the row needs, computed once per row (strip_eval evaluates it).
+// the row needs, computed once per row (strip_eval evaluates it).  Not for an
+// edge parallel to x (strip_empty), which sweeps a strip of no area.
 struct Strip {
-    bool empty;           // an edge parallel to x sweeps a strip of no area
     float ra2, rb2, ab;   // (y, z) distances of the end points, their dot
     float num, nudge;     // the edge function; its sign where that is 0
     float va, vb;         // the limits through an end point (vertex_angle)
 };
 
+bool strip_empty(vec3 u, vec3 v) { return u.yz == v.yz; }
+
 Strip strip_setup(vec3 u, vec3 v, vec2 c) {
     Strip s;
     vec2 e = v.yz - u.yz;
-    s.empty = e == vec2(0.0);
     vec2 a = u.yz - c, b = v.yz - c;
     s.ra2 = dot(a, a);
     s.rb2 = dot(b, b);
     s.ab = dot(a, b);
-    s.num = s.empty ? 0.0 : float(gwn_edge(u.yz, v.yz, c));
+    s.num = float(gwn_edge(u.yz, v.yz, c));
     // where the edge function is 0, its sign at the center nudged as the
     // top-left rule nudges it (+y, then -z)
     s.nudge = e.y != 0.0 ? -sign(e.y) : -sign(e.x);
@@ -67,9 +68,8 @@ Strip strip_setup(vec3 u, vec3 v, vec2 c) {
 }
 
 // Half the solid angle of the strip of u -> v at the x centers xs of the row
-// strip_setup was given (0 for an empty strip).
+// strip_setup was given.
 vec4 strip_eval(Strip s, vec3 u, vec3 v, vec4 xs) {
-    if (s.empty) return vec4(0.0);
     vec4 dxa = u.x - xs, dxb = v.x - xs;
     vec4 den = plus_x(dxa, s.ra2) * plus_x(dxb, s.rb2) + s.ab;
     vec4 h = s.num != 0.0 ? atan(vec4(s.num), den) : mix(vec4(0.0), vec4(s.nudge * GWN_PI), lessThan(den, vec4(0.0)));
@@ -82,8 +82,8 @@ vec4 strip_eval(Strip s, vec3 u, vec3 v, vec4 xs) {
 // segment's blocks of 4 voxels in `blocks` (bit i: voxels 4 i .. 4 i + 3);
 // row center c = (y, z).
 void add_strip(vec3 u, vec3 v, vec2 c, float x0, float weight, uint blocks) {
+    if (strip_empty(u, v)) return;
     Strip s = strip_setup(u, v, c);
-    if (s.empty) return;
     for (int i = 0; i < GWN_SEGV; ++i) {
         if ((blocks & (1u << i)) == 0u) continue;
         vec4 xs = vec4(x0 + 0.5) + vec4(4 * i, 4 * i + 1, 4 * i + 2, 4 * i + 3);
@@ -93,7 +93,7 @@ void add_strip(vec3 u, vec3 v, vec2 c, float x0, float weight, uint blocks) {
 
 // Half the solid angle of the strip of u -> v at the point p.
 float strip_at(vec3 u, vec3 v, vec3 p) {
-    return strip_eval(strip_setup(u, v, p.yz), u, v, vec4(p.x)).x;
+    return strip_empty(u, v) ? 0.0 : strip_eval(strip_setup(u, v, p.yz), u, v, vec4(p.x)).x;
 }
 
 // Adds the far-field expansion of a node (gwn_tree.pack_moments: n[0] = (c, r),
