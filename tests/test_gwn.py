@@ -490,3 +490,17 @@ def test_bricks_skipped_where_strips_cover_the_columns(gl_context, shared_mesh):
     assert free < gwn.BRICKS_MIN_FREE and bricks == 0
     free, bricks = rows["stanford_bunny_bun_zipper.ply"]
     assert free > 0.85 and bricks > 0
+
+
+def test_bricks_behind_the_holes_take_the_mirrored_split(gl_context, shared_mesh):
+    """Behind the bunny's holes along +x the boundary's strips cross bricks, where
+    F jumps; there F + T (strips swept along -x, T the row's total crossings from
+    the boundary chain) is smooth and decides blocks too, up to ties as always."""
+    mesh = load_mesh(shared_mesh("stanford_bunny_bun_zipper.ply"))
+    spec = glvox.grid_for(mesh, 64)
+    g = run_method("gwn-solid", mesh, spec)
+    assert g.run.stats["split_blocks"] > 0
+    ref = run_method("reference-gwn", mesh, spec)
+    check = check_against_reference(g, mesh, "reference-gwn", reference_grid=ref,
+                                    ties=tie_set("reference-gwn", mesh, spec))
+    assert check.ok, check.describe()

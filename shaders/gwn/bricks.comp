@@ -20,14 +20,28 @@
 // C(p) is exact (the row sums), so w(p) = C(p) + F(p) lies within
 // err + G |p - p0| of C(p) + F(p0).
 //
+// Behind the boundary along +x, strips cross the brick ("shadows").  There
+// the mirrored split holds instead: F- = F + T sums the strips swept along
+// -x, where T is the row's total signed crossings, -(the winding number of
+// the boundary chain's (y, z) projection around the row); F- is smooth off
+// its own strips, with the same gradient (T is constant between them), and
+// w = (C - T) + F-.  A brick that only +x strips reach gets F-(p0) =
+// F(p0) - wn(p0), where wn(p0) sums the chain's edges' crossings (a far
+// node's edges: the winding number of its polygons around p0, 0 when its
+// disk misses p0, minus its chord's part).  gwn/rows.comp applies T at the
+// row's end.
+//
 // One invocation per brick of the evaluated part (u_brick0 .. + u_bricks),
 // walking the tree's roots u_roots (a chunk; glvox.methods.gwn.field.plan_chunks):
-// a node whose ball no strip-reach touches and that lies at distance
+// a node whose ball no +x strip carries into the box and that lies at distance
 // >= u_beta r from the box adds its expansion at p0 (and its error bound),
 // minus its chord's strip, and L / (d - r)^2 to G; a near leaf's edges add
 // their exact strips at p0, or mark the brick when a strip can reach it; a near
-// inner node is replaced by its children.  Chunks after the first add to the
-// brick's record.
+// inner node is replaced by its children.  The record (gwn/bricks.glsl) takes
+// the +x split where no +x strip reaches the box, else the -x split where no
+// -x strip does, else marks the brick.  With several chunks the sums so far
+// live in the second vec4 of each brick's pair (F, err, G, wn) and the first
+// holds the flags until the last chunk writes the record.
 #include "common/voxel_space.glsl"
 #include "gwn/layout.glsl"
 #include "gwn/strip.glsl"
@@ -42,13 +56,15 @@ layout(std430, binding = 9) readonly buffer Links { ivec4 links[]; };
 layout(std430, binding = 10) readonly buffer Roots { int roots[]; };
 uniform float u_beta;
 uniform ivec2 u_roots;
-uniform bool u_first;
+uniform bool u_first, u_last;
 uniform ivec3 u_brick0;   // first brick of the evaluated part (x, y, z in the slab)
 uniform ivec3 u_bricks;   // bricks of it per axis
 
 const int GWN_STACK = 64;
 
 vec3 vertex(uint i) { return vec3(vox[3u * i], vox[3u * i + 1u], vox[3u * i + 2u]); }
+
+#include "gwn/winding2d.glsl"
 
 // Distance from p to the box [lo, hi].
 float box_distance(vec3 p, vec3 lo, vec3 hi) { return length(max(max(lo - p, p - hi), vec3(0.0))); }
@@ -61,10 +77,22 @@ bool ball_reaches(vec3 c, float r, vec3 lo, vec3 hi) {
     return dot(d, d) <= r * r && c.x - r <= hi.x;
 }
 
-// The same for the strip of the edge u -> v, by its bounding box.
+// The same for the strips swept along -x: part of the ball at x >= the box's first x.
+bool ball_reaches_minus(vec3 c, float r, vec3 lo, vec3 hi) {
+    vec2 d = max(max(lo.yz - c.yz, c.yz - hi.yz), vec2(0.0));
+    return dot(d, d) <= r * r && c.x + r >= lo.x;
+}
+
+// The same for the strip of the edge u -> v, by its bounding box (along +x,
+// and along -x).
 bool edge_reaches(vec3 u, vec3 v, vec3 lo, vec3 hi) {
     vec3 a = min(u, v), b = max(u, v);
     return a.x <= hi.x && all(lessThanEqual(a.yz, hi.yz)) && all(greaterThanEqual(b.yz, lo.yz));
+}
+
+bool edge_reaches_minus(vec3 u, vec3 v, vec3 lo, vec3 hi) {
+    vec3 a = min(u, v), b = max(u, v);
+    return b.x >= lo.x && all(lessThanEqual(a.yz, hi.yz)) && all(greaterThanEqual(b.yz, lo.yz));
 }
 
 // A lower bound of the distance from the edge u -> v (of length len) to the
@@ -80,10 +108,19 @@ void main() {
     if (id >= nxy * uint(u_bricks.z)) return;
     ivec3 b = u_brick0 + ivec3(int(id % uint(u_bricks.x)), int((id % nxy) / uint(u_bricks.x)), int(id / nxy));
     vec3 lo = brick_low(b), hi = lo + float(GWN_BRICK - 1), p0 = brick_center(b);
+    uint at = 2u * brick_index(b);
     float f = 0.0, err = 0.0, grad = 0.0;
-    bool open = false;  // a strip can reach the box
+    int wn = 0;  // the boundary chain's (y, z) winding number around p0
+    // +x strips reach the box, -x strips do, p0 lies on a projected edge
+    bool plus = false, minus = false, tie = false;
+    if (!u_first) {
+        vec4 flags = bricks[at];
+        plus = flags.x != 0.0;
+        minus = flags.y != 0.0;
+        tie = flags.z != 0.0;
+    }
     int stack[GWN_STACK];
-    for (int r = u_roots.x; r < u_roots.y && !open; ++r) {
+    for (int r = u_roots.x; r < u_roots.y && !(plus && (minus || tie)); ++r) {
         int sp = 0;
         stack[sp++] = roots[r];
         while (sp > 0) {
@@ -91,14 +128,28 @@ void main() {
             vec4 cr = nodes[GWN_NODE_VEC4 * n];
             float d = box_distance(cr.xyz, lo, hi);
             ivec4 lk = links[2 * n];
-            if (!ball_reaches(cr.xyz, cr.w, lo, hi) && d >= u_beta * cr.w) {
+            ivec4 chord = links[2 * n + 1];
+            bool rp = ball_reaches(cr.xyz, cr.w, lo, hi), rm = ball_reaches_minus(cr.xyz, cr.w, lo, hi);
+            // far: out of reach of the +x strips (a ball that +x strips carry into
+            // the box is walked down to its edges, whose boxes may well miss it)
+            if (d >= u_beta * cr.w && !rp) {
                 vec4 rec[7];
                 for (int q = 0; q < 7; ++q) rec[q] = nodes[GWN_NODE_VEC4 * n + q];
                 vec2 fb = far_at(rec, p0);
                 f += fb.x;
                 err += fb.y;
-                ivec4 chord = links[2 * n + 1];
-                if (chord.x >= 0) f -= strip_at(vertex(uint(chord.x)), vertex(uint(chord.y)), p0);
+                minus = minus || rm;
+                vec2 cd = cr.yz - p0.yz;
+                // the node's polygons around p0 (0 when p0 lies outside their
+                // disk), for wn while the -x split is still possible
+                int wq = !minus && dot(cd, cd) <= cr.w * cr.w ? node_winding(lk, chord, p0.yz, tie) : 0;
+                int wc = 0;
+                if (chord.x >= 0) {
+                    vec3 cu = vertex(uint(chord.x)), cv = vertex(uint(chord.y));
+                    f -= strip_at(cu, cv, p0);
+                    wc = edge_winding(cu.yz, cv.yz, p0.yz, tie);
+                }
+                wn += wq - wc;
                 float gap = d - cr.w;
                 grad += nodes[GWN_NODE_VEC4 * n + 7].x / (gap * gap);
                 continue;
@@ -109,23 +160,38 @@ void main() {
                     vec3 u = vertex(ed.x), v = vertex(ed.y);
                     float len = length(v - u);
                     float gap = edge_gap(u, v, len, lo, hi);
-                    if (edge_reaches(u, v, lo, hi) || !(gap > 0.0)) { open = true; break; }
+                    plus = plus || edge_reaches(u, v, lo, hi);
+                    minus = minus || edge_reaches_minus(u, v, lo, hi);
+                    if (!(gap > 0.0)) plus = minus = true;
+                    if (plus && minus) break;
                     f += strip_at(u, v, p0);
+                    wn += edge_winding(u.yz, v.yz, p0.yz, tie);
                     grad += min(len / (gap * gap), 4.0 / gap);
                 }
-                if (open) break;
+                if (plus && (minus || tie)) break;
             } else {
                 stack[sp++] = lk.w;
                 stack[sp++] = lk.z;
             }
         }
     }
-    // G in turns per voxel, rounded up a little (float32 sums of a bound)
-    vec4 rec = vec4(f, err, grad * (1.0001 * 0.25 / GWN_PI), open ? 1.0 : 0.0);
-    uint at = brick_index(b);
     if (!u_first) {
-        vec4 prev = bricks[at];
-        rec = vec4(rec.xyz + prev.xyz, max(rec.w, prev.w));
+        vec4 sums = bricks[at + 1u];
+        f += sums.x;
+        err += sums.y;
+        grad += sums.z;
+        wn += int(sums.w);
     }
+    if (!u_last) {
+        bricks[at] = vec4(plus, minus, tie, 0.0);
+        bricks[at + 1u] = vec4(f, err, grad, float(wn));
+        return;
+    }
+    // G in turns per voxel, rounded up a little (float32 sums of a bound)
+    grad *= 1.0001 * 0.25 / GWN_PI;
+    // the +x split needs no winding number; the -x split does, off a tie
+    vec4 rec = vec4(0.0, 0.0, 0.0, 1.0);  // strips reach the box either way
+    if (!plus) rec = vec4(f, err, grad, 0.0);
+    else if (!minus && !tie) rec = vec4(f - 2.0 * GWN_PI * float(wn), err, grad, 2.0);
     bricks[at] = rec;
 }

@@ -1,11 +1,15 @@
 // gwn-solid's bricks: cubes of GWN_BRICK^3 voxels of the slab (aligned to the
 // grid and to the slab's first slice u_slab.x; GWN_BRICK divides 4 GWN_SEGV,
-// so a block of 4 voxels lies in one brick), one vec4 each in Bricks:
-//   x: F at the brick's center p0, half solid angles (as gwn/strip.glsl sums),
+// so a block of 4 voxels lies in one brick), a pair of vec4 each in Bricks,
+// the record first (the second holds gwn/bricks.comp's sums between chunks):
+//   x: F at the brick's center p0 (w: 0) or F- = F + T (w: 2), half solid
+//      angles (as gwn/strip.glsl sums),
 //   y: the error bound of x (turns),
 //   z: G, a bound of |grad F| over the brick's box of voxel centers (turns
-//      per voxel), so |F(p) - F(p0)| <= G |p - p0| there,
-//   w: 1 where no such bound holds (a boundary edge's strip reaches the box).
+//      per voxel), so |F(p) - F(p0)| <= G |p - p0| there (F- alike),
+//   w: 0: w(p) = C(p) + F(p); 2: w(p) = C(p) - T + F-(p), T the row's total
+//      crossings; 1: no such bound holds (boundary strips reach the box
+//      along +x and along -x).
 // gwn/bricks.comp writes them, gwn/rows.comp decides voxels with them.
 
 // The brick of voxel (i, j, k), k inside the slab, and its index in Bricks

@@ -54,6 +54,7 @@ uniform bool u_first, u_last;
 uniform ivec4 u_rows;   // j0, nj, k0, nk
 uniform ivec2 u_segs;   // s0, ns
 #include "gwn/segment.glsl"
+#include "gwn/winding2d.glsl"
 
 // the walk's stack: a binary tree's depth first walk holds at most one node
 // per level plus one (glvox.methods.gwn.field.TREE_STACK checks the depth)
@@ -83,33 +84,6 @@ uint far_blocks(vec4 cr, vec2 c, float x0, uint blocks, out uint ahead) {
     }
     ahead &= blocks;
     return far & blocks;
-}
-
-// One edge's part of the winding number of a closed polygon's (y, z)
-// projection around c (counterclockwise positive, y right, z up: crossings of
-// the half-line from c towards +y, half-open in z), by the exact edge
-// function of the crossings; `tie` when c lies on the projected edge.
-int edge_winding(vec2 a, vec2 b, vec2 c, inout bool tie) {
-    if ((a.y <= c.y) != (b.y <= c.y)) {
-        double f = gwn_edge(a, b, c);
-        if (f == 0.0lf) tie = true;
-        if (a.y <= c.y) return f > 0.0lf ? 1 : 0;
-        return f < 0.0lf ? -1 : 0;
-    }
-    if (a.y == c.y && b.y == c.y && min(a.x, b.x) <= c.x && c.x <= max(a.x, b.x)) tie = true;
-    return 0;
-}
-
-// The winding number of node n's closed polygons (its edges, a contiguous
-// range, and its chord) projected on (y, z), around the row center c.
-int node_winding(ivec4 lk, ivec4 chord, vec2 c, inout bool tie) {
-    int wn = 0;
-    for (int e = lk.x; e < lk.x + lk.y; ++e) {
-        uvec2 ed = edges[e];
-        wn += edge_winding(vertex(ed.x).yz, vertex(ed.y).yz, c, tie);
-    }
-    if (chord.x >= 0) wn += edge_winding(vertex(uint(chord.x)).yz, vertex(uint(chord.y)).yz, c, tie);
-    return wn;
 }
 
 // Adds `value` to every voxel of the blocks in `blocks`.

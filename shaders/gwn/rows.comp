@@ -11,7 +11,9 @@
 //
 // With BRICKS 1 (boundary edges, no field asked for) it also decides every
 // voxel of the segments u_segs whose |C + F0 - threshold| exceeds its brick's
-// bound err + G |p - p0| + u_margin (gwn/bricks.comp says why that holds):
+// bound err + G |p - p0| + u_margin (gwn/bricks.comp says why that holds;
+// in bricks of the -x split C - T + F0, after the row, T the row's total
+// crossings from the boundary chain):
 // a block of 4 voxels decided whole gets its bits here; the others keep C in
 // their cells, and Masks gets every segment's mask of such blocks (indexed as
 // gwn/field.comp numbers segments), which gwn/todo.comp lists for
@@ -22,13 +24,23 @@ layout(local_size_x = 64) in;
 #include "gwn/layout.glsl"
 layout(std430, binding = 3) buffer Cells { ivec4 cells[]; };
 layout(std430, binding = 7) buffer Bits { uint bits[]; };
-layout(std430, binding = 8) buffer Count { uint voxel_count; uint refine_count; uint todo_count; };
+layout(std430, binding = 8) buffer Count {
+    uint voxel_count; uint refine_count; uint todo_count; uint todo_total;
+    uint split_blocks;  // blocks decided by the -x split (run.stats)
+};
 uniform float u_threshold;
 #if BRICKS
-const float GWN_PI = 3.14159265358979;
+#include "gwn/strip.glsl"
 #include "gwn/bricks.glsl"
 layout(std430, binding = 4) readonly buffer Bricks { vec4 bricks[]; };
-layout(std430, binding = 2) writeonly buffer Masks { uint masks[]; };  // per segment: its blocks left
+layout(std430, binding = 2) buffer Masks { uint masks[]; };  // per segment: its blocks left
+layout(std430, binding = 1) readonly buffer VoxVerts { float vox[]; };
+layout(std430, binding = 5) readonly buffer Edges { uvec2 edges[]; };
+layout(std430, binding = 6) readonly buffer Nodes { vec4 nodes[]; };
+layout(std430, binding = 9) readonly buffer Links { ivec4 links[]; };
+vec3 vertex(uint i) { return vec3(vox[3u * i], vox[3u * i + 1u], vox[3u * i + 2u]); }
+#define GWN_CHAIN_WINDING 1
+#include "gwn/winding2d.glsl"
 uniform float u_margin;
 uniform ivec2 u_segs;   // segments s0 .. s0 + ns - 1: the rest is outside (w < threshold)
 #endif
@@ -56,6 +68,7 @@ void main() {
     vec2 dyz = vec2(j, k) + 0.5 - center.yz;
     float dyz2 = dot(dyz, dyz);
     vec4 rec;
+    bool later = false;
 #endif
     for (uint q = 0u; q < row_cells() / 4u; ++q) {
         ivec4 c = cells[base + q];
@@ -69,14 +82,16 @@ void main() {
         if (seg >= u_segs.x && seg < u_segs.x + u_segs.y) {
             // the brick of voxel 4 q (GWN_BRICK / 4 blocks per brick along the row)
             uint bx = q / uint(GWN_BRICK / 4);
-            if (q % uint(GWN_BRICK / 4) == 0u) rec = bricks[brick_row + bx];
+            if (q % uint(GWN_BRICK / 4) == 0u) rec = bricks[2u * (brick_row + bx)];
             vec4 dx = vec4(float(4u * q) + 0.5 - center.x) + vec4(0.0, 1.0, 2.0, 3.0) - float(bx * uint(GWN_BRICK));
             vec4 dist = sqrt(dx * dx + dyz2);
             vec4 w = vec4(c) + rec.x * (0.5 / GWN_PI);
             bvec4 near = lessThanEqual(abs(w - u_threshold), rec.y + rec.z * dist + u_margin);
             if (rec.w != 0.0 || any(near)) {
+                // undecided, or -x split: decided after the row, when T is known
                 todo_mask |= 1u << (q & 7u);
                 cells[base + q] = c;
+                later = later || rec.w == 2.0;
             } else {
                 uint x = 4u * q;
                 uvec4 in4 = uvec4(greaterThanEqual(w, vec4(u_threshold)))
@@ -113,6 +128,43 @@ void main() {
         }
 #endif
     }
+#if BRICKS
+    // the blocks of -x split bricks: w = (C - T) + F-, T = the row's total crossings
+    // (T from the boundary chain: the row sums miss crossings past the grid;
+    // a row through a projected boundary edge or vertex leaves them undecided)
+    bool tie = false;
+    int total = later ? -chain_winding(vec2(j, k) + 0.5, tie) : 0;
+    uint split = 0u;
+    if (later && !tie) {
+        for (int seg = u_segs.x; seg < u_segs.x + u_segs.y; ++seg) {
+            uint at = uint(seg - u_segs.x) * uint(u_rows.y * u_rows.w) + row;
+            uint left = masks[at], add = 0u;
+            for (uint i = 0u; i < 8u; ++i) {
+                uint q = uint(seg) * 8u + i;
+                if ((left & (1u << i)) == 0u) continue;
+                uint bx = q / uint(GWN_BRICK / 4);
+                vec4 r = bricks[2u * (brick_row + bx)];
+                if (r.w != 2.0) continue;
+                vec4 dx = vec4(float(4u * q) + 0.5 - center.x) + vec4(0.0, 1.0, 2.0, 3.0) - float(bx * uint(GWN_BRICK));
+                vec4 dist = sqrt(dx * dx + dyz2);
+                vec4 w = vec4(cells[base + q] - total) + r.x * (0.5 / GWN_PI);
+                if (any(lessThanEqual(abs(w - u_threshold), r.y + r.z * dist + u_margin))) continue;
+                uint x = 4u * q;
+                uvec4 in4 = uvec4(greaterThanEqual(w, vec4(u_threshold)))
+                            * uvec4(lessThan(uvec4(x) + uvec4(0u, 1u, 2u, 3u), uvec4(u_dims.x)));
+                add |= (in4.x | in4.y << 1u | in4.z << 2u | in4.w << 3u) << (x & 31u);
+                left &= ~(1u << i);
+                ++split;
+            }
+            if (add != 0u) {
+                bits[wbase + uint(seg)] |= add;
+                count += uint(bitCount(add));
+            }
+            masks[at] = left;
+        }
+        if (split != 0u) atomicAdd(split_blocks, split);
+    }
+#endif
 #if !EDGES || BRICKS
     if (count != 0u) atomicAdd(voxel_count, count);
 #endif

@@ -236,9 +236,10 @@ class GwnSolid(Method):
                 self._add_shell(ctx, mesh, spec, bits, run.count)
         with timer.stage("readback", gpu=False):
             words = read_grid_words(bits, spec)
-            voxels, _, _, left = (int(x) for x in np.frombuffer(run.count.read(size=16), dtype="<u4"))
+            voxels, _, _, left, split = (int(x) for x in np.frombuffer(run.count.read(size=20), dtype="<u4"))
         if run.bricks:
             run.stats["field_segments"] = left  # the segments the bricks left to the tree walk
+            run.stats["split_blocks"] = split  # blocks of 4 voxels the -x split decided
         timer.stats.update(boundary_edges=loops.n_edges, loops=len(loops.loops), **run.stats)
         return VoxelGrid(words=words, spec=spec, count=voxels, fields={"winding": field} if winding else None)
 
@@ -263,7 +264,8 @@ class _Run:
     def __init__(self, ctx, spec, pool, bufs, vox, bits, tree, timer, threshold, beta, winding):
         self.ctx, self.spec, self.pool, self.bufs, self.vox, self.bits = ctx, spec, pool, bufs, vox, bits
         self.tree, self.timer, self.threshold, self.beta, self.winding = tree, timer, threshold, beta, winding
-        self.count = pool.get("count", 16)  # voxels, refine list, todo list (slab), todo total
+        # voxels, refine list, todo list (slab), todo total, blocks of the -x split
+        self.count = pool.get("count", 20)
         # bricks need the voxels alone: the field asked for is the tree's everywhere
         self.bricks = tree is not None and not winding
         self.stats = {"slabs": 0, "tree_nodes": tree.n_nodes if tree else 0, "tree_chunks": 0,
@@ -318,12 +320,15 @@ class _Run:
         with self.timer.stage("rows"):
             prog = compute_program(ctx, "gwn/rows.comp", {"EDGES": int(self.tree is not None),
                                                           "WINDING": int(self.winding),
-                                                          "BRICKS": int(self.bricks), "GWN_BRICK": BRICK})
+                                                          "BRICKS": int(self.bricks), "GWN_BRICK": BRICK,
+                                                          "GWN_NODE_VEC4": NODE_VEC4, "GWN_SEGV": SEGV})
             set_uniforms(prog, {**common, "u_rows": box})
             blocks = {"Cells": cells, "Bits": self.bits, "Count": self.count}
             if self.bricks:
                 set_uniforms(prog, {"u_segs": segs, "u_margin": WINDING_TIE})
-                blocks.update(Bricks=bricks, Masks=self._masks(box, segs))
+                t = self.gpu_tree
+                blocks.update(Bricks=bricks, Masks=self._masks(box, segs), VoxVerts=self.vox, Edges=t["edges"],
+                              Nodes=t["nodes"], Links=t["links"])
             bind(prog, **blocks)
             if box[1] * box[3]:
                 dispatch_1d(ctx, prog, box[1] * box[3], _LOCAL)
@@ -399,7 +404,7 @@ class _Run:
         nbx = -(-32 * spec.words_per_row // BRICK)
         nby = -(-ny // BRICK)
         nbz = -(-(s1 - s0) // BRICK)
-        buf = self.pool.get("bricks", nbx * nby * nbz * 16, what="bricks", clear=False)
+        buf = self.pool.get("bricks", nbx * nby * nbz * 32, what="bricks", clear=False)
         j0, nj, k0, nk = box
         first = (segs[0] * per_seg, j0 // BRICK, (k0 - s0) // BRICK)
         last = ((segs[0] + segs[1]) * per_seg - 1, (j0 + nj - 1) // BRICK, (k0 + nk - 1 - s0) // BRICK)
@@ -417,7 +422,8 @@ class _Run:
             start = 0
             for i, chunk in enumerate(self.chunks):
                 set_uniforms(prog, {**common, "u_beta": self.beta, "u_roots": (start, start + len(chunk)),
-                                    "u_first": i == 0, "u_brick0": first, "u_bricks": counts})
+                                    "u_first": i == 0, "u_last": i == len(self.chunks) - 1,
+                                    "u_brick0": first, "u_bricks": counts})
                 start += len(chunk)
                 dispatch_1d(ctx, prog, n, _LOCAL)
                 barrier(ctx)
