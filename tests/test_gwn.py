@@ -33,6 +33,16 @@ from glvox.reference.winding import boundary_edges, crossing_counts, winding, wi
 from glvox.results.base import read_npz
 from glvox.results.voxels import VoxelGrid
 
+#: The default grid-size floor of the bricks (the tests' grids are small, so
+#: they lower it to 0 to check the bricks on every case; one test checks the floor).
+DEFAULT_BRICKS_MIN_VOXELS = gwn.BRICKS_MIN_VOXELS
+
+
+@pytest.fixture(autouse=True)
+def _bricks_on_small_grids(monkeypatch):
+    monkeypatch.setattr(gwn, "BRICKS_MIN_VOXELS", 0)
+
+
 CLOSED = [n for n in SHARED_MESHES if n.startswith(("cad_", "stanford_armadillo", "depth_reduced"))]
 OPEN = [n for n in SHARED_MESHES if n not in CLOSED]
 
@@ -490,6 +500,20 @@ def test_bricks_skipped_where_strips_cover_the_columns(gl_context, shared_mesh):
     assert free < gwn.BRICKS_MIN_FREE and bricks == 0
     free, bricks = rows["stanford_bunny_bun_zipper.ply"]
     assert free > 0.85 and bricks > 0
+
+
+def test_bricks_only_from_a_million_voxels(gl_context, shared_mesh, monkeypatch):
+    """With the default floor, the bunny's 64^3 grid (its box: about 2^18 voxels) runs
+    the walk alone and its 128^3 grid (about 2^21) the bricks, with the same voxels
+    as bricks on every grid."""
+    monkeypatch.setattr(gwn, "BRICKS_MIN_VOXELS", DEFAULT_BRICKS_MIN_VOXELS)
+    mesh = load_mesh(shared_mesh("stanford_bunny_bun_zipper.ply"))
+    small = run_method("gwn-solid", mesh, glvox.grid_for(mesh, 64))
+    large = run_method("gwn-solid", mesh, glvox.grid_for(mesh, 128))
+    assert small.run.stats["bricks"] == 0 and large.run.stats["bricks"] > 0
+    monkeypatch.setattr(gwn, "BRICKS_MIN_VOXELS", 0)
+    forced = run_method("gwn-solid", mesh, glvox.grid_for(mesh, 64))
+    assert forced.run.stats["bricks"] > 0 and forced.equal(small)
 
 
 def test_bricks_behind_the_holes_take_the_mirrored_split(gl_context, shared_mesh):

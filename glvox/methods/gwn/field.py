@@ -107,6 +107,14 @@ BRICK = 8
 #: the call 1.3-5x faster.
 BRICKS_MIN_FREE = 0.5
 
+#: Nor below this many voxels in the part the field is evaluated over: at
+#: 64^3 (2^18 voxels of a fitted grid) the bricks decided the same share but
+#: their three extra passes cost as much as they saved (0.98-1.16 against
+#: the walk alone on the bunny, the teapot, the tower and the wall, llvmpipe,
+#: `glvox bench -m gwn-solid --against` the previous head); from 128^3 on
+#: (about 2^21) they paid on all four (0.66-0.80).
+BRICKS_MIN_VOXELS = 2**20
+
 #: Cells (voxels of padded rows) per slab: the slab buffer takes 4 bytes a
 #: cell, the chunk sums (several tree chunks only) 8.
 SLAB_CELLS = 1 << 24
@@ -227,8 +235,9 @@ class GwnSolid(Method):
                              f"({loops.n_edges} boundary edges) is {tree.depth} deep")
         run = _Run(ctx, spec, pool, bufs, vox, bits, tree, timer, float(threshold), float(accuracy), bool(winding))
         if run.bricks:
-            free = strip_free_share(tree, vox64, run.field_rows())
-            run.bricks = free >= BRICKS_MIN_FREE
+            rows = run.field_rows()
+            free = strip_free_share(tree, vox64, rows)
+            run.bricks = free >= BRICKS_MIN_FREE and run.field_voxels(rows) >= BRICKS_MIN_VOXELS
             run.stats["strip_free"] = round(free, 3)
         field = run.all_slabs(mesh.n_triangles)
         if shell:
@@ -357,6 +366,13 @@ class _Run:
         j0, k0, nj, nk = mesh_rows(self.spec, self.bufs)
         box, _ = self._field_part(0, self.spec.dims[2], (j0, k0, nj, nk))
         return box
+
+    def field_voxels(self, rows: tuple[int, int, int, int]) -> int:
+        """Voxels of the part the field is evaluated over, for its ``rows``."""
+        _, nj, _, nk = rows
+        segs = (0, -(-self.spec.dims[0] // (4 * SEGV))) if self.winding or self.threshold < 0.5 \
+            else _x_range(self.spec, self.bufs)
+        return nj * nk * segs[1] * 4 * SEGV
 
     def _field_part(self, s0, s1, rows):
         """The part of the slab the field is evaluated over: rows ``(j0, nj, k0, nk)``
