@@ -59,9 +59,6 @@ uniform ivec2 u_segs;   // s0, ns
 // the walk's stack: a binary tree's depth first walk holds at most one node
 // per level plus one (glvox.methods.gwn.field.TREE_STACK checks the depth)
 const int GWN_STACK = 64;
-#ifndef GWN_AHEAD
-#define GWN_AHEAD 1
-#endif
 
 // The blocks of 4 voxels among `blocks` (bit i: voxels 4 i .. 4 i + 3 of the
 // segment) at distance >= u_beta r from the node (c, r) = cr, split by where
@@ -125,7 +122,7 @@ void main() {
             // adds w_P + that number minus the chord's strip.  Only when no block
             // is left near, so that an edge is counted once per walk (the loop
             // budget's charge, plan_chunks), and not on a row through an edge.
-            if (GWN_AHEAD != 0 && ahead != 0u && (far | ahead) == blocks) {
+            if (ahead != 0u && (far | ahead) == blocks) {
                 bool tie = false;
                 int wn = node_winding(lk, chord, S.c, tie);
                 if (tie) ahead = 0u;
