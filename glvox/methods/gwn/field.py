@@ -235,9 +235,9 @@ class GwnSolid(Method):
                              f"({loops.n_edges} boundary edges) is {tree.depth} deep")
         run = _Run(ctx, spec, pool, bufs, vox, bits, tree, timer, float(threshold), float(accuracy), bool(winding))
         if run.bricks:
-            rows = run.field_rows()
+            rows, segs = run.field_part()
             free = strip_free_share(tree, vox64, rows)
-            run.bricks = free >= BRICKS_MIN_FREE and run.field_voxels(rows) >= BRICKS_MIN_VOXELS
+            run.bricks = free >= BRICKS_MIN_FREE and rows[1] * rows[3] * segs[1] * 4 * SEGV >= BRICKS_MIN_VOXELS
             run.stats["strip_free"] = round(free, 3)
         field = run.all_slabs(mesh.n_triangles)
         if shell:
@@ -361,18 +361,11 @@ class _Run:
             chunked_passes(ctx, (first, rest), n, self.max_groups,
                            {"VoxVerts": self.vox, "Faces": self.bufs.faces, "Counts": cells}, big, args, _LOCAL)
 
-    def field_rows(self) -> tuple[int, int, int, int]:
-        """Rows and slices ``(j0, nj, k0, nk)`` the field is evaluated over, whole grid."""
+    def field_part(self):
+        """Rows and slices ``(j0, nj, k0, nk)`` and segments ``(s0, ns)`` the field is
+        evaluated over, in the whole grid."""
         j0, k0, nj, nk = mesh_rows(self.spec, self.bufs)
-        box, _ = self._field_part(0, self.spec.dims[2], (j0, k0, nj, nk))
-        return box
-
-    def field_voxels(self, rows: tuple[int, int, int, int]) -> int:
-        """Voxels of the part the field is evaluated over, for its ``rows``."""
-        _, nj, _, nk = rows
-        segs = (0, -(-self.spec.dims[0] // (4 * SEGV))) if self.winding or self.threshold < 0.5 \
-            else _x_range(self.spec, self.bufs)
-        return nj * nk * segs[1] * 4 * SEGV
+        return self._field_part(0, self.spec.dims[2], (j0, k0, nj, nk))
 
     def _field_part(self, s0, s1, rows):
         """The part of the slab the field is evaluated over: rows ``(j0, nj, k0, nk)``
