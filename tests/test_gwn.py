@@ -528,3 +528,15 @@ def test_bricks_behind_the_holes_take_the_mirrored_split(gl_context, shared_mesh
     check = check_against_reference(g, mesh, "reference-gwn", reference_grid=ref,
                                     ties=tie_set("reference-gwn", mesh, spec))
     assert check.ok, check.describe()
+
+
+def test_the_split_needs_the_tree_within_the_loop_budget(gl_context, shared_mesh, monkeypatch):
+    """T walks the whole boundary tree in one invocation of the row pass; a tree over
+    half the loop budget leaves those blocks to the walk, with the same voxels."""
+    mesh = load_mesh(shared_mesh("stanford_bunny_bun_zipper.ply"))
+    spec = glvox.grid_for(mesh, 64)
+    split = run_method("gwn-solid", mesh, spec)
+    monkeypatch.setattr(gwn, "LOOP_BUDGET", 2 * 223)  # the bunny's 223 boundary edges alone
+    walked = run_method("gwn-solid", mesh, spec)
+    assert split.run.stats["split_blocks"] > 0 and walked.run.stats["split_blocks"] == 0
+    assert walked.equal(split)

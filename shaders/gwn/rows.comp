@@ -91,7 +91,7 @@ void main() {
                 // undecided, or -x split: decided after the row, when T is known
                 todo_mask |= 1u << (q & 7u);
                 cells[base + q] = c;
-                later = later || rec.w == 2.0;
+                later = later || (GWN_SPLIT != 0 && rec.w == 2.0);
             } else {
                 uint x = 4u * q;
                 uvec4 in4 = uvec4(greaterThanEqual(w, vec4(u_threshold)))
@@ -131,7 +131,9 @@ void main() {
 #if BRICKS
     // the blocks of -x split bricks: w = (C - T) + F-, T = the row's total crossings
     // (T from the boundary chain: the row sums miss crossings past the grid;
-    // a row through a projected boundary edge or vertex leaves them undecided)
+    // a row through a projected boundary edge or vertex leaves them undecided.
+    // chain_winding walks the whole tree in one invocation: GWN_SPLIT is 0,
+    // and those blocks go to the walk, when the tree is over the loop budget)
     bool tie = false;
     int total = later ? -chain_winding(vec2(j, k) + 0.5, tie) : 0;
     uint split = 0u;

@@ -277,6 +277,9 @@ class _Run:
         self.count = pool.get("count", 20)
         # bricks need the voxels alone: the field asked for is the tree's everywhere
         self.bricks = tree is not None and not winding
+        # the mirrored split's T (gwn/rows.comp, chain_winding) walks the whole tree
+        # in one invocation: only within half the loop budget
+        self.split = tree is not None and tree.n_nodes * 4 + len(tree.edges) <= LOOP_BUDGET // 2
         self.stats = {"slabs": 0, "tree_nodes": tree.n_nodes if tree else 0, "tree_chunks": 0,
                       "bricks": 0, "refined_segments": 0, "field_segments": 0}
         self.uniforms = grid_uniforms(spec, bufs.anchor)
@@ -330,7 +333,8 @@ class _Run:
             prog = compute_program(ctx, "gwn/rows.comp", {"EDGES": int(self.tree is not None),
                                                           "WINDING": int(self.winding),
                                                           "BRICKS": int(self.bricks), "GWN_BRICK": BRICK,
-                                                          "GWN_NODE_VEC4": NODE_VEC4, "GWN_SEGV": SEGV})
+                                                          "GWN_NODE_VEC4": NODE_VEC4, "GWN_SEGV": SEGV,
+                                                          "GWN_SPLIT": int(self.split)})
             set_uniforms(prog, {**common, "u_rows": box})
             blocks = {"Cells": cells, "Bits": self.bits, "Count": self.count}
             if self.bricks:
