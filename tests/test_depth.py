@@ -30,8 +30,9 @@ from glvox.methods.depth import layers as depth_layers
 from glvox.methods.depth import raster as depth_raster
 from glvox.metrics import check_against_reference, tie_set
 from glvox.reference import mismatch_is_tie, solid
-from glvox.reference._candidates import column_candidates, normals
-from glvox.reference.solid import _edge_function
+from glvox.reference._candidates import normals
+from glvox.reference.solid import axis_signs
+from glvox.reference.solid import column_crossings as reference_crossings
 
 WATERTIGHT = ("cad_fandisk.off", "cad_featuretype.stl", "cad_rocker_arm.obj", "cad_wingnut.obj",
               "depth_reduced_diamond_lattice.stl", "stanford_armadillo_libigl_86k.obj")
@@ -50,29 +51,13 @@ def column_crossings(tris, dims, axis):
     depth, voxels, float64), ``cls`` (sign of the normal along the axis),
     ``tri`` (triangle index).
     """
-    u, v = (axis + 1) % 3, (axis + 2) % 3
     n = normals(tris)
-    keep = np.nonzero(n[:, axis] != 0.0)[0]
-    t, n = tris[keep], n[keep]
-    sgn = np.where(n[:, axis] > 0.0, 1.0, -1.0)
-    e = np.roll(t, -1, axis=1) - t
-    neu = -e[:, :, v] * sgn[:, None]
-    nev = e[:, :, u] * sgn[:, None]
-    top_left = (neu > 0.0) | ((neu == 0.0) & (nev < 0.0))
-    uv = t[:, :, [u, v]]
-    lo, hi = t[:, :, axis].min(axis=1), t[:, :, axis].max(axis=1)
+    signs = axis_signs(tris, n, axis)
+    keep = np.flatnonzero(signs != 0)
     out = {k: [] for k in ("ju", "jv", "q", "cls", "tri")}
-    for tri, ju, jv in column_candidates(t, dims, axis):
-        pu, pv = ju + 0.5, jv + 0.5
-        inside = np.ones(len(tri), bool)
-        for i in range(3):
-            f = _edge_function(pu, pv, uv[tri, i], uv[tri, (i + 1) % 3]) * sgn[tri]
-            inside &= (f > 0.0) | ((f == 0.0) & top_left[tri, i])
-        tri, ju, jv, pu, pv = tri[inside], ju[inside], jv[inside], pu[inside], pv[inside]
-        nt, v0 = n[tri], t[tri, 0]
-        q = v0[:, axis] + (nt[:, u] * (v0[:, u] - pu) + nt[:, v] * (v0[:, v] - pv)) / nt[:, axis]
-        for k, val in (("ju", ju), ("jv", jv), ("q", np.clip(q, lo[tri], hi[tri])),
-                       ("cls", sgn[tri]), ("tri", keep[tri])):
+    for tri, ju, jv, q in reference_crossings(tris[keep], n[keep], dims, axis):
+        for k, val in (("ju", ju), ("jv", jv), ("q", q), ("cls", signs[keep][tri].astype(np.float64)),
+                       ("tri", keep[tri])):
             out[k].append(val)
     return {k: (np.concatenate(vals) if vals else np.zeros(0)) for k, vals in out.items()}
 

@@ -48,10 +48,12 @@ def check_tris(tris: np.ndarray) -> np.ndarray:
     return arr
 
 
-def check_eps(eps: float) -> float:
-    """A tie tolerance in voxels: 0 < eps < 0.5, else ValueError."""
-    if not 0.0 < eps < 0.5:
+def check_eps(eps: float, below_half: bool = True) -> float:
+    """A tie tolerance in voxels: 0 < eps < 0.5 (any eps > 0 without ``below_half``), else ValueError."""
+    if below_half and not 0.0 < eps < 0.5:
         raise ValueError(f"eps must be in (0, 0.5) voxel, got {eps!r}")
+    if not eps > 0.0:
+        raise ValueError(f"eps must be a positive length in voxels, got {eps!r}")
     return float(eps)
 
 

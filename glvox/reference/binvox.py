@@ -25,7 +25,7 @@ import numpy as np
 
 from ..tolerances import SNAP_EPS
 from ._candidates import check_dims, check_tris, normals
-from .solid import column_crossings
+from .solid import axis_signs, column_crossings
 
 
 def fine_snap_eps(down: int) -> float:
@@ -42,7 +42,7 @@ MODES = ("default", "carve", "vote")
 def axis_crossings(tris: np.ndarray, dims: tuple[int, int, int], axis: int):
     """(ju, jv, q): every crossing of the column center lines along ``axis``."""
     n = normals(tris)
-    keep = n[:, axis] != 0.0
+    keep = axis_signs(tris, n, axis) != 0
     parts = list(column_crossings(tris[keep], n[keep], dims, axis))
     if not parts:
         z = np.zeros(0, np.int64)

@@ -15,7 +15,7 @@ from ..tolerances import TIE_EPS
 from ._candidates import (check_dims, check_eps, check_tris, column_candidates, lex_greater, normals,
                           segment_distance)
 from .binvox import axis_crossings, fine_snap_eps, view_to_grid
-from .solid import column_crossings
+from .solid import axis_signs, column_crossings
 from .ties import _check_unsnapped, flat_axes, float32_motion, snap_ambiguous
 
 
@@ -228,7 +228,7 @@ def _binvox_column_ties(tris: np.ndarray, flat: np.ndarray, dims: tuple[int, int
                 tie[np.flatnonzero(both)] |= slot_differs | depth_tie(t1, q1) | depth_tie(t2, q2)
         out[ju[tie], jv[tie]] = True
     # depth: crossings near a rounding boundary of their slot (or holder)
-    keep = np.flatnonzero(na != 0.0)
+    keep = np.flatnonzero(axis_signs(tris, n, axis) != 0)
     for tri, ju, jv, q in column_crossings(tris[keep], n[keep], dims, axis):
         near = depth_tie(keep[tri], q)
         out[ju[near], jv[near]] = True

@@ -31,7 +31,7 @@ import numpy as np
 from ..grid import ldi_axes
 from ._candidates import (check_axis, check_dims, check_eps, check_tris, expand, index_range, normals,
                           segment_distance)
-from .solid import column_crossings
+from .solid import axis_signs, column_crossings
 from .ties import TIE_EPS
 
 
@@ -103,7 +103,7 @@ def crossings(tris: np.ndarray, dims: Sequence[int], axis: int = 2) -> RayCrossi
     p_ax, q_ax = ldi_axes(axis)
     n_pix = dims[p_ax] * dims[q_ax]
     n = normals(tris)
-    keep = n[:, axis] != 0.0
+    keep = axis_signs(tris, n, axis) != 0
     tris, n = tris[keep], n[keep]
     slope_t = np.linalg.norm(n, axis=1) / np.abs(n[:, axis]) if len(tris) else np.zeros(0)
 

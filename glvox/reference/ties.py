@@ -392,7 +392,9 @@ def solid_ties(tris: np.ndarray, dims: Sequence[int], eps: float = TIE_EPS,
     dims : (3,) int
         Grid size ``(nx, ny, nz)``.
     eps : float
-        Largest motion of the mesh, in voxels; 0 < eps < 0.5.
+        Largest motion of the mesh, in voxels, > 0.  The distance argument above
+        holds for any motion, so a band of half a voxel or more (a method's
+        documented rounding of a whole sample cell, say) is a valid request.
     unsnapped : (T, 3, 3) float64, optional
         The same triangles before the snap.
 
@@ -402,7 +404,7 @@ def solid_ties(tris: np.ndarray, dims: Sequence[int], eps: float = TIE_EPS,
     """
     tris = check_tris(tris)
     dims = check_dims(dims)
-    check_eps(eps)
+    check_eps(eps, below_half=False)
     out = _near_surface(tris, dims, eps)
     if unsnapped is not None:
         some = snap_ambiguous(_check_unsnapped(unsnapped, tris), dims).any(axis=(1, 2))

@@ -54,7 +54,7 @@ import numpy as np
 
 from ..tolerances import TIE_EPS, WINDING_TIE
 from ._candidates import check_dims, check_tris, normals
-from .solid import first_flips
+from .solid import axis_signs, first_flips
 from .ties import solid_ties
 
 #: Voxels per slab of :func:`strip_field`: each temporary of a slab is 8 bytes a voxel.
@@ -126,9 +126,10 @@ def crossing_counts(tris: np.ndarray, dims: Sequence[int]) -> np.ndarray:
     tris = check_tris(tris)
     dims = check_dims(dims)
     n = normals(tris)
-    keep = np.flatnonzero(n[:, 0] != 0.0)
+    signs = axis_signs(tris, n, 0)
+    keep = np.flatnonzero(signs != 0)
     hits, tri = first_flips(tris[keep], n[keep], dims, 0)
-    sign = -np.sign(n[keep][tri, 0])
+    sign = -signs[keep][tri].astype(np.float64)
     steps = np.bincount(hits, weights=sign, minlength=int(np.prod(dims)))
     return np.cumsum(np.rint(steps).reshape(dims), axis=0, dtype=np.int64).astype(np.int32)
 
