@@ -31,7 +31,7 @@ from glvox.methods.ss import solid_tuning as ss_solid_tuning
 from glvox.methods.ss.surface import AUTO_SIMPLE_DENSITY, default_variant
 from glvox.metrics import check_against_reference, separation_leaks, tie_set
 from glvox.reference._candidates import column_candidates, normals
-from glvox.reference.solid import _edge_function
+from glvox.reference.solid import axis_signs, column_crossings
 
 
 # ---------------------------------------------------------------------------
@@ -500,25 +500,19 @@ def test_anisotropic_dims_and_clipping(gl_context):
 
 def cover_pairs(tris, dims):
     """(tile, triangle) pairs where the triangle covers a column center of the
-    tile, and where its (y, z) bounding box's centers reach the tile (CPU, float64)."""
+    tile (reference-solid's crossings along x), and where its (y, z) bounding
+    box's centers reach the tile (CPU, float64)."""
     n = normals(tris)
-    keep = np.flatnonzero(n[:, 0] != 0.0)
-    sgn = np.where(n[keep, 0] > 0.0, 1.0, -1.0)
+    keep = np.flatnonzero(axis_signs(tris, n, 0) != 0)
     t = tris[keep]
-    e = np.roll(t, -1, axis=1) - t
-    neu, nev = -e[:, :, 2] * sgn[:, None], e[:, :, 1] * sgn[:, None]
-    top_left = (neu > 0.0) | ((neu == 0.0) & (nev < 0.0))
-    uv = t[:, :, [1, 2]]
     exact, boxes = set(), set()
     tiles_y = -(-dims[1] // 4)
     for tri, ju, jv in column_candidates(t, dims, 0):
         key = (jv // 4) * tiles_y + ju // 4
         boxes.update(zip(key.tolist(), keep[tri].tolist()))
-        inside = np.ones(len(tri), bool)
-        for i in range(3):
-            f = _edge_function(ju + 0.5, jv + 0.5, uv[tri, i], uv[tri, (i + 1) % 3]) * sgn[tri]
-            inside &= (f > 0.0) | ((f == 0.0) & top_left[tri, i])
-        exact.update(zip(key[inside].tolist(), keep[tri[inside]].tolist()))
+    for tri, ju, jv, _ in column_crossings(t, n[keep], dims, 0):
+        key = (jv // 4) * tiles_y + ju // 4
+        exact.update(zip(key.tolist(), keep[tri].tolist()))
     return exact, boxes
 
 

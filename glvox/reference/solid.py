@@ -16,7 +16,7 @@ _EPS = 2.0 ** -53
 #: certain when its magnitude exceeds this times the sum of the two products'
 #: magnitudes ("Adaptive precision floating-point arithmetic and fast robust
 #: geometric predicates", 1997, orient2d's ccwerrboundA).
-_DET_BOUND = (3.0 + 16.0 * _EPS) * _EPS
+DET_BOUND = (3.0 + 16.0 * _EPS) * _EPS
 #: Largest error of a crossing coordinate computed in float64 that
 #: :func:`column_crossings` accepts, voxels; beyond it (a triangle nearly
 #: parallel to the rays, or very steep) the crossing is computed exactly.
@@ -40,7 +40,7 @@ def axis_signs(tris: np.ndarray, n: np.ndarray, axis: int) -> np.ndarray:
     u, v = (axis + 1) % 3, (axis + 2) % 3
     d1 = tris[:, 1] - tris[:, 0]
     d2 = tris[:, 2] - tris[:, 1]
-    bound = _DET_BOUND * (np.abs(d1[:, u] * d2[:, v]) + np.abs(d1[:, v] * d2[:, u]))
+    bound = DET_BOUND * (np.abs(d1[:, u] * d2[:, v]) + np.abs(d1[:, v] * d2[:, u]))
     na = n[:, axis]
     out = np.sign(na).astype(np.int8)
     for t in np.flatnonzero((np.abs(na) <= bound) & (bound > 0.0)):
@@ -79,10 +79,10 @@ def _edge_function(pu: np.ndarray, pv: np.ndarray, p: np.ndarray, q: np.ndarray)
     left = (b[:, 0] - a[:, 0]) * (pv - a[:, 1])
     right = (b[:, 1] - a[:, 1]) * (pu - a[:, 0])
     f = left - right
-    return np.where(swap, -f, f), _DET_BOUND * (np.abs(left) + np.abs(right))
+    return np.where(swap, -f, f), DET_BOUND * (np.abs(left) + np.abs(right))
 
 
-def _exact_edge_sign(pu: float, pv: float, p: np.ndarray, q: np.ndarray) -> int:
+def exact_edge_sign(pu: float, pv: float, p: np.ndarray, q: np.ndarray) -> int:
     """The exact sign of :func:`_edge_function` for one center and edge (float64 inputs)."""
     pu_, pv_ = Fraction(float(pu)), Fraction(float(pv))
     p0, p1, q0, q1 = (Fraction(float(x)) for x in (p[0], p[1], q[0], q[1]))
@@ -204,7 +204,7 @@ def column_crossings(tris: np.ndarray, n: np.ndarray, dims: tuple[int, int, int]
     # rounding bounds of the float normal (normals(): (v1 - v0) x (v2 - v1)), per component
     d1 = tris[:, 1] - tris[:, 0]
     d2 = tris[:, 2] - tris[:, 1]
-    n_err = np.stack([_DET_BOUND * (np.abs(d1[:, (k + 1) % 3] * d2[:, (k + 2) % 3])
+    n_err = np.stack([DET_BOUND * (np.abs(d1[:, (k + 1) % 3] * d2[:, (k + 2) % 3])
                                     + np.abs(d1[:, (k + 2) % 3] * d2[:, (k + 1) % 3])) for k in range(3)], axis=1)
     for tri, ju, jv in column_candidates(tris, dims, axis):
         live = signs[tri] != 0
@@ -218,7 +218,7 @@ def column_crossings(tris: np.ndarray, n: np.ndarray, dims: tuple[int, int, int]
             # a center within rounding of the projected edge: its side exactly
             for k in np.flatnonzero(inside & (np.abs(f) <= bound) & (bound > 0.0)):
                 t = tri[k]
-                f[k] = sgn[t] * _exact_edge_sign(pu[k], pv[k], uv[t, i], uv[t, (i + 1) % 3])
+                f[k] = sgn[t] * exact_edge_sign(pu[k], pv[k], uv[t, i], uv[t, (i + 1) % 3])
             inside &= (f > 0.0) | ((f == 0.0) & top_left[tri, i])
         tri, ju, jv, pu, pv = tri[inside], ju[inside], jv[inside], pu[inside], pv[inside]
         nt = n[tri]

@@ -54,7 +54,7 @@ import numpy as np
 
 from ..tolerances import TIE_EPS, WINDING_TIE
 from ._candidates import check_dims, check_tris, normals
-from .solid import axis_signs, first_flips
+from .solid import DET_BOUND, axis_signs, exact_edge_sign, first_flips
 from .ties import solid_ties
 
 #: Voxels per slab of :func:`strip_field`: each temporary of a slab is 8 bytes a voxel.
@@ -139,11 +139,11 @@ def _row_edge_function(u: np.ndarray, v: np.ndarray, cy: np.ndarray, cz: np.ndar
     row centers ``(cy[:, None], cz[None, :])``, with zeros replaced by +-0.0
     carrying the sign at the center nudged by the top-left rule.
 
-    Evaluated as :func:`glvox.reference.solid._edge_function` does, from the
-    lexicographically smaller end point, so its sign is the one that decided
-    the owning triangle's crossings.  Nudged by +y (then, infinitesimally
-    less, -z), ``f = e_y (c_z - u_z) - e_z (c_y - u_y)`` moves by
-    ``-e_z`` (then ``-e_y``).
+    Evaluated as :func:`glvox.reference.solid.column_crossings` evaluates it,
+    from the lexicographically smaller end point and exactly where rounding
+    could decide the sign, so its sign is the one that decided the owning
+    triangle's crossings.  Nudged by +y (then, infinitesimally less, -z),
+    ``f = e_y (c_z - u_z) - e_z (c_y - u_y)`` moves by ``-e_z`` (then ``-e_y``).
 
     Returns
     -------
@@ -152,9 +152,15 @@ def _row_edge_function(u: np.ndarray, v: np.ndarray, cy: np.ndarray, cz: np.ndar
     p, q = u[1:], v[1:]
     swap = p[0] > q[0] or (p[0] == q[0] and p[1] > q[1])
     a, b = (q, p) if swap else (p, q)
-    f = (b[0] - a[0]) * (cz[None, :] - a[1]) - (b[1] - a[1]) * (cy[:, None] - a[0])
+    left = (b[0] - a[0]) * (cz[None, :] - a[1])
+    right = (b[1] - a[1]) * (cy[:, None] - a[0])
+    f = left - right
     if swap:
         f = -f
+    bound = DET_BOUND * (np.abs(left) + np.abs(right))
+    for j, k in zip(*np.nonzero((np.abs(f) <= bound) & (bound > 0.0))):
+        # within rounding of the edge: the sign exactly (0 takes the top-left nudge below)
+        f[j, k] = exact_edge_sign(cy[j], cz[k], p, q) * max(abs(f[j, k]), 5e-324)
     e = q - p
     nudge = -e[1] if e[1] != 0.0 else -e[0]
     return np.where(f == 0.0, np.copysign(0.0, nudge), f)
