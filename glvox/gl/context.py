@@ -257,6 +257,10 @@ class GLContext:
     compile_seconds: float = 0.0
     #: callbacks run (before the GL context goes) by :meth:`release`
     on_release: list = field(default_factory=list)
+    #: callables that return True while host memory the GL context owns is still in
+    #: use (results viewing mapped buffers, :mod:`glvox.gpu.readback`): :meth:`release`
+    #: then keeps the GL context itself until they all return False
+    keep_alive: list = field(default_factory=list)
     _released: bool = False
     _query: Any = None
     _limits: Any = None
@@ -360,6 +364,8 @@ class GLContext:
         if self._released:
             raise BackendError("this GL context was released; create a new one")
         global _current
+        if _deferred:
+            _reap()
         if _current is not self:
             # unbind first: after an OSMesa context came and went (it rebinds
             # Mesa's shared dispatch), EGL takes a make-current of the context
@@ -369,7 +375,11 @@ class GLContext:
             _current = self
 
     def release(self) -> None:
-        """Release every cached program and the context itself."""
+        """Release every cached program and the context itself.
+
+        Results that view this context's mapped memory (:mod:`glvox.gpu.readback`)
+        stay valid: the GL context then goes when the last of them does (at the
+        next make-current of any context), not now."""
         if self._released:
             return
         global _current
@@ -386,8 +396,11 @@ class GLContext:
         for prog in self.programs.values():
             prog.release()
         self.programs.clear()
-        self.mgl.release()
         self._released = True
+        if any(busy() for busy in self.keep_alive):
+            _deferred.append(self)  # released by _reap() once nothing views its memory
+        else:
+            self.mgl.release()
         _current = None
         # leave a live context current: the one current before, else the
         # shared one (a private context is usually current when released,
@@ -428,6 +441,8 @@ def create_context(backend: str | None = None, *, require: int = GL_VERSION_REQU
     name = _normalize_backend(backend)
     order = BACKENDS if name == "auto" else (name,)
     _register_backends()
+    if _deferred:
+        _reap()
     failures = []
     for b in order:
         _last_created.clear()
@@ -454,6 +469,26 @@ def create_context(backend: str | None = None, *, require: int = GL_VERSION_REQU
 
 _shared: GLContext | None = None
 _lock = threading.Lock()
+#: Contexts released while results still viewed their mapped memory (GLContext.keep_alive).
+_deferred: list[GLContext] = []
+
+
+def _reap() -> None:
+    """Release the GL contexts of :data:`_deferred` that nothing views any more (from
+    the thread that uses GL, never from a finalizer: it makes each current)."""
+    global _current
+    for ctx in list(_deferred):
+        if not any(busy() for busy in ctx.keep_alive):
+            _deferred.remove(ctx)
+            ctx.mgl.__exit__(None, None, None)
+            ctx.mgl.__enter__()
+            ctx.mgl.release()
+            _current = None
+
+
+def deferred_contexts() -> int:
+    """How many released contexts still wait for their results to go (see GLContext.release)."""
+    return len(_deferred)
 #: The GLContext glvox last made current (see GLContext.make_current).
 _current: GLContext | None = None
 

@@ -10,7 +10,8 @@
   queries) an owner keeps per context between runs.
 * :func:`check_buffer_size`: refuse a buffer over GL_MAX_SHADER_STORAGE_BLOCK_SIZE
   before allocating, naming the size, the limit and what to do instead.
-* :func:`read_grid_words`: a packed grid read back into numpy.
+* :func:`read_grid_words`: a packed grid read back into numpy (in mapped memory
+  the result owns, :mod:`glvox.gpu.readback`).
 * :func:`clear_buffer`: fill a buffer with a 32-bit word on the GPU.
 * :func:`z_slabs`: the z slabs a packed grid over the storage-block limit is
   voxelized in, by the methods that take such grids (:data:`MAX_SLAB_VOXELS`),
@@ -29,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import CapabilityError, LimitError
+from .readback import copy_into, read_buffer
 
 
 @dataclass(eq=False)
@@ -247,36 +249,31 @@ def z_slabs(ctx, spec) -> list[tuple[int, int]] | None:
     return [(k0, min(nk, spec.dims[2] - k0)) for k0 in range(0, spec.dims[2], nk)]
 
 
-def slab_reader(spec, timer):
+def slab_reader(ctx, spec, timer):
     """For a grid voxelized in z slabs (:func:`z_slabs`): its packed words, uint32
     (nz, ny, words_per_row), and ``read_slab(k0, nk, grid)``, which reads a slab's
-    buffer into its slices of them, timed as stage ``readback``."""
-    flat = np.empty(spec.n_words, dtype="<u4")
+    buffer into its slices of them, timed as stage ``readback``.  The words are a
+    mapped read-back buffer where the context lends one (:mod:`glvox.gpu.readback`),
+    each slab copied into its part on the GPU."""
+    flat = read_buffer(ctx, None, 0, total=spec.n_words * 4, fill=False).view("<u4")
     per_slice = spec.dims[1] * spec.words_per_row
 
     def read_slab(k0: int, nk: int, grid) -> None:
         with timer.stage("readback", gpu=False):
-            part = flat[k0 * per_slice:(k0 + nk) * per_slice]
-            grid.read_into(part, size=part.nbytes)
+            copy_into(ctx, grid, flat, k0 * per_slice * 4, nk * per_slice * 4)
 
     return flat.reshape(spec.dims[2], spec.dims[1], spec.words_per_row), read_slab
 
 
-def read_grid_words(buf, spec, slices: tuple[int, int] | None = None) -> np.ndarray:
+def read_grid_words(ctx, buf, spec, slices: tuple[int, int] | None = None) -> np.ndarray:
     """The packed grid words of ``spec`` from ``buf`` (uint32, (nz, ny, words_per_row)).
 
     ``slices=(k0, nk)``: only z slices k0 .. k0 + nk - 1 can hold a set voxel;
-    only they are read, the rest of the array is zero (fresh zero pages).
+    only they are read, the rest of the array is zero.  Large grids arrive in a
+    mapped read-back buffer that the array owns (:mod:`glvox.gpu.readback`).
     """
-    # read_into a preallocated array: buf.read() makes a bytes object first, a second copy
-    per_slice = spec.dims[1] * spec.words_per_row
-    if slices is None:
-        words = np.empty(spec.n_words, dtype="<u4")
-        k0, nk = 0, spec.dims[2]
-    else:
-        words = np.zeros(spec.n_words, dtype="<u4")
-        k0, nk = slices
-    if nk > 0:
-        part = words[k0 * per_slice:(k0 + nk) * per_slice]
-        buf.read_into(part, size=part.nbytes, offset=k0 * per_slice * 4)
+    per_slice = spec.dims[1] * spec.words_per_row * 4
+    k0, nk = (0, spec.dims[2]) if slices is None else slices
+    words = read_buffer(ctx, buf, max(nk, 0) * per_slice, k0 * per_slice, total=spec.n_words * 4,
+                        at=k0 * per_slice).view("<u4")
     return words.reshape(spec.dims[2], spec.dims[1], spec.words_per_row)

@@ -11,6 +11,7 @@ from typing import Any
 
 from ..errors import LimitError, MethodError
 
+from ..gpu.readback import readback_mode
 from ..grid import MAX_VOXELS, GridSpec
 from ..mesh import Mesh
 from ..reference.attributes import reference_attributes
@@ -105,6 +106,7 @@ def run_method(name: str | Request, mesh: Mesh, spec: GridSpec, *, ctx=None, bac
     picked = asked.method.resolve(mesh)
     request = asked if picked == asked.name else asked.for_method(get_method(picked))
     method, opts, names = request.method, dict(request.options), request.attributes
+    readback_mode()  # a bad GLVOX_READBACK is refused before any work
     if names:
         check_mesh(mesh, names, request.normals)
         if spec.n_voxels > MAX_VOXELS:  # the attribute passes keep int32 voxel counts and ranks

@@ -259,7 +259,7 @@ class BinvoxSolid(Method):
             with timer.stage("down"):
                 result = self._down(ctx, pool, target_spec, down, dmin, result, out["count"])
         with timer.stage("readback", gpu=False):
-            words = read_grid_words(result, target_spec)
+            words = read_grid_words(ctx, result, target_spec)
             voxels = int(np.frombuffer(out["count"].read(size=4), dtype="<u4")[0])
         if voxels == 0:
             # binvox's own output would be empty too; the run envelope warns with this cause

@@ -196,7 +196,7 @@ class CarveSolid(Method):
             barrier(ctx)
         with timer.stage("readback", gpu=False):
             # the solid lies in the surface's slices (the exterior holds the others)
-            words = read_grid_words(ext, spec, (k0, nk))
+            words = read_grid_words(ctx, ext, spec, (k0, nk))
             voxels = int(np.frombuffer(count.read(size=4), dtype="<u4")[0])
         timer.stats.update({"flood_rounds": rounds, "close": close, "solid_slices": nk, "surface_variant": variant})
         return VoxelGrid(words=words, spec=spec, count=voxels)

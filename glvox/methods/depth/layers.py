@@ -178,11 +178,11 @@ class _DepthLayers(Method):
                 with timer.stage("finish"):
                     self._finish(ctx, spec, uniforms, grids)
         with timer.stage("readback", gpu=False):
-            words = read_grid_words(grids.acc[0], spec)
+            words = read_grid_words(ctx, grids.acc[0], spec)
             voxels, unclassifiable = (int(c) for c in np.frombuffer(grids.count.read(size=8), dtype="<u4"))
             extras = {}
             if self.algorithm == "stencil":
-                extras["unclassifiable"] = VoxelGrid(words=read_grid_words(grids.acc[2], spec), spec=spec,
+                extras["unclassifiable"] = VoxelGrid(words=read_grid_words(ctx, grids.acc[2], spec), spec=spec,
                                                      count=unclassifiable)
         timer.stats["passes"] = passes
         timer.stats["tiles"] = tiles

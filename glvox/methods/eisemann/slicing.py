@@ -87,7 +87,7 @@ class _Eisemann(Method):
         render = SliceRender(self.op, axis=axis, masks=masks, coverage=coverage, tile=tile)
         grid, count = render_slice_masks(ctx, mesh, spec, render, timer=timer, owner=self.info.name)
         with timer.stage("readback", gpu=False):
-            words = read_grid_words(grid, spec)
+            words = read_grid_words(ctx, grid, spec)
             voxels = int(np.frombuffer(count.read(size=4), dtype="<u4")[0])
         return VoxelGrid(words=words, spec=spec, count=voxels)
 

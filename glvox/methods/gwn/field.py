@@ -244,7 +244,7 @@ class GwnSolid(Method):
             with timer.stage("shell", gpu=False):
                 self._add_shell(ctx, mesh, spec, bits, run.count)
         with timer.stage("readback", gpu=False):
-            words = read_grid_words(bits, spec)
+            words = read_grid_words(ctx, bits, spec)
             voxels, _, _, left, split = (int(x) for x in np.frombuffer(run.count.read(size=20), dtype="<u4"))
         if run.bricks:
             run.stats["field_segments"] = left  # the segments the bricks left to the tree walk

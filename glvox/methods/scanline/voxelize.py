@@ -144,7 +144,7 @@ class _Scanline(Method):
             with timer.stage("overflow"):
                 parts = self._overflow(ctx, pool, spec, bufs, grid, tunnel, ids, split_budget)
         with timer.stage("readback", gpu=False):
-            words = read_grid_words(grid, spec)
+            words = read_grid_words(ctx, grid, spec)
         timer.stats["overflow_triangles"] = n_over
         timer.stats["overflow_parts"] = parts
         return VoxelGrid(words=words, spec=spec)

@@ -383,10 +383,10 @@ class SSSolid(Method):
             p = parity_on_gpu(ctx, mesh, spec, timer, pool)
             with timer.stage("readback", gpu=False):
                 # slices outside the mesh's rows hold nothing: only the others are read
-                words = read_grid_words(p.grid, spec, (p.rows[1], p.rows[3]))
+                words = read_grid_words(ctx, p.grid, spec, (p.rows[1], p.rows[3]))
                 voxels = p.read_stats(timer.stats)
         else:  # over the storage-block limit: slab by slab, each read into its part of the result
-            words, read_slab = slab_reader(spec, timer)
+            words, read_slab = slab_reader(ctx, spec, timer)
             p = parity_on_gpu(ctx, mesh, spec, timer, pool, slabs=slabs, read_slab=read_slab)
             voxels = p.read_stats(timer.stats)
             timer.stats["slabs"] = len(slabs)
@@ -446,7 +446,7 @@ class SSSolidTiled(Method):
                 proc.run(gx, -(-active_tiles // gx), 1)
                 barrier(ctx)
         with timer.stage("readback", gpu=False):
-            words = read_grid_words(grid, spec)
+            words = read_grid_words(ctx, grid, spec)
             voxels = int(np.frombuffer(count.read(size=4), dtype="<u4")[0])
         timer.stats.update({
             "pairs": n_pairs, "active_tiles": active_tiles,

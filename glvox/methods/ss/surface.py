@@ -301,9 +301,9 @@ class _SSSurface(Method):
                 listed, most = np.frombuffer(pool.get("big", 8, clear=False).read(size=8), dtype="<u4")
                 timer.stats["triangles_with_several_chunks"] = int(listed)
                 timer.stats["max_chunks"] = int(most) + 1 if listed else 1
-            return self._finish(spec, timer, grid, stats)
+            return self._finish(ctx, spec, timer, grid, stats)
         # over the storage-block limit: slab by slab, each read into its part of the result
-        words, read_slab = slab_reader(spec, timer)
+        words, read_slab = slab_reader(ctx, spec, timer)
         grid, stats = surface_on_gpu(ctx, mesh, spec, timer, pool, criterion=self.criterion, variant=variant,
                                      slabs=slabs, read_slab=read_slab)
         timer.stats["slabs"] = len(slabs)
@@ -317,9 +317,9 @@ class _SSSurface(Method):
             timer.stats["case_percent_1d_2d_3d"] = [round(100.0 * int(c) / total, 1) if total else 0.0
                                                     for c in cases]
 
-    def _finish(self, spec, timer, grid, stats):
+    def _finish(self, ctx, spec, timer, grid, stats):
         with timer.stage("readback", gpu=False):
-            words = read_grid_words(grid, spec)
+            words = read_grid_words(ctx, grid, spec)
         return self._finish_counts(spec, timer, words, stats)
 
     def _finish_counts(self, spec, timer, words, stats):

@@ -67,6 +67,6 @@ class VoteSolid(Method):
             dispatch_1d(ctx, prog, nk * per_slice, _LOCAL)
             barrier(ctx)
         with timer.stage("readback", gpu=False):
-            words = read_grid_words(x.grid, spec, (k0, nk))
+            words = read_grid_words(ctx, x.grid, spec, (k0, nk))
             voxels = int(np.frombuffer(count.read(size=4), dtype="<u4")[0])
         return VoxelGrid(words=words, spec=spec, count=voxels)
