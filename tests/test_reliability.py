@@ -32,7 +32,8 @@ from glvox.methods import FAMILIES, get_method, method_infos, method_names, run_
 from glvox.methods.binvox.solid import gpu_triangles
 from glvox.methods.scanline.voxelize import gpu_voxel_coords
 from glvox.metrics import check_against_reference, tie_set
-from glvox.reference import TIE_EPS, binvox_ties, conservative_surface, orientation_ambiguous
+from glvox.reference import (TIE_EPS, binvox_ties, conservative_surface, orientation_ambiguous,
+                             six_separating_surface, surface_ties)
 from glvox.reference.binvox import binvox_solid
 from glvox.reference.scanline import float_variant_ties, scanline_surface
 from glvox.results.voxels import VoxelGrid
@@ -325,6 +326,17 @@ NEEDLE_IN_A_DIAGONAL_PLANE_2 = (np.array(
     [[[1000000.0, 1000000.0, 1000000.75], [1000000.8125, 1000000.75, 1000000.0],
       [1000000.55224609375, 1000000.509765625, 1000000.240234375]]]), (2, 3, 7))
 
+#: A sliver 3.5e-4 voxel wide beside voxel (14, 16, 10), nearly in a plane x = const, in a
+#: soup with two zero-area triangles (found by the soup fuzz test outside CI): the float32
+#: rounding of its vertices (below 1e-6 voxel) turns its plane by 6e-4 voxel at that voxel,
+#: and the 6-separating plane test's verdict with it; the half-size ties reach 1e-4.
+SLIVER_BESIDE_A_VOXEL = (np.array(
+    [[[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]],
+     [[0.0, 0.0, 0.0], [0.75, 1.0, -0.5], [0.0, -1.0, 0.0]],
+     [[0.0, 0.0, 0.5], [0.0, 0.0, 0.0], [-0.998279929, 0.0, 0.0]],
+     [[0.0, 0.200000003, 0.171875], [0.0, 0.129947364, 0.90234375], [2.5e-05, 0.158431249, 0.60561582]]]),
+    (25, 28, 21))
+
 
 @st.composite
 def triangle_soups(draw):
@@ -487,6 +499,7 @@ def soup_mesh(tris):
 @example(tris=COLLINEAR_AT_AN_OFFSET[0], dims=COLLINEAR_AT_AN_OFFSET[1])
 @example(tris=NEEDLE_IN_A_DIAGONAL_PLANE[0], dims=NEEDLE_IN_A_DIAGONAL_PLANE[1])
 @example(tris=NEEDLE_IN_A_DIAGONAL_PLANE_2[0], dims=NEEDLE_IN_A_DIAGONAL_PLANE_2[1])
+@example(tris=SLIVER_BESIDE_A_VOXEL[0], dims=SLIVER_BESIDE_A_VOXEL[1])
 def test_fuzzed_soups_on_every_surface_method(gl_context, tris, dims):
     try:
         mesh = soup_mesh(tris)
@@ -606,6 +619,25 @@ def test_needle_in_a_diagonal_plane(gl_context, case):
         got = run_method("ss-conservative", mesh, spec, allow_open=True, variant=variant).dense()
         assert not ((got ^ ref) & ~ties).any(), variant
         assert not ((got ^ exact) & ~ties).any(), variant
+
+
+def test_a_sliver_turned_by_float32_rounding_is_a_tie(gl_context):
+    """The GPU's float32 vertices turn the sliver's plane across voxel (14, 16, 10)'s
+    6-separating slab: ss-6sep follows its own vertices there (the float64 criterion on
+    them gives its verdict), the half-size ties do not reach the voxel, and only the
+    verdicts on the GPU's triangles (``gpu=``) make it a tie."""
+    mesh = soup_mesh(SLIVER_BESIDE_A_VOXEL[0])
+    spec = glvox.grid_for(mesh, dims=SLIVER_BESIDE_A_VOXEL[1])
+    tris, gpu = mesh.triangles_voxel(spec), gpu_voxel_coords(mesh, spec)
+    assert np.abs(tris - gpu).max() < 1e-6
+    voxel = (14, 16, 10)
+    exact, rounded = six_separating_surface(tris, spec.dims), six_separating_surface(gpu, spec.dims)
+    assert exact[voxel] and not rounded[voxel]
+    assert not surface_ties(tris, spec.dims, "6sep")[voxel]
+    assert surface_ties(tris, spec.dims, "6sep", gpu=gpu)[voxel]
+    got = run_method("ss-6sep", mesh, spec, allow_open=True)
+    assert not got.dense()[voxel]
+    assert check_against_reference(got, mesh, "reference-6sep").ok
 
 
 def test_the_collinear_case_needs_the_sliver_clause(gl_context):

@@ -131,7 +131,8 @@ def _check_unsnapped(unsnapped, tris: np.ndarray) -> np.ndarray:
 
 def surface_ties(tris: np.ndarray, dims: Sequence[int],
                  criterion: Literal["conservative", "6sep"] = "conservative",
-                 eps: float = TIE_EPS, unsnapped: np.ndarray | None = None) -> np.ndarray:
+                 eps: float = TIE_EPS, unsnapped: np.ndarray | None = None,
+                 gpu: np.ndarray | None = None) -> np.ndarray:
     """Voxels whose surface verdict differs between box half-sizes ``0.5 - eps`` and ``0.5 + eps``
     along the inexact axes, or with the orientation of a nearly edge-on projection.
 
@@ -156,6 +157,14 @@ def surface_ties(tris: np.ndarray, dims: Sequence[int],
     adds the voxels whose verdict differs between its two snaps, and the
     ties of the other snap.
 
+    Given ``gpu``, the voxels whose verdict differs between these triangles and
+    the GPU's float32 copy of them are ties too.  The half-size models a
+    translation; the rounding of a sliver's vertices also turns its plane,
+    and at a voxel a fraction of a voxel away the plane then moves by that
+    rounding times the distance over the sliver's width (a triangle 3.5e-4
+    voxel wide, its vertices rounded by 1e-6: 6e-4 voxel at the voxel beside
+    it, where the half-size ties reach 1e-4).
+
     Parameters
     ----------
     tris : (T, 3, 3) float64
@@ -168,6 +177,9 @@ def surface_ties(tris: np.ndarray, dims: Sequence[int],
         Half-size perturbation, in voxels; 0 < eps < 0.5.
     unsnapped : (T, 3, 3) float64, optional
         The same triangles before the snap.
+    gpu : (T, 3, 3) float64, optional
+        The same triangles as the GPU methods compute them (float32 values,
+        :func:`glvox.gpu.transform.gpu_vertices_voxel`).
 
     Returns
     -------
@@ -188,6 +200,13 @@ def surface_ties(tris: np.ndarray, dims: Sequence[int],
             other = _other_snap(mine, np.asarray(unsnapped, np.float64)[some], amb[some])
             ties |= f(mine, dims, 0.5) ^ f(other, dims, 0.5)
             ties |= _rounding_ties(f, other, dims, criterion, eps)
+    if gpu is not None:
+        gpu = check_tris(gpu)
+        if gpu.shape != tris.shape:
+            raise ValueError(f"gpu must have the triangles' shape {tris.shape}, got {gpu.shape}")
+        moved = (gpu != tris).any(axis=(1, 2))
+        if moved.any():
+            ties |= f(tris[moved], dims, 0.5) ^ f(gpu[moved], dims, 0.5)
     return ties
 
 

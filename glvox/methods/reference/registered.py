@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import MethodError
+from ...gpu.transform import gpu_vertices_voxel
 from ...grid import snap_to_planes
 from ...reference import (conservative_surface, six_separating_surface, solid, solid_ties, solid_vote, surface_ties,
                          winding, winding_ties)
@@ -40,6 +41,8 @@ class _CpuReference(Method):
 
     has_ties = True
     ties_see_unsnapped = False
+    #: the tie function also gets the GPU's float32 triangles (``gpu=``)
+    ties_see_gpu = False
 
     @staticmethod
     def ties(tris, dims, eps, **unsnapped):
@@ -49,6 +52,8 @@ class _CpuReference(Method):
         # the references' options (reference-solid's axis) do not move their ties
         raw = spec.world_to_voxel(mesh.triangles())
         extra = {"unsnapped": raw} if self.ties_see_unsnapped else {}
+        if self.ties_see_gpu:
+            extra["gpu"] = gpu_vertices_voxel(mesh, spec)[mesh.faces].astype(np.float64)
         return self.ties(snap_to_planes(raw), spec.dims, eps, **extra)
 
     @staticmethod
@@ -72,9 +77,10 @@ class ReferenceConservative(_CpuReference):
         reference="reference-conservative",
     )
     compute = staticmethod(conservative_surface)
-    ties = staticmethod(lambda tris, dims, eps, unsnapped=None: surface_ties(tris, dims, "conservative", eps,
-                                                                             unsnapped))
+    ties = staticmethod(lambda tris, dims, eps, unsnapped=None, gpu=None: surface_ties(
+        tris, dims, "conservative", eps, unsnapped, gpu))
     ties_see_unsnapped = True
+    ties_see_gpu = True
 
 
 @register
@@ -86,8 +92,10 @@ class Reference6Sep(_CpuReference):
         reference="reference-6sep",
     )
     compute = staticmethod(six_separating_surface)
-    ties = staticmethod(lambda tris, dims, eps, unsnapped=None: surface_ties(tris, dims, "6sep", eps, unsnapped))
+    ties = staticmethod(lambda tris, dims, eps, unsnapped=None, gpu=None: surface_ties(
+        tris, dims, "6sep", eps, unsnapped, gpu))
     ties_see_unsnapped = True
+    ties_see_gpu = True
 
 
 @register
