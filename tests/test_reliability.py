@@ -318,7 +318,8 @@ NEEDLE_IN_A_DIAGONAL_PLANE = (np.array(
       [1000000.55859375, 1000000.515625, 1000000.234375]]]), (2, 3, 7))
 #: The same, shrunk further by Hypothesis: here reference-conservative's float64 normal is
 #: (0, 0, 4e-16) and sets 1 voxel where the needle touches 7 (rational); the GPU sets the 7.
-#: Open: the tie set does not excuse the reference's 6 missing voxels (test_open_reference_needle).
+#: The 6 voxels the reference misses are where the GPU's float32 vertices change the verdict
+#: (test_needles_that_float32_vertices_turn_are_ties).
 NEEDLE_REFERENCE_PLANE_ROUNDING = (np.array(
     [[[1000000.0, 1000000.0, 1000000.75], [1000000.828125, 1000000.75, 1000000.0],
       [1000000.5628662109375, 1000000.509765625, 1000000.240234375]]]), (2, 3, 7))
