@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from glvox import cli
+from glvox.gl.raw import RawGL
 from glvox.methods import get_method, method_infos
 from glvox.results.voxels import VoxelGrid
 from glvox.gpu.arithmetic import PROBES, classify, probe_operands
@@ -34,6 +35,10 @@ def test_selftest_passes_here(gl_context, capsys):
     assert report["methods"][0]["method"] == "arithmetic"
     assert arith["status"] == "ok" and arith["mismatches"] == 0 and arith["cases"] == 4 * PROBES
     assert report["arithmetic"]["fused_precise_float"] == report["arithmetic"]["fused_precise_double"] == 0
+    read = rows.pop("readback")  # then how results leave the GPU
+    assert report["methods"][1]["method"] == "readback"
+    assert read["status"] == "ok" and read["mismatches"] == 0 and read["cases"] == 2
+    assert "readback stage: mapped" in read["detail"][-1]
     assert set(rows) == {"ss-conservative", "peel-ldi", "karabassi"}
     assert all(r["status"] == "ok" and r["mismatches"] == 0 and r["cases"] == len(report["cases"]) >= 4
                for r in rows.values())
@@ -93,14 +98,24 @@ def test_a_compiler_that_fuses_precise_expressions_fails(gl_context, capsys, mon
     assert "fuses a*b+c inside precise expressions" in out.out
 
 
+def test_a_mapped_readback_that_misses_the_copy_fails(gl_context, capsys, monkeypatch):
+    """Results whose GPU copy into their mapped buffer never happens (stale or undefined
+    words) fail the readback row and the selftest."""
+    monkeypatch.setattr(RawGL, "copy_buffer", lambda self, *args: None)
+    rc, out = _run(capsys, "--methods", "ss-6sep", "-q")
+    assert rc == 1 and "FAILED: readback" in out.out.splitlines()[-1]
+    row = next(l for l in out.out.splitlines() if l.startswith("readback "))
+    assert row.split()[-1] == "mismatch" and int(row.split()[-3]) > 0
+
+
 def test_an_approximate_method_outside_its_bound_fails(gl_context, capsys, monkeypatch):
     """karabassi may add voxels to the exact solid, never lose them: an emptied grid fails."""
     _broken(monkeypatch, "karabassi", np.zeros_like)
     rc, out = _run(capsys, "--methods", "karabassi", "--json")
     report = json.loads(out.out)
     assert rc == 1 and not report["ok"]
-    arith, row = report["methods"]
-    assert arith["status"] == "ok" and row["method"] == "karabassi" and row["status"] == "mismatch" and row["mismatches"] > 0
+    arith, read, row = report["methods"]
+    assert arith["status"] == read["status"] == "ok" and row["method"] == "karabassi" and row["status"] == "mismatch" and row["mismatches"] > 0
 
 
 @pytest.mark.parametrize("change, bad", [(lambda d: d, False), (_flip_corner, True), (np.zeros_like, True)])
@@ -109,7 +124,7 @@ def test_binvox_solid_may_differ_from_its_twin_on_ties_only(gl_context, capsys, 
     voxel off in a corner no column of the mesh reaches fails, and so does an emptied grid."""
     _broken(monkeypatch, "binvox-solid", change)
     rc, out = _run(capsys, "--methods", "binvox-solid", "--json")
-    _, row = json.loads(out.out)["methods"]  # after the compiler's row
+    _, _, row = json.loads(out.out)["methods"]  # after the compiler's and the readback rows
     assert (rc, row["status"], row["mismatches"] > 0) == ((1, "mismatch", True) if bad else (0, "ok", False)), row
 
 

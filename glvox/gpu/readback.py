@@ -35,10 +35,12 @@ caller that wants to write copies first, as with any :class:`glvox.VoxelGrid`'s 
 
 from __future__ import annotations
 
+import contextlib
 import os
 import threading
 import weakref
 from dataclasses import dataclass
+from typing import Iterator
 
 import numpy as np
 
@@ -54,9 +56,27 @@ _GRANULE = 1 << 20
 
 READBACK_MODES = ("mapped", "copy")
 
+_forced: list[str] = []
+
+
+@contextlib.contextmanager
+def forced_mode(mode: str) -> Iterator[None]:
+    """Read results the ``mode`` way ('mapped' or 'copy') inside the block, whatever
+    ``GLVOX_READBACK`` says (``glvox selftest`` compares the two ways)."""
+    if mode not in READBACK_MODES:
+        raise ValueError(f"mode must be one of {', '.join(READBACK_MODES)}, got {mode!r}")
+    _forced.append(mode)
+    try:
+        yield
+    finally:
+        _forced.pop()
+
 
 def readback_mode() -> str:
-    """``GLVOX_READBACK``: 'mapped' (default) or 'copy' (see the module)."""
+    """'mapped' or 'copy' (see the module): :func:`forced_mode`'s, else ``GLVOX_READBACK``'s
+    (default 'mapped')."""
+    if _forced:
+        return _forced[-1]
     mode = os.environ.get("GLVOX_READBACK", "mapped").strip().lower() or "mapped"
     if mode not in READBACK_MODES:
         raise GlvoxError(f"GLVOX_READBACK must be one of {', '.join(READBACK_MODES)}, got {mode!r}")

@@ -26,6 +26,13 @@ The first row, ``arithmetic``, checks the compiler itself
 result is ``precise``, as GLSL 4.50 Sec. 4.9 demands and every exact shader
 relies on; a fused probe is a mismatch.  Its detail lines say what GLSL leaves
 free: whether plain expressions are fused, the error of ``a / b``, denormals.
+
+The second, ``readback``, checks the way large results leave the GPU
+(:mod:`glvox.gpu.readback`; the cases above are too small to take it): a
+surface and a solid at :data:`READBACK_N`^3 read into mapped buffers they own
+must have the words glGetBufferSubData reads, and a result kept while another
+call runs must keep its own.  Its detail line gives both ways' readback times
+on this GPU.
 """
 
 from __future__ import annotations
@@ -42,6 +49,7 @@ from ..datasets import find
 from ..errors import GlvoxError, NotWatertightWarning
 from ..gl.context import get_context
 from ..gpu.arithmetic import probe_arithmetic
+from ..gpu.readback import forced_mode, is_mapped, readback_pool
 from ..grid import grid_for, pack_bits
 from ..mesh import load_mesh
 from ..methods import get_method, method_infos, run_method
@@ -55,6 +63,8 @@ from .plan import Contender
 #: mesh used only when it is already on this machine.
 CASES = (("gen:torus", 24), ("gen:sphere", 16), ("gen:box", 20), ("gen:bunny-like", 32))
 SHARED_CASE = ("cad_fandisk.off", 24)
+#: Grid of the ``readback`` row: 8 MiB of packed words, over the mapped threshold.
+READBACK_N = 400
 
 #: How an approximate method may differ from its reference (its paper's
 #: approximation): 'superset' (only adds voxels), 'subset' (only loses them;
@@ -124,6 +134,46 @@ def _mismatches(name: str, result, mesh, spec, refs: harness.References) -> int:
     return popcount(words & ~ref_words & ~ties)
 
 
+def _readback_ms(result) -> float:
+    return 1e3 * sum(s.wall_s for s in result.run.timings.stages if s.name == "readback")
+
+
+def readback_row(ctx) -> Row:
+    """The ``readback`` row: mapped against copied words (see the module)."""
+    t0 = time.perf_counter()
+    row = Row("readback", "mapped words = glGetBufferSubData's")
+    mesh, other = load_mesh("gen:sphere"), load_mesh("gen:torus")
+    spec = grid_for(mesh, READBACK_N)
+    times: dict[str, list[float]] = {"copy": [], "mapped": []}
+    try:
+        for name in ("ss-conservative", "ss-solid"):
+            with forced_mode("copy"):
+                want = run_method(name, mesh, spec, ctx=ctx)
+            with forced_mode("mapped"):
+                got = run_method(name, mesh, spec, ctx=ctx)
+                kept = np.array(got.words())
+                later = run_method(name, other, spec, ctx=ctx)  # while got is kept
+            row.cases += 1
+            row.mismatches += popcount(got.words() ^ want.words()) + popcount(got.words() ^ kept)
+            times["copy"].append(_readback_ms(want))
+            times["mapped"].append(_readback_ms(got))
+            if not is_mapped(got.words()):
+                row.detail.append("results are copied: this context lends no mapped memory "
+                                  f"({'no persistent mapping' if readback_pool(ctx).unmappable else 'limit reached'})")
+            del got, later
+    except GlvoxError as exc:
+        row.status = "error"
+        row.detail.append(str(exc))
+    if row.mismatches and row.status == "ok":
+        row.status = "mismatch"
+    mib = spec.n_words * 4 / 2**20
+    row.detail.append(f"{mib:.0f} MiB per result, readback stage: mapped " +
+                      ", ".join(f"{t:.1f}" for t in times["mapped"]) + " ms, copied " +
+                      ", ".join(f"{t:.1f}" for t in times["copy"]) + " ms")
+    row.seconds = time.perf_counter() - t0
+    return row
+
+
 def selftest(methods: Sequence[str] | None = None, progress: Callable[[str], None] = lambda s: None,
              ctx=None) -> dict[str, Any]:
     """Run ``methods`` (default: every registered one) on :data:`CASES` and check each.
@@ -134,7 +184,8 @@ def selftest(methods: Sequence[str] | None = None, progress: Callable[[str], Non
         ``renderer``, ``vendor``, ``version``, ``cases`` (``'mesh@n'``), ``methods``
         (one :class:`Row` as a dict each: method, check, cases, mismatches,
         seconds of the method's runs, status 'ok' / 'mismatch' / 'error',
-        detail lines; the first is the compiler's ``arithmetic``), ``arithmetic``
+        detail lines; the first two are the compiler's ``arithmetic`` and the
+        ``readback`` row), ``arithmetic``
         (:class:`~glvox.gpu.arithmetic.ArithmeticReport` as a dict), ``ok`` and
         ``seconds`` (the whole test).
     """
@@ -147,6 +198,8 @@ def selftest(methods: Sequence[str] | None = None, progress: Callable[[str], Non
     arith_row = Row("arithmetic", "precise a*b+c unfused (GLSL 4.50 Sec. 4.9)", cases=4 * arith.probes,
                     mismatches=arith.fused_precise_float + arith.fused_precise_double,
                     seconds=time.perf_counter() - t0, status="ok" if arith.ok else "mismatch", detail=arith.notes)
+    progress("readback: mapped words")
+    read_row = readback_row(ctx)
     rows = {n: Row(n, _describe(n)) for n in names}
     cases = list(CASES)
     shared = find(SHARED_CASE[0])
@@ -180,7 +233,7 @@ def selftest(methods: Sequence[str] | None = None, progress: Callable[[str], Non
                 row.mismatches += bad
                 row.status = "error" if row.status == "error" else "mismatch"
                 row.detail.append(f"{label}: {bad} voxels outside the check")
-    out_rows = [asdict(arith_row)] + [asdict(r) for r in rows.values()]
+    out_rows = [asdict(arith_row), asdict(read_row)] + [asdict(r) for r in rows.values()]
     return {"renderer": ctx.renderer, "vendor": ctx.vendor, "version": ctx.version, "cases": labels,
             "methods": out_rows, "arithmetic": asdict(arith), "ok": all(r["status"] == "ok" for r in out_rows),
             "seconds": time.perf_counter() - t_all}
