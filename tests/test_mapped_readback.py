@@ -17,7 +17,8 @@ import pytest
 import trimesh
 
 import glvox
-from glvox.errors import GlvoxError
+from glvox.errors import CapabilityError, GlvoxError
+from glvox.gl.raw import RawGL
 from glvox.gl.context import create_context, deferred_contexts
 from glvox.gpu import readback
 from glvox.gpu.readback import is_mapped, readback_pool
@@ -121,6 +122,37 @@ def test_past_the_lent_limit_results_are_copied(gl_context, monkeypatch):
     assert not is_mapped(got.words()) and pool.counts["copied"] == copied + 1
     monkeypatch.undo()
     np.testing.assert_array_equal(got.words(), run_method("ss-conservative", mesh, spec).words())
+
+
+def test_a_buffer_the_driver_refuses_leaves_no_gl_error(gl_context):
+    """A mapping the driver cannot make (1 TiB: GL_OUT_OF_MEMORY) is refused in one line,
+    and its GL error is taken, not left for the next unrelated check to raise."""
+    with pytest.raises(CapabilityError, match=r"could not map a 1099511627776-byte buffer persistently"):
+        gl_context.raw.create_mapped_buffer(1 << 40)
+    gl_context.check_error("after a refused mapping")
+
+
+@pytest.mark.parametrize("small", [True, False])
+def test_a_refused_mapping_falls_back_to_copies(monkeypatch, small):
+    """A refused small buffer means the context maps nothing (every later result is
+    copied); a refused large one costs only that result its mapping."""
+    def refuse(self, size):
+        raise CapabilityError("refused")
+
+    ctx = create_context()
+    try:
+        pool = readback_pool(ctx)
+        if not small:
+            monkeypatch.setattr(readback, "MIN_MAPPED_BYTES", 1 << 10)  # 2 MiB is then large
+        monkeypatch.setattr(RawGL, "create_mapped_buffer", refuse)
+        mesh = _sphere()
+        spec = glvox.grid_for(mesh, N)
+        got = run_method("ss-conservative", mesh, spec, ctx=ctx)
+        assert not is_mapped(got.words()) and pool.unmappable == small
+        monkeypatch.undo()
+        np.testing.assert_array_equal(got.words(), run_method("ss-conservative", mesh, spec, ctx=ctx).words())
+    finally:
+        ctx.release()
 
 
 def test_a_released_context_waits_for_its_results():

@@ -489,6 +489,8 @@ def _reap() -> None:
 def deferred_contexts() -> int:
     """How many released contexts still wait for their results to go (see GLContext.release)."""
     return len(_deferred)
+
+
 #: The GLContext glvox last made current (see GLContext.make_current).
 _current: GLContext | None = None
 

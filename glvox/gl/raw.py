@@ -65,6 +65,7 @@ _SIGNATURES["glCopyNamedBufferSubData"] = (
 _SIGNATURES["glFenceSync"] = (ctypes.c_void_p, (GLenum, ctypes.c_uint))
 _SIGNATURES["glClientWaitSync"] = (GLenum, (ctypes.c_void_p, ctypes.c_uint, ctypes.c_uint64))
 _SIGNATURES["glDeleteSync"] = (None, (ctypes.c_void_p,))
+_SIGNATURES["glGetError"] = (GLenum, ())
 
 GL_MAP_READ_BIT = 0x0001
 GL_MAP_PERSISTENT_BIT = 0x0040
@@ -142,8 +143,20 @@ class RawGL:
         address = self.fn("glMapNamedBufferRange")(name.value, 0, size, access)
         if not address:
             self.delete_buffer(name.value)
-            raise CapabilityError(f"the GL context could not map a {size}-byte buffer persistently")
+            errors = self.take_errors()  # GL_OUT_OF_MEMORY, say: not left for a later check
+            raise CapabilityError(f"the GL context could not map a {size}-byte buffer persistently "
+                                  f"(GL errors {[hex(e) for e in errors]})")
         return int(name.value), int(address)
+
+    def take_errors(self) -> list[int]:
+        """The GL errors pending (glGetError until GL_NO_ERROR), cleared."""
+        out = []
+        while len(out) < 16:
+            err = int(self.fn("glGetError")())
+            if not err:
+                break
+            out.append(err)
+        return out
 
     def delete_buffer(self, buffer: int) -> None:
         """Unmap (if mapped) and delete buffer object ``buffer``."""

@@ -173,7 +173,8 @@ class ReadbackPool:
             try:
                 name, address = self.ctx.raw.create_mapped_buffer(size)
             except CapabilityError:
-                self.unmappable = True
+                # a small buffer refused: this context maps nothing; a large one: this result
+                self.unmappable = size <= MIN_MAPPED_BYTES * 64
                 return None
             buf = MappedBuffer(name, address, size)
             self.counts["mapped"] += 1
