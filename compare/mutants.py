@@ -63,26 +63,31 @@ class Mutant:
 
 
 _SHRINK = (  # S&S's box test on the box [p + 5e-5, p + 1 - 5e-5]: 1e-4 voxel smaller, < the tie epsilon
-    ("    ivec3 first = ivec3(ceil(mn)) - 1;\n    ivec3 last = ivec3(floor(mx));",
-     "    ivec3 first = ivec3(ceil(mn + 5e-5)) - 1;\n    ivec3 last = ivec3(floor(mx - 5e-5));"),
+    ("    precise ivec3 first = ivec3(ceil(mn)) - 1;\n    ivec3 last = ivec3(floor(mx));",
+     "    precise ivec3 first = ivec3(ceil(mn + 5e-5)) - 1;\n    ivec3 last = ivec3(floor(mx - 5e-5));"),
     ("return edge_box_term_6sep(n, vec2(1.0));", "return edge_box_term_6sep(n, vec2(1.0 - 1e-4));"),
     ("return edge_box_term_conservative(n, vec2(1.0));", "return edge_box_term_conservative(n, vec2(1.0 - 1e-4));"),
-    ("    vec2 r = vec2(q - P.base);", "    vec2 r = vec2(q - P.base) + 5e-5;"),
-    ("    return abs(s) <= 0.5 * max(a.x, max(a.y, a.z));", "    return abs(s) <= (0.5 - 5e-5) * max(a.x, max(a.y, a.z));"),
-    ("    float s = dot(T.n, p - T.v0);", "    float s = dot(T.n, p + 5e-5 - T.v0);"),
-    ("    return s + (pos.x + pos.y + pos.z) >= 0.0 && s + (neg.x + neg.y + neg.z) <= 0.0;",
-     "    return s + (1.0 - 1e-4) * (pos.x + pos.y + pos.z) >= 0.0 && s + (1.0 - 1e-4) * (neg.x + neg.y + neg.z) <= 0.0;"),
+    ("    vec2 r = vec2(rq);", "    vec2 r = vec2(rq) + 5e-5;"),
+    ("    precise float lim = 0.5 * max(a.x, max(a.y, a.z));",
+     "    precise float lim = (0.5 - 5e-5) * max(a.x, max(a.y, a.z));"),
+    ("    precise vec3 d = p - T.v0;", "    precise vec3 d = p + 5e-5 - T.v0;"),
+    ("    precise float hi = s + (pos.x + pos.y + pos.z);\n    precise float lo = s + (neg.x + neg.y + neg.z);",
+     "    precise float hi = s + (1.0 - 1e-4) * (pos.x + pos.y + pos.z);\n"
+     "    precise float lo = s + (1.0 - 1e-4) * (neg.x + neg.y + neg.z);"),
 )
 
 
 def _grow(patches):
     """The same patches with the box grown by as much."""
-    swap = {"+ 5e-5": "- 5e-5", "- 5e-5": "+ 5e-5", "1.0 - 1e-4": "1.0 + 1e-4", "0.5 - 5e-5": "0.5 + 5e-5"}
+    # the longer keys first, each through a placeholder, so no swap undoes another
+    swap = {"1.0 - 1e-4": "1.0 + 1e-4", "0.5 - 5e-5": "0.5 + 5e-5", "+ 5e-5": "- 5e-5", "- 5e-5": "+ 5e-5"}
     out = []
     for old, new in patches:
-        for a, b in swap.items():
-            new = new.replace(a, "\0" + b)
-        out.append((old, new.replace("\0", "")))
+        for i, a in enumerate(swap):
+            new = new.replace(a, f"\0{i}\0")
+        for i, b in enumerate(swap.values()):
+            new = new.replace(f"\0{i}\0", b)
+        out.append((old, new))
     return tuple(out)
 
 
@@ -99,9 +104,9 @@ MUTANTS: list[Mutant] = [
                    ("sorted", "variant-sorted"), ("6sep", "ss-6sep"))],
     Mutant("ss-column-range-rounded", "the column range of the specialized variant from a rounded quotient again "
            "(the bug this issue's exact tests found)", "shaders/ss/surface.comp",
-           (("    if (float(m - 1) * b >= a) return m - 1;\n    return float(m) * b < a ? m + 1 : m;",
+           (("    if (below >= a) return m - 1;\n    precise float at = float(m) * b;\n    return at < a ? m + 1 : m;",
              "    return m;"),
-            ("    if (float(m + 1) * b <= a) return m + 1;\n    return float(m) * b > a ? m - 1 : m;",
+            ("    if (above <= a) return m + 1;\n    precise float at = float(m) * b;\n    return at > a ? m - 1 : m;",
              "    return m;"),
             ("    int m = int(ceil(a / b));", "    int m = int(ceil(a * (1.0 / b)));"),
             ("    int m = int(floor(a / b));", "    int m = int(floor(a * (1.0 / b)));")),
@@ -126,8 +131,8 @@ MUTANTS: list[Mutant] = [
            (EXACT, "-k", "solid_methods and ss-solid")),
     Mutant("half-open-rule-swapped", "S&S solid: a center exactly on the crossing flips (>= instead of >)",
            "shaders/ss/solid.glsl",
-           (("return int(clamp(floor(q + 0.5lf), -1.0lf, 1073741824.0lf));",
-             "return int(clamp(ceil(q - 0.5lf), -1.0lf, 1073741824.0lf));"),),
+           (("    precise double first = floor(q + 0.5lf);",
+             "    precise double first = ceil(q - 0.5lf);"),),
            (EXACT, "-k", "solid_methods and ss-solid")),
     Mutant("eisemann-top-left-non-strict", "eisemann column test: centers on every projected edge covered "
            "(the top-left rule's strict comparison made non-strict)", "shaders/eisemann/column.glsl",
@@ -145,7 +150,7 @@ MUTANTS: list[Mutant] = [
              "            c = c << 1u;\n            c ^= c << 1u;\n            c ^= c << 2u;"),),
            (EXACT, "-k", "solid_methods and ss-solid")),
     Mutant("depth-peel-skips-a-layer", "depth peeling: the layer behind layer 0 is peeled past unrecorded",
-           "glvox/methods/depth_raster.py",
+           "glvox/methods/depth/raster.py",
            (("    for index in range(1, known):\n        run.draw(target, cur, cls=cls, prev=prev)",
              "    for index in range(1, known):\n        if index == 1:\n            run.draw(target, cur, cls=cls, prev=prev)\n"
              "            cur, prev = prev, cur\n        run.draw(target, cur, cls=cls, prev=prev)"),),
@@ -199,7 +204,9 @@ MUTANTS: list[Mutant] = [
     # farther from the threshold than the error bound, or refined in float32 from an open
     # mesh's strips, where w equal to the threshold never came up: an equivalent mutant in practice)
     Mutant("gwn-rows-threshold-strict", "gwn-solid's closed rows: inside when C > threshold",
-           "shaders/gwn/rows.comp", (("        uvec4 in4 = uvec4(greaterThanEqual(w, vec4(u_threshold)))",
+           "shaders/gwn/rows.comp", (("        vec4 w = vec4(c);\n        uint x = 4u * q;\n"
+                                      "        uvec4 in4 = uvec4(greaterThanEqual(w, vec4(u_threshold)))",
+                                      "        vec4 w = vec4(c);\n        uint x = 4u * q;\n"
                                       "        uvec4 in4 = uvec4(greaterThan(w, vec4(u_threshold)))"),),
            ("tests/test_gwn.py", "-k", "overlapping_spheres")),
     Mutant("carve-runs-not-joined", "carve-solid: a free run no longer carries into the next word of its row",

@@ -130,6 +130,12 @@ HAND = {
     # overlap it by as little: both inside TIE_EPS, decided here by float32 (relative to
     # the triangle's base point) and float64 alike, so a box grown or shrunk by 5e-5 shows
     "near-touch": [[[1.25 + 2 ** -15, 2.25, 6.5], [6.25 + 2 ** -15, 1.25, 2.5], [2.25 + 2 ** -15, 5.75, 2.0]]],
+    # the same by an edge, in the center plane z = 2.5: the hypotenuse x + y = 5 - 2^-15 misses
+    # voxel (3, 2, 2)'s corner by 2^-15 / sqrt(2) (the conservative edge test), and x + y =
+    # 5.5 - 2^-15 misses voxel (3, 2, 2)'s 6-separating edge band by as little; a box grown
+    # by 5e-5 shows in the variants that take the plane from their column ranges too
+    "edge-near-touch": [[[1.25, 3.75 - 2 ** -15, 2.5], [3.75 - 2 ** -15, 1.25, 2.5], [1.25, 1.25, 2.5]],
+                        [[9.25, 12.25 - 2 ** -15, 10.5], [12.25 - 2 ** -15, 9.25, 10.5], [9.25, 9.25, 10.5]]],
     # a plane exactly between two voxel centers along its dominant axis, with a
     # non-dyadic slope (-n_u / n_w = 0.375 / 21.75): ss-6sep dropped voxel (8, 7, 11)
     "between-centers": [[[6.25, 6.75, 9.5], [10.75, 8.25, 12.5], [7.5, 12, 10.25]]],

@@ -100,6 +100,26 @@ def test_compare_scripts_import():
     assert p.returncode == 0, p.stderr[-2000:]
 
 
+def test_every_mutant_still_applies():
+    """compare/mutants.py patches source text: a mutant whose text moved or changed can no
+    longer run, and nothing else would notice (the box-test mutants went stale when the
+    shaders took `precise`, the depth-peel one when its module moved). Each patch must
+    match its file exactly once and change it."""
+    code = ("import runpy, sys\n"
+            "m = runpy.run_path('compare/mutants.py', run_name='glvox_import_check')\n"
+            "bad = []\n"
+            "for mu in m['MUTANTS']:\n"
+            "    text = open(mu.file).read()\n"
+            "    for old, new in mu.patches:\n"
+            "        if text.count(old) != 1 or old == new:\n"
+            "            bad.append(f'{mu.id}: {old[:60]!r} x{text.count(old)}')\n"
+            "print(len(m['MUTANTS']))\n"
+            "sys.exit('\\n'.join(bad) or None)\n")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=ROOT.parent)
+    assert p.returncode == 0, p.stderr[-2000:]
+    assert int(p.stdout.split()[-1]) >= 30
+
+
 # ---------------------------------------------------------------------------
 # one vocabulary: a family's package, shaders, tests and page share its name
 # ---------------------------------------------------------------------------
