@@ -12,7 +12,7 @@ layout(std430, binding = 2) readonly buffer Faces { uint faces[]; };
 struct Tri {
     vec3 v0, v1, v2;  // relative to base
     ivec3 base;
-    vec3 n;        // cross(v1 - v0, v2 - v0), not normalized
+    vec3 n;        // the cross product of its two shorter edges (setup_triangle), not normalized
     ivec3 lo, hi;  // touched voxels (closed boxes, Fig. 5a), clipped; lo > hi: outside the grid
     ivec3 ext;     // unclipped touched extent per axis, in voxels
     bool no_plane; // a sliver: its plane is rounding, only the projections decide
@@ -34,11 +34,21 @@ Tri setup_triangle(uint t) {
     T.v0 = v0;
     T.v1 = v1;
     T.v2 = v2;
-    // cross(v1 - v0, v2 - v0) written out: a built-in's inner operations are not
-    // an l-value's r-values (GLSL 4.50 Sec. 4.9)
-    precise vec3 e0 = v1 - v0, e1 = v2 - v0;
-    precise vec3 n = vec3(e0.y * e1.z - e0.z * e1.y, e0.z * e1.x - e0.x * e1.z, e0.x * e1.y - e0.y * e1.x);
+    // The normal from the two shorter edges: cross(v1 - v0, v2 - v1) = cross(v2 - v1, v0 - v2)
+    // = cross(v0 - v2, v1 - v0).  Its rounding is about ulp * |e| |e'| of the pair, so two
+    // long, nearly parallel edges of a needle (length 50, width 2e-3) would tilt its plane
+    // by 0.03 voxel at the far end; the shorter pair keeps it to rounding.  Written out: a
+    // built-in's inner operations are not an l-value's r-values (GLSL 4.50 Sec. 4.9)
+    // (the lengths precise too, so that every conforming compiler picks the same pair)
+    precise vec3 d0 = v1 - v0, d1 = v2 - v1, d2 = v0 - v2;
+    precise float l0 = d0.x * d0.x + d0.y * d0.y + d0.z * d0.z;
+    precise float l1 = d1.x * d1.x + d1.y * d1.y + d1.z * d1.z;
+    precise float l2 = d2.x * d2.x + d2.y * d2.y + d2.z * d2.z;
+    vec3 p = l0 >= l1 && l0 >= l2 ? d1 : (l1 >= l2 ? d2 : d0);
+    vec3 q = l0 >= l1 && l0 >= l2 ? d2 : (l1 >= l2 ? d0 : d1);
+    precise vec3 n = vec3(p.y * q.z - p.z * q.y, p.z * q.x - p.x * q.z, p.x * q.y - p.y * q.x);
     T.n = n;
+    precise vec3 e0 = v1 - v0, e1 = v2 - v0;
     // A sliver: in each of the three projections the signed area n_c is within what
     // moving the vertices by SS_SLIVER_EPS voxel can change (the bound of
     // glvox.reference.ties.orientation_ambiguous, with half the tie epsilon, so that
