@@ -163,8 +163,8 @@ class ReadbackPool:
         limit = lent_limit()
         if self.lent_bytes + (min(b.size for b in fits) if fits else size) > limit:
             return None
-        if fits:
-            buf = min(fits, key=lambda b: b.size)
+        if fits:  # the smallest that fits, the last returned of those (its pages are the warmest)
+            buf = min(reversed(fits), key=lambda b: b.size)
             self._free.remove(buf)
             self.counts["reused"] += 1
         else:
