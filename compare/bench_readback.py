@@ -1,9 +1,9 @@
 """Reading results back: mapped buffers the result owns against glGetBufferSubData, side by side.
 
-``GLVOX_READBACK`` is read at every call, so one process alternates the two
-ways run by run (``copy``: glGetBufferSubData into a fresh numpy array;
-``mapped``: a GPU copy into a persistently mapped buffer from the context's
-pool, which the result then views; glvox/gpu/readback.py).  Each run drops its
+One process alternates the two ways run by run (``forced_mode``; for a whole
+process ``GLVOX_READBACK`` picks one): ``copy``, glGetBufferSubData into a fresh
+numpy array, and ``mapped``, a GPU copy into a persistently mapped buffer from
+the context's pool, which the result then views (glvox/gpu/readback.py).  Each run drops its
 result before the next, as a loop over a dataset does.  Per cell: the first
 call of each way (the mapped way then allocates and maps its buffer; the copy
 way touches fresh pages), then the median of the warm calls, as the user waits
@@ -28,16 +28,17 @@ import time
 import glvox
 from glvox.datasets import mesh_dir
 from glvox.gl.context import get_context
+from glvox.gpu.readback import forced_mode
 from glvox.methods import run_method
 
 CASES = [("stanford_bunny_bun_zipper.ply", "ss-conservative"), ("stanford_armadillo_libigl_86k.obj", "ss-solid")]
 
 
 def _call(mesh, spec, method: str, mode: str) -> tuple[float, float]:
-    os.environ["GLVOX_READBACK"] = mode
-    t = time.perf_counter()
-    result = run_method(method, mesh, spec)
-    wall = time.perf_counter() - t
+    with forced_mode(mode):
+        t = time.perf_counter()
+        result = run_method(method, mesh, spec)
+        wall = time.perf_counter() - t
     readback = sum(s.wall_s for s in result.run.timings.stages if s.name == "readback")
     del result
     gc.collect()
@@ -68,7 +69,6 @@ def main() -> None:
             cells = [f"{first[m][0]:.0f} / {med[m][0]:.0f} ({first[m][1]:.1f} / {med[m][1]:.1f})" for m in ("copy", "mapped")]
             print(f"| {name.split('_')[1]}, {method}, {n}^3 | {cells[0]} | {cells[1]} | "
                   f"{med['mapped'][0] / med['copy'][0]:.2f} | {med['mapped'][1] / max(med['copy'][1], 1e-9):.2f} |")
-    os.environ.pop("GLVOX_READBACK", None)
 
 
 if __name__ == "__main__":

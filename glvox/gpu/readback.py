@@ -105,6 +105,7 @@ class _MappedView:
     """The object numpy arrays of a lease view; its life is the lease's."""
 
     def __init__(self, buf: MappedBuffer, nbytes: int):
+        self.buf = buf
         self.__array_interface__ = {"data": (buf.address, True), "shape": (nbytes,),
                                     "typestr": "|u1", "version": 3}
 
@@ -243,30 +244,24 @@ def copy_into(ctx, buf, out: np.ndarray, at: int, nbytes: int, offset: int = 0) 
     """Copy ``nbytes`` of ``buf`` from ``offset`` into bytes ``at ..`` of ``out``, an array
     from :func:`read_buffer` (of any dtype): on the GPU where ``out`` views a lent
     buffer, else with glGetBufferSubData.  Waits for the GPU."""
-    mapped = _lease_of(ctx, out)
-    if mapped is None:
+    mapped = _lease_of(out)
+    if mapped is None or out.__array_interface__["data"][0] != mapped.address:  # not from the buffer's start
         buf.read_into(out.reshape(-1).view(np.uint8)[at:at + nbytes], size=nbytes, offset=offset)
         return
     ctx.raw.copy_buffer(buf.glo, mapped.name, offset, at, nbytes)
     ctx.raw.wait_for_gpu()
 
 
-def _lease_of(ctx, arr: np.ndarray) -> MappedBuffer | None:
-    pool = ctx.caches.get("readback")
-    if pool is None:
-        return None
-    address = arr.__array_interface__["data"][0]
-    for buf in pool._lent.values():
-        if buf.address == address:
-            return buf
+def _lease_of(arr: np.ndarray) -> MappedBuffer | None:
+    """The lent buffer ``arr`` views (through its bases), or None."""
+    base = arr
+    while base is not None:
+        if isinstance(base, _MappedView):
+            return base.buf
+        base = getattr(base, "base", None)
     return None
 
 
 def is_mapped(arr: np.ndarray) -> bool:
     """True when ``arr`` (or what it views) is a lent mapped buffer of some context."""
-    base = arr
-    while base is not None:
-        if isinstance(base, _MappedView):
-            return True
-        base = getattr(base, "base", None)
-    return False
+    return _lease_of(arr) is not None

@@ -79,3 +79,9 @@ def gpu_vertices_voxel(mesh, spec, eps: float = SNAP_EPS) -> np.ndarray:
     v32, _ = mesh.gpu_arrays()
     origin = np.asarray(spec.origin, dtype=np.float64) - mesh.anchor
     return snap_to_planes((v32.astype(np.float64) - origin) * (1.0 / spec.voxel_size), eps).astype(np.float32)
+
+
+def gpu_triangles_voxel(mesh, spec) -> np.ndarray:
+    """The triangles in voxel space exactly as the GPU methods compute them, (T, 3, 3)
+    float64 holding the float32 values of :func:`gpu_vertices_voxel`."""
+    return gpu_vertices_voxel(mesh, spec)[mesh.faces].astype(np.float64)

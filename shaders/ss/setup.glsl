@@ -48,7 +48,6 @@ Tri setup_triangle(uint t) {
     vec3 q = l0 >= l1 && l0 >= l2 ? d2 : (l1 >= l2 ? d0 : d1);
     precise vec3 n = vec3(p.y * q.z - p.z * q.y, p.z * q.x - p.x * q.z, p.x * q.y - p.y * q.x);
     T.n = n;
-    precise vec3 e0 = v1 - v0, e1 = v2 - v0;
     // A sliver: in each of the three projections the signed area n_c is within what
     // moving the vertices by SS_SLIVER_EPS voxel can change (the bound of
     // glvox.reference.ties.orientation_ambiguous, with half the tie epsilon, so that
@@ -58,7 +57,7 @@ Tri setup_triangle(uint t) {
     // rounding too; such a triangle gets the projection tests alone over its bounding
     // box, as a zero-area one does.  A triangle in a coordinate plane is no sliver
     // (its normal is exact), as in the reference.
-    precise vec3 bound = 2.0 * SS_SLIVER_EPS * (abs(e0.yzx) + abs(e0.zxy) + abs(e1.yzx) + abs(e1.zxy))
+    precise vec3 bound = 2.0 * SS_SLIVER_EPS * (abs(d0.yzx) + abs(d0.zxy) + abs(d2.yzx) + abs(d2.zxy))
                + 8.0 * SS_SLIVER_EPS * SS_SLIVER_EPS;
     bvec3 in_plane = bvec3(ivec3(equal(T.v0, T.v1)) * ivec3(equal(T.v1, T.v2)));
     T.no_plane = all(lessThanEqual(abs(T.n), bound)) && !any(in_plane);

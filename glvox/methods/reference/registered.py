@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import MethodError
-from ...gpu.transform import gpu_vertices_voxel
+from ...gpu.transform import gpu_triangles_voxel
 from ...grid import snap_to_planes
 from ...reference import (conservative_surface, six_separating_surface, solid, solid_ties, solid_vote, surface_ties,
                          winding, winding_ties)
@@ -53,7 +53,7 @@ class _CpuReference(Method):
         raw = spec.world_to_voxel(mesh.triangles())
         extra = {"unsnapped": raw} if self.ties_see_unsnapped else {}
         if self.ties_see_gpu:
-            extra["gpu"] = gpu_vertices_voxel(mesh, spec)[mesh.faces].astype(np.float64)
+            extra["gpu"] = gpu_triangles_voxel(mesh, spec)
         return self.ties(snap_to_planes(raw), spec.dims, eps, **extra)
 
     @staticmethod

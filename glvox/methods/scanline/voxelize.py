@@ -53,7 +53,7 @@ from ...errors import LimitError
 from ...gl.shaders import compute_program
 from ...gpu.buffers import buffer_pool, mesh_buffers, read_grid_words
 from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
-from ...gpu.transform import SHADERS as TRANSFORM_SHADERS, SNAP_DEFINES, gpu_vertices_voxel
+from ...gpu.transform import SHADERS as TRANSFORM_SHADERS, SNAP_DEFINES, gpu_triangles_voxel
 from ...reference.scanline import (ILV_BOUNDARY_SNAP, ILV_COORD_LIMIT, RLV_BOUNDARY_SNAP, SCANLINE_SLACK,
                                   TUNNELS)
 from ...results.voxels import VoxelGrid
@@ -84,7 +84,7 @@ def gpu_voxel_coords(mesh, spec) -> np.ndarray:
     :func:`glvox.reference.scanline.scanline_surface` reproduces the GPU's ILV
     result exactly.
     """
-    return gpu_vertices_voxel(mesh, spec)[mesh.faces].astype(np.float64)
+    return gpu_triangles_voxel(mesh, spec)
 
 
 def simd_lanes(ctx) -> int:
