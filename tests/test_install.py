@@ -61,7 +61,10 @@ def test_regular_install_finds_shaders_from_another_directory(tmp_path):
     work = tmp_path / "elsewhere"
     work.mkdir()
     env = {k: v for k, v in os.environ.items() if k != "GLVOX_SHADER_PATH"}
-    env["PYTHONPATH"] = str(target)
+    # the wheel's folder first; other PYTHONPATH entries stay (dependencies installed with
+    # --target, as on a machine without a virtual environment), the checkout does not
+    kept = [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p and Path(p).resolve() != ROOT]
+    env["PYTHONPATH"] = os.pathsep.join([str(target)] + kept)
     code = f"CHECKOUT = {str(ROOT)!r}\nTARGET = {str(target)!r}\n" + SCRIPT
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600,
                          cwd=work, env=env)
