@@ -20,7 +20,8 @@ from glvox.study.peers import get_peer
 #: and that by 1/10001 of its side (float32), sets the voxels glvox's CPU conservative reference
 #: sets there, writes <mesh>_<N>.binvox (translate = cube minimum, scale = side, %g numbers,
 #: runs x, z, y as its writer loops) and prints its [Perf] lines.  FAKE_MODE: drop (one voxel
-#: less), fail (exit 3), cpu (its CPU fallback: no GPU time line).
+#: less), fail (exit 3), cpu (its CPU fallback: no GPU time line), suffix (<mesh with its suffix>_<N>
+#: .binvox, as its current source names the file).
 FAKE = textwrap.dedent('''\
     #!{python}
     import os, sys
@@ -59,7 +60,7 @@ FAKE = textwrap.dedent('''\
             out += bytes([value, count]); value, count = int(b), 0
         count += 1
     out += bytes([value, count])
-    base = opt["-f"].rsplit(".", 1)[0]
+    base = opt["-f"] if mode == "suffix" else opt["-f"].rsplit(".", 1)[0]
     with open(f"{{base}}_{{n}}.binvox", "wb") as f:
         f.write(f"#binvox 1\\ndim {{n}} {{n}} {{n}}\\ntranslate {{lo[0]:g}} {{lo[1]:g}} {{lo[2]:g}}\\n"
                 f"scale {{(hi - lo).max():g}}\\ndata\\n".encode() + bytes(out))
@@ -131,9 +132,19 @@ def test_a_voxel_it_misses_and_its_cpu_fallback_are_reported(fake, monkeypatch):
     assert s["device"] == "cpu" and s["kernel_ms"] is None and s["missing"] == 0
 
 
+def test_its_current_file_name_with_the_mesh_suffix_is_read(fake, monkeypatch):
+    """Its current source names the output after the whole mesh file name (mesh.ply_12.binvox):
+    the first real run on an H100 found no mesh_12.binvox and reported an error for every cell."""
+    mesh = glvox.load_mesh("gen:sphere")
+    monkeypatch.setenv("FAKE_MODE", "suffix")
+    s = run_peer(mesh, 12)[0].stats
+    assert s["count"] == s["glvox_count"] > 0 and s["missing"] == s["extra"] == 0
+
+
 def test_a_failing_binary_is_an_error_naming_its_output(fake, monkeypatch):
     monkeypatch.setenv("FAKE_MODE", "fail")
-    with pytest.raises(RuntimeError, match=r"exited with status 3 without writing mesh_8.binvox: .*something went wrong"):
+    with pytest.raises(RuntimeError, match=r"exited with status 3 without writing mesh_8.binvox or mesh.ply_8.binvox: "
+                                           r".*something went wrong"):
         run_peer(glvox.load_mesh("gen:sphere"), 8)
 
 

@@ -3,8 +3,10 @@
 The user names the binary (``glvox bench --cuda-voxelizer PATH``, or the
 environment variable ``GLVOX_CUDA_VOXELIZER``); glvox runs it as a user
 would: ``cuda_voxelizer -f MESH -s N -o binvox``, which writes
-``<MESH without suffix>_<N>.binvox`` beside the mesh (so the mesh is written
-to a temporary folder first, as binary PLY) and prints, among other lines,
+``<MESH without suffix>_<N>.binvox`` beside the mesh (its current source,
+built for an H100 in November 2026, keeps the suffix: ``<MESH>_<N>.binvox``;
+either is read), so the mesh is written to a temporary folder first, as
+binary PLY and prints, among other lines,
 ``[Perf] Voxelization GPU time: <ms> ms`` (its CUDA kernel, timed with CUDA
 events; absent on its CPU fallback, which it announces) and ``[Perf] Total
 runtime: <ms> ms``.
@@ -96,7 +98,7 @@ class Prepared:
     folder: Path
     mesh_path: Path
     n: int
-    out: Path
+    outs: tuple[Path, ...]  # the names its versions write, either one
     own: GridSpec
     mesh: Any
 
@@ -151,19 +153,21 @@ class CudaVoxelizer(Peer):
         trimesh.Trimesh(np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces), process=False,
                         validate=False).export(mesh_path, file_type="ply", encoding="binary")
         n = int(spec.dims[0])
-        return Prepared(binary, folder, mesh_path, n, folder / f"mesh_{n}.binvox", cube_placement(mesh.vertices, n),
-                        mesh)
+        outs = (folder / f"mesh_{n}.binvox", folder / f"mesh.ply_{n}.binvox")
+        return Prepared(binary, folder, mesh_path, n, outs, cube_placement(mesh.vertices, n), mesh)
 
     def run(self, prepared: Prepared) -> dict[str, Any]:
-        out = prepared.out
-        out.unlink(missing_ok=True)  # never read a file an earlier run left
+        for out in prepared.outs:
+            out.unlink(missing_ok=True)  # never read a file an earlier run left
         p = subprocess.run([prepared.binary, "-f", str(prepared.mesh_path), "-s", str(prepared.n), "-o", "binvox"],
                            capture_output=True, text=True, cwd=prepared.folder)
         text = p.stdout + p.stderr
-        if p.returncode != 0 or not out.is_file():
+        out = next((o for o in prepared.outs if o.is_file()), None)
+        if p.returncode != 0 or out is None:
             tail = " | ".join(text.strip().splitlines()[-3:])
+            names = " or ".join(o.name for o in prepared.outs)
             raise RuntimeError(f"cuda_voxelizer exited with status {p.returncode}"
-                               f"{'' if out.is_file() else f' without writing {out.name}'}: {tail}")
+                               f"{'' if out is not None else f' without writing {names}'}: {tail}")
         return {"text": text, "binvox": out.read_bytes(), "prepared": prepared}
 
     def to_grid(self, native: dict[str, Any], spec: GridSpec) -> PeerGrid:
