@@ -685,6 +685,12 @@ PARALLEL_FACE = trimesh.convex.convex_hull(np.array([(1, .75, 0), (0, 0, -.75), 
                                                      (0, -1, 0)]))
 
 
+#: Hypothesis's find on an NVIDIA H100 (driver 580): eisemann-solid set the one voxel, whose
+#: center is 0.09 voxel outside; the column's ray grazes the silhouette edge of two faces.
+NVIDIA_TETRAHEDRON = (np.array([[0.5, 0, 0], [-1, 1, 0], [0, 0, 0], [0, 0, 1]]),
+                      np.array([[3, 0, 1], [1, 0, 2], [2, 3, 1], [0, 3, 2]]))
+
+
 #: The hulls this test found for binvox-solid (with faces and edges on the lattice: 5-9 voxels
 #: off reference-binvox, all ties; with a vertex within the finer grid's snap: 1 voxel off its
 #: float32 twin) are pinned in tests/test_binvox.py (LATTICE_HULLS).  Pinned here: 512 voxels
@@ -693,6 +699,7 @@ PARALLEL_FACE = trimesh.convex.convex_hull(np.array([(1, .75, 0), (0, 0, -.75), 
 @given(solid=closed_solids(), dims=grid_dims())
 @example(solid=TETRAHEDRON, dims=(1, 1, 512))
 @example(solid=(PARALLEL_FACE.vertices, PARALLEL_FACE.faces), dims=(17, 29, 42))
+@example(solid=NVIDIA_TETRAHEDRON, dims=(1, 1, 1))
 def test_fuzzed_closed_solids_on_every_solid_method(gl_context, solid, dims):
     mesh = load_mesh(solid, name="hull")
     spec = glvox.grid_for(mesh, dims=dims)

@@ -380,9 +380,16 @@ def assert_same(name: str, case: Case, got: np.ndarray, want: np.ndarray, what: 
     assert ok, f"{name} on {case!r}: {what} changes {int((got ^ want).sum())} voxels"
 
 
+#: Hypothesis's find on an NVIDIA H100 (driver 580): ss-solid changed 3 voxels under this mirror
+#: there, in a worker that had run other cases first; it did not fail again on its own there.
+NVIDIA_MIRROR_BOX = Case("box", [[0.0, 910.6738821297131], [113.83423526621414, 1138.3423526621414],
+                                 [0.0, 1138.3423526621414]], GridSpec((3, 3, 3), (0, 0, 0), 455.337))
+
+
 @settings(max_examples=300 if SLOW else 20, **SETTINGS)
 @given(case=cases(max_n=48 if SLOW else 24), axis=st.integers(0, 2))
 @example(case=issue_box(1), axis=2)
+@example(case=NVIDIA_MIRROR_BOX, axis=0)
 def test_mirror(gl_context, case, axis):
     """The mesh mirrored along ``axis`` about the grid's center, faces flipped back, gives
     the mirrored grid (surfaces whose definition is symmetric here; solids off the surface).
