@@ -7,12 +7,16 @@ llvmpipe; that figure is measured with ``glvox selftest``, not here).
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 
 from glvox import cli
 from glvox.gl.raw import RawGL
+from glvox.gl.shaders import builtin_shader_dir
 from glvox.methods import get_method, method_infos
 from glvox.results.voxels import VoxelGrid
 from glvox.gpu.arithmetic import PROBES, classify, probe_operands
@@ -138,3 +142,23 @@ def test_every_approximate_method_has_a_bound():
 def test_an_unknown_method_is_refused_before_any_work(capsys):
     rc, out = _run(capsys, "--methods", "nope")
     assert rc == 1 and out.err.startswith("glvox: error: unknown method 'nope'") and out.out == ""
+
+
+def test_the_tie_cases_catch_a_solid_that_drops_the_top_left_rule(tmp_path):
+    """ss-solid with its top-left rule dropped (a center on a projected edge always counts,
+    a shader overlay through GLVOX_SHADER_PATH): every generated case still passes, and only
+    the boxes on voxel center planes fail, which is how an NVIDIA H100 (driver 580) failed
+    them while passing the rest.  The unmodified shader passes them (the test above)."""
+    rel = "ss/solid.glsl"
+    text = (builtin_shader_dir() / rel).read_text()
+    rule = "if (!(f > 0.0lf || (f == 0.0lf && t.tl[i]))) return false;"
+    assert text.count(rule) == 1
+    (tmp_path / "ss").mkdir()
+    (tmp_path / rel).write_text(text.replace(rule, "if (!(f >= 0.0lf)) return false;"))
+    env = {**os.environ, "GLVOX_SHADER_PATH": str(tmp_path)}
+    proc = subprocess.run([sys.executable, "-m", "glvox", "selftest", "--methods", "ss-solid", "--json"],
+                          capture_output=True, text=True, env=env, timeout=300)
+    assert proc.returncode == 1, proc.stderr[-2000:]
+    row = next(r for r in json.loads(proc.stdout)["methods"] if r["method"] == "ss-solid")
+    assert row["status"] == "mismatch" and row["detail"]
+    assert all(line.startswith("box on center planes@") for line in row["detail"]), row["detail"]

@@ -18,6 +18,12 @@ download) on 16^3 to 32^3 grids, checked the way the test suite checks them:
   lattice (:func:`glvox.reference.scanline.scanline_surface`) voxel for voxel;
 * the CPU references define the checks and are listed, not checked.
 
+Beside them, :func:`tie_cases`: closed meshes with vertices and edges exactly on
+voxel center planes, where a column center lies on a projected edge or vertex
+and only the top-left and half-open rules decide.  A run on an NVIDIA H100
+(driver 580) passed every generated case and failed these: ss-solid set a
+voxel half a voxel outside a box, eisemann-solid one outside a tetrahedron.
+
 A method that fails (a capability refusal included) is a failure like a
 mismatch.  The figure on llvmpipe (2 shared cores) is in docs/testing.md.
 
@@ -50,12 +56,13 @@ from ..errors import GlvoxError, NotWatertightWarning
 from ..gl.context import get_context
 from ..gpu.arithmetic import probe_arithmetic
 from ..gpu.readback import forced_mode, is_mapped, readback_pool
-from ..grid import grid_for, pack_bits
+from ..grid import GridSpec, grid_for, pack_bits
 from ..mesh import load_mesh
 from ..methods import get_method, method_infos, run_method
 from ..methods.scanline.voxelize import gpu_voxel_coords
 from ..metrics import not_tie_words, popcount
 from ..reference.scanline import scanline_surface
+from ..testing.cells import cells_mesh, occupancy
 from . import harness
 from .plan import Contender
 
@@ -63,6 +70,21 @@ from .plan import Contender
 #: mesh used only when it is already on this machine.
 CASES = (("gen:torus", 24), ("gen:sphere", 16), ("gen:box", 20), ("gen:bunny-like", 32))
 SHARED_CASE = ("cad_fandisk.off", 24)
+#: The tetrahedron of :func:`tie_cases`: at one voxel, the column's ray grazes the edge two
+#: of its faces share on its silhouette.
+TIE_TETRAHEDRON = (np.array([[0.5, 0, 0], [-1, 1, 0], [0, 0, 0], [0, 0, 1]]),
+                   np.array([[3, 0, 1], [1, 0, 2], [2, 3, 1], [0, 3, 2]]))
+#: Boxes of :func:`tie_cases`: (x, y, z) breakpoints in world units and a grid (None: the
+#: fitted cube of that many voxels).  Faces on voxel center planes put column centers on the
+#: boxes' edges and corners.
+TIE_BOXES = (
+    ("box on center planes", ((0.0, 910.6738821297131), (113.83423526621414, 1138.3423526621414),
+                              (0.0, 1138.3423526621414)), GridSpec((3, 3, 3), (0, 0, 0), 455.337)),
+    ("box on center planes", ((0.0, 71.171875), (0.0, 88.96484375), (6.8808746337890625, 266.89453125)),
+     GridSpec((3, 3, 8), (0, 0, 0), 35.5859)),
+    ("box", ((0.0, 0.5), (0.0, 0.75), (0.0, 0.5)), 17),
+    ("box", ((0.0, 0.5), (0.0, 0.75), (0.0, 0.5)), 19),
+)
 #: Grid of the ``readback`` row: 8 MiB of packed words, over the mapped threshold.
 READBACK_N = 400
 
@@ -90,6 +112,18 @@ class Row:
     seconds: float = 0.0
     status: str = "ok"
     detail: list[str] = field(default_factory=list)
+
+
+def tie_cases() -> list[tuple[str, object, GridSpec]]:
+    """(label, mesh, grid) of the cases on voxel center planes (module docstring)."""
+    tet = load_mesh(TIE_TETRAHEDRON, name="tetrahedron on an edge")
+    out = [(f"{tet.name}@1", tet, grid_for(tet, dims=(1, 1, 1)))]
+    for name, bp, grid in TIE_BOXES:
+        v, f = cells_mesh([np.asarray(b, np.float64) for b in bp], occupancy("box"))
+        mesh = load_mesh((v, f), name=name)
+        spec = grid_for(mesh, grid) if isinstance(grid, int) else grid
+        out.append((f"{name}@{'x'.join(map(str, spec.dims))}", mesh, spec))
+    return out
 
 
 def _words(result) -> np.ndarray:
@@ -201,15 +235,16 @@ def selftest(methods: Sequence[str] | None = None, progress: Callable[[str], Non
     progress("readback: mapped words")
     read_row = readback_row(ctx)
     rows = {n: Row(n, _describe(n)) for n in names}
-    cases = list(CASES)
+    named = list(CASES)
     shared = find(SHARED_CASE[0])
     if shared is not None:
-        cases.append((str(shared), SHARED_CASE[1]))
-    labels = []
-    for mesh_name, n in cases:
+        named.append((str(shared), SHARED_CASE[1]))
+    cases = []
+    for mesh_name, n in named:
         mesh = load_mesh(mesh_name)
-        spec = grid_for(mesh, n)
-        label = f"{mesh.name or mesh_name}@{n}"
+        cases.append((f"{mesh.name or mesh_name}@{n}", mesh, grid_for(mesh, n)))
+    labels = []
+    for label, mesh, spec in cases + tie_cases():
         labels.append(label)
         refs = harness.References(mesh, spec)
         for name in names:
