@@ -22,7 +22,7 @@ ROOT = Path(__file__).resolve().parents[1] / "glvox"
 
 #: The README's Layout order, lowest first.
 LAYERS = ["_version", "errors", "tolerances", "progress", "grid", "meshfiles", "mesh", "traits", "visuals", "datasets",
-          "results", "formats", "io", "gl", "gpu", "reference", "methods", "inspect", "metrics", "batch", "study", "testing",
+          "results", "formats", "io", "gl", "gpu", "reference", "methods", "inspect", "metrics", "batch", "testing", "study",
           "preflight", "commands", "cli", "__main__"]
 
 

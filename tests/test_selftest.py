@@ -39,8 +39,11 @@ def test_selftest_passes_here(gl_context, capsys):
     assert report["methods"][0]["method"] == "arithmetic"
     assert arith["status"] == "ok" and arith["mismatches"] == 0 and arith["cases"] == 4 * PROBES
     assert report["arithmetic"]["fused_precise_float"] == report["arithmetic"]["fused_precise_double"] == 0
+    ties = rows.pop("ties")  # then the double arithmetic of the tie decisions
+    assert report["methods"][1]["method"] == "ties"
+    assert ties["status"] == "ok" and ties["mismatches"] == 0 and ties["cases"] > 20000 and not ties["detail"]
     read = rows.pop("readback")  # then how results leave the GPU
-    assert report["methods"][1]["method"] == "readback"
+    assert report["methods"][2]["method"] == "readback"
     assert read["status"] == "ok" and read["mismatches"] == 0 and read["cases"] == 2
     assert "readback stage: mapped" in read["detail"][-1]
     assert set(rows) == {"ss-conservative", "peel-ldi", "karabassi"}
@@ -118,8 +121,8 @@ def test_an_approximate_method_outside_its_bound_fails(gl_context, capsys, monke
     rc, out = _run(capsys, "--methods", "karabassi", "--json")
     report = json.loads(out.out)
     assert rc == 1 and not report["ok"]
-    arith, read, row = report["methods"]
-    assert arith["status"] == read["status"] == "ok" and row["method"] == "karabassi" and row["status"] == "mismatch" and row["mismatches"] > 0
+    arith, ties, read, row = report["methods"]
+    assert arith["status"] == ties["status"] == read["status"] == "ok" and row["method"] == "karabassi" and row["status"] == "mismatch" and row["mismatches"] > 0
 
 
 @pytest.mark.parametrize("change, bad", [(lambda d: d, False), (_flip_corner, True), (np.zeros_like, True)])
@@ -128,7 +131,7 @@ def test_binvox_solid_may_differ_from_its_twin_on_ties_only(gl_context, capsys, 
     voxel off in a corner no column of the mesh reaches fails, and so does an emptied grid."""
     _broken(monkeypatch, "binvox-solid", change)
     rc, out = _run(capsys, "--methods", "binvox-solid", "--json")
-    _, _, row = json.loads(out.out)["methods"]  # after the compiler's and the readback rows
+    _, _, _, row = json.loads(out.out)["methods"]  # after the compiler's, the ties and the readback rows
     assert (rc, row["status"], row["mismatches"] > 0) == ((1, "mismatch", True) if bad else (0, "ok", False)), row
 
 
@@ -148,7 +151,8 @@ def test_the_tie_cases_catch_a_solid_that_drops_the_top_left_rule(tmp_path):
     """ss-solid with its top-left rule dropped (a center on a projected edge always counts,
     a shader overlay through GLVOX_SHADER_PATH): every generated case still passes, and only
     the boxes on voxel center planes fail, which is how an NVIDIA H100 (driver 580) failed
-    them while passing the rest.  The unmodified shader passes them (the test above)."""
+    them while passing the rest; the ``ties`` row names the verdicts that differ from the
+    float64 model.  The unmodified shader passes them (the test above)."""
     rel = "ss/solid.glsl"
     text = (builtin_shader_dir() / rel).read_text()
     rule = "if (!(f > 0.0lf || (f == 0.0lf && t.tl[i]))) return false;"
@@ -159,6 +163,10 @@ def test_the_tie_cases_catch_a_solid_that_drops_the_top_left_rule(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "glvox", "selftest", "--methods", "ss-solid", "--json"],
                           capture_output=True, text=True, env=env, timeout=300)
     assert proc.returncode == 1, proc.stderr[-2000:]
-    row = next(r for r in json.loads(proc.stdout)["methods"] if r["method"] == "ss-solid")
+    rows = {r["method"]: r for r in json.loads(proc.stdout)["methods"]}
+    row = rows["ss-solid"]
     assert row["status"] == "mismatch" and row["detail"]
     assert all(line.startswith("box on center planes@") for line in row["detail"]), row["detail"]
+    ties = rows["ties"]
+    assert ties["status"] == "mismatch" and ties["detail"]
+    assert all("ss-solid (compute)" in line and "covered" in line for line in ties["detail"]), ties["detail"]

@@ -211,6 +211,11 @@ def test_gpu_transform_is_the_cpu_mirror_bit_for_bit(gl_context):
     got = np.frombuffer(buf.read(size=len(v) * 12), dtype=np.float32).reshape(-1, 3)
     want = gpu_vertices_voxel(mesh, spec)
     np.testing.assert_array_equal(got, want)
+    # the double output (eisemann, the LDI) too: the tie probe's model starts from it
+    _, dbuf = transform_vertices(gl_context, mesh, spec, StageTimer(gl_context),
+                                 buffer_pool(gl_context, "test_ties"), double=True)
+    dgot = np.frombuffer(dbuf.read(size=len(v) * 24), dtype=np.float64).reshape(-1, 3)
+    np.testing.assert_array_equal(dgot, gpu_vertices_voxel(mesh, spec, double=True))
     on = np.abs(vox - np.round(2 * vox) / 2) < 1e-6
     assert (want[on] == np.round(2 * vox[on]) / 2).all()  # every coordinate within rounding of a plane is on it
 

@@ -66,8 +66,9 @@ def transform_vertices(ctx, mesh, spec, timer, pool, *, double: bool = False, st
     return bufs, vox
 
 
-def gpu_vertices_voxel(mesh, spec, eps: float = SNAP_EPS) -> np.ndarray:
-    """The mesh's vertices in voxel space exactly as the GPU methods see them, (V, 3) float32.
+def gpu_vertices_voxel(mesh, spec, eps: float = SNAP_EPS, *, double: bool = False) -> np.ndarray:
+    """The mesh's vertices in voxel space exactly as the GPU methods see them, (V, 3) float32
+    (float64 with ``double``: what ``transform_vertices(..., double=True)`` writes).
 
     ``vertex_to_voxel`` of ``shaders/common/snap.glsl`` in numpy: the float32
     upload relative to the anchor (:meth:`glvox.mesh.Mesh.gpu_arrays`),
@@ -78,7 +79,8 @@ def gpu_vertices_voxel(mesh, spec, eps: float = SNAP_EPS) -> np.ndarray:
     """
     v32, _ = mesh.gpu_arrays()
     origin = np.asarray(spec.origin, dtype=np.float64) - mesh.anchor
-    return snap_to_planes((v32.astype(np.float64) - origin) * (1.0 / spec.voxel_size), eps).astype(np.float32)
+    vox = snap_to_planes((v32.astype(np.float64) - origin) * (1.0 / spec.voxel_size), eps)
+    return vox if double else vox.astype(np.float32)
 
 
 def gpu_triangles_voxel(mesh, spec) -> np.ndarray:

@@ -81,33 +81,43 @@ def run_compute(ctx, shader: str, groups: int | Sequence[int], *,
     set_uniforms(prog, uniforms or {})
     made, meta = {}, {}
     try:
-        for binding, spec in buffers.items():
-            if isinstance(spec, tuple):
-                count, dtype = spec
-                dtype = np.dtype(dtype)
-                buf = ctx.mgl.buffer(reserve=max(4, int(count) * dtype.itemsize))
-                clear_buffer(ctx, buf)
-                meta[binding] = (dtype, (int(count),))
-            else:
-                arr = np.ascontiguousarray(spec)
-                buf = ctx.mgl.buffer(arr.tobytes() if arr.nbytes else b"\0" * 4)
-                meta[binding] = (arr.dtype, arr.shape)
-            if isinstance(binding, str):
-                bind(prog, **{binding: buf})
-            else:
-                buf.bind_to_storage_buffer(binding)
-            made[binding] = buf
+        _storage(ctx, prog, buffers, made, meta)
         g = (int(groups), 1, 1) if np.isscalar(groups) else tuple(int(x) for x in groups)
         prog.run(*g)
-        out = {}
-        for binding in read:
-            dtype, shape = meta[binding]
-            n = math.prod(shape) * dtype.itemsize
-            out[binding] = np.frombuffer(made[binding].read(size=n), dtype=dtype).reshape(shape).copy()
-        return out
+        return _read_back(made, meta, read)
     finally:
         for buf in made.values():
             buf.release()
+
+
+def _storage(ctx, prog, buffers, made: dict, meta: dict) -> None:
+    """Make and bind the storage buffers of ``buffers`` (see :func:`run_compute`) into ``made``,
+    with each one's dtype and shape in ``meta``."""
+    for binding, spec in buffers.items():
+        if isinstance(spec, tuple):
+            count, dtype = spec
+            dtype = np.dtype(dtype)
+            buf = ctx.mgl.buffer(reserve=max(4, int(count) * dtype.itemsize))
+            clear_buffer(ctx, buf)
+            meta[binding] = (dtype, (int(count),))
+        else:
+            arr = np.ascontiguousarray(spec)
+            buf = ctx.mgl.buffer(arr.tobytes() if arr.nbytes else b"\0" * 4)
+            meta[binding] = (arr.dtype, arr.shape)
+        made[binding] = buf
+        if isinstance(binding, str):
+            bind(prog, **{binding: buf})
+        else:
+            buf.bind_to_storage_buffer(binding)
+
+
+def _read_back(made: dict, meta: dict, read) -> dict:
+    out = {}
+    for binding in read:
+        dtype, shape = meta[binding]
+        n = math.prod(shape) * dtype.itemsize
+        out[binding] = np.frombuffer(made[binding].read(size=n), dtype=dtype).reshape(shape).copy()
+    return out
 
 
 def run_fragment(ctx, fragment: str, size: tuple[int, int], *, outputs: int = 1,
@@ -115,7 +125,9 @@ def run_fragment(ctx, fragment: str, size: tuple[int, int], *, outputs: int = 1,
                  vertices: int = 3, draws: int = 1, logic_op: str | None = None,
                  uniforms: Mapping[str, Any] | None = None, defines: Mapping[str, Any] | None = None,
                  textures: Mapping[int, Any] | None = None,
-                 search: Iterable[os.PathLike | str] = ()) -> list[np.ndarray]:
+                 buffers: Mapping[str | int, np.ndarray | tuple[int, Any]] | None = None,
+                 read: Iterable[str | int] = (),
+                 search: Iterable[os.PathLike | str] = ()):
     """Draw ``vertices`` vertices (default a full-screen triangle) into color targets.
 
     Parameters
@@ -133,6 +145,9 @@ def run_fragment(ctx, fragment: str, size: tuple[int, int], *, outputs: int = 1,
         ``'xor'``, ``'or'``... enabled around the draws (see :mod:`glvox.gl`).
     textures : {unit: moderngl texture}, optional
         Bound before drawing.
+    buffers, read : optional
+        Storage buffers the shaders read or write, as for :func:`run_compute`
+        (a fragment shader may write one: GL 4.3 and later).
     search : iterable of path
         As for :func:`run_compute` (relative to the calling file's folder).
 
@@ -141,6 +156,8 @@ def run_fragment(ctx, fragment: str, size: tuple[int, int], *, outputs: int = 1,
     list of arrays, one per attachment, shape (height, width, components)
         and ``dtype`` (``'f1'``: uint8); ``out[y, x]`` is the pixel whose
         ``gl_FragCoord.xy`` is ``(x + 0.5, y + 0.5)`` (row 0 at the bottom).
+        With ``read``: that list and {key: array} of the buffers read back,
+        as a pair.
     """
     search = _from_caller(search, inspect.currentframe().f_back)
     ctx.make_current()
@@ -150,7 +167,9 @@ def run_fragment(ctx, fragment: str, size: tuple[int, int], *, outputs: int = 1,
     targets = [mgl.texture(size, components, dtype=dtype) for _ in range(outputs)]
     fbo = mgl.framebuffer(color_attachments=targets)
     vao = mgl.vertex_array(prog, [])
+    made, meta = {}, {}
     try:
+        _storage(ctx, prog, buffers or {}, made, meta)
         fbo.use()
         for t in targets:
             t.write(np.zeros((size[1], size[0], components), dtype=np.dtype(dtype)).tobytes())
@@ -168,8 +187,13 @@ def run_fragment(ctx, fragment: str, size: tuple[int, int], *, outputs: int = 1,
         for t in targets:
             data = t.read()
             out.append(np.frombuffer(data, dtype=np_dtype).reshape(size[1], size[0], components).copy())
+        if read:
+            mgl.memory_barrier()  # the fragment shader's stores, before the buffers are read
+            return out, _read_back(made, meta, read)
         return out
     finally:
+        for buf in made.values():
+            buf.release()
         vao.release()
         ctx.release_framebuffer(fbo)
         for t in targets:

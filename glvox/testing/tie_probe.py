@@ -1,0 +1,181 @@
+"""The exact tie functions of ss-solid and eisemann-solid on the GPU against their float64 model.
+
+Where a column center lies exactly on a projected edge or vertex, the solid
+methods decide it by the top-left rule on edge functions computed in double
+(``shaders/ss/solid.glsl``, ``shaders/eisemann/column.glsl``).  The CPU
+references make the same decisions, so on any GL that computes those
+doubles as IEEE 754 does, every method agrees with them there.  An NVIDIA H100
+(driver 580) did not: ss-solid set a voxel half a voxel outside a box whose
+faces lie on voxel center planes, eisemann-solid one outside a tetrahedron
+(``glvox selftest``'s tie cases).
+
+:func:`probe` evaluates those functions on the GPU for every (triangle,
+column center) pair of a mesh (``shaders/testing/tie_probe.glsl``: the normal
+component along the ray, the three oriented edge functions, the three
+top-left flags, the verdict and the first voxel flipped), in a compute shader
+and, for eisemann, in a fragment shader as the method runs them, and compares
+every word with :func:`model`, the same formulas in numpy float64.  A
+difference names the pair and the quantity, so a GPU that decides a tie
+otherwise is pinned to the operation that differs (``compare/probe_ties.py``
+prints them).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..gpu.transform import gpu_vertices_voxel
+from .harness import run_compute, run_fragment
+
+#: uint32 words per pair (``PROBE_WORDS`` of the shader).
+WORDS = 14
+#: What each word range holds (the shader's layout).
+FIELDS = {"takes part": slice(0, 1), "normal component": slice(1, 3), "edge functions": slice(3, 9),
+          "top-left flags": slice(9, 12), "covered": slice(12, 13), "first voxel": slice(13, 14)}
+#: The probes: (name, method family, shader stage).
+KINDS = (("ss-solid (compute)", "ss", "compute"), ("eisemann (compute)", "eis", "compute"),
+         ("eisemann (fragment)", "eis", "fragment"))
+
+
+@dataclass
+class Difference:
+    """One pair whose GPU words differ from the model's."""
+
+    kind: str
+    triangle: int
+    center: tuple[float, float]
+    fields: list[str]
+    gpu: np.ndarray
+    model: np.ndarray
+
+    def __str__(self) -> str:
+        return (f"{self.kind}: triangle {self.triangle}, center {self.center}: {', '.join(self.fields)} differ "
+                f"(gpu {self.gpu.tolist()}, model {self.model.tolist()})")
+
+
+def _bits(x: float) -> tuple[int, int]:
+    b = int(np.float64(x).view(np.uint64))
+    return b & 0xFFFFFFFF, b >> 32
+
+
+def _first(x: float, lo: float, hi: float) -> int:
+    """``int(clamp(floor(x + 0.5), lo, hi))`` as the shaders write it, as a uint32 word."""
+    return int(min(max(math.floor(x + 0.5), lo), hi)) & 0xFFFFFFFF
+
+
+def _model_ss(t: np.ndarray, c: np.ndarray) -> list[int]:
+    """``ss/solid.glsl`` on float32 vertices ``t`` (3, 3), center ``c`` = (y, z)."""
+    q0, q1, q2 = (t[k].astype(np.float64) for k in range(3))
+    ea, eb = q1 - q0, q2 - q1
+    n = np.array([ea[1] * eb[2] - ea[2] * eb[1], ea[2] * eb[0] - ea[0] * eb[2], ea[0] * eb[1] - ea[1] * eb[0]])
+    out = [int(n[0] != 0.0), *_bits(n[0])]
+    if n[0] == 0.0:
+        return out + [0] * (WORDS - 3)
+    sgn = 1.0 if n[0] > 0.0 else -1.0
+    v = [q0[1:], q1[1:], q2[1:]]
+    fs, tls = [], []
+    for i in range(3):
+        p, q = v[i], v[(i + 1) % 3]
+        e = q - p
+        nu, nv = -e[1] * sgn, e[0] * sgn
+        swap = p[0] > q[0] or (p[0] == q[0] and p[1] > q[1])
+        a, d, s = (q, p - q, -sgn) if swap else (p, q - p, sgn)
+        r = c - a
+        fs.append((d[0] * r[1] - d[1] * r[0]) * s)
+        tls.append(int(nu > 0.0 or (nu == 0.0 and nv < 0.0)))
+    covered = all(f > 0.0 or (f == 0.0 and tl) for f, tl in zip(fs, tls))
+    first = 0
+    if covered:
+        x = q0[0] + (n[1] * (q0[1] - c[0]) + n[2] * (q0[2] - c[1])) / n[0]
+        x = min(max(x, float(t[:, 0].min())), float(t[:, 0].max()))
+        first = _first(x, -1.0, 1073741824.0)
+    return out + [w for f in fs for w in _bits(f)] + tls + [int(covered), first]
+
+
+def _model_eis(t: np.ndarray, c: np.ndarray) -> list[int]:
+    """``eisemann/column.glsl`` (render axis z) on double vertices ``t`` (3, 3), center ``c`` = (x, y)."""
+    p0, p1, p2 = t[0], t[1], t[2]
+    e0, e1 = p1 - p0, p2 - p0
+    n = np.array([e0[1] * e1[2] - e0[2] * e1[1], e0[2] * e1[0] - e0[0] * e1[2], e0[0] * e1[1] - e0[1] * e1[0]])
+    out = [int(n[2] != 0.0), *_bits(n[2])]
+    sgn = 1.0 if n[2] > 0.0 else -1.0
+    q = [p0[:2], p1[:2], p2[:2]]
+    fs, tls = [], []
+    for i in range(3):
+        s, b = q[i], q[(i + 1) % 3]
+        e = b - s
+        swap = s[0] > b[0] or (s[0] == b[0] and s[1] > b[1])
+        lo, hi = (b, s) if swap else (s, b)
+        f = (hi[0] - lo[0]) * (c[1] - lo[1]) - (hi[1] - lo[1]) * (c[0] - lo[0])
+        fs.append((-f if swap else f) * sgn)
+        nu, nv = -e[1] * sgn, e[0] * sgn
+        tls.append(int(nu > 0.0 or (nu == 0.0 and nv < 0.0)))
+    covered = n[2] != 0.0 and all(f > 0.0 or (f == 0.0 and tl) for f, tl in zip(fs, tls))
+    first = 0
+    if covered:
+        z = p0[2] + (n[0] * (p0[0] - c[0]) + n[1] * (p0[1] - c[1])) / n[2]
+        z = min(max(z, t[:, 2].min()), t[:, 2].max())
+        first = _first(z, -2.0, 1073741824.0)
+    return out + [w for f in fs for w in _bits(f)] + tls + [int(covered), first]
+
+
+def model(family: str, tris: np.ndarray, centers: np.ndarray) -> np.ndarray:
+    """(triangles * centers, WORDS) uint32: the words the probe shader must write."""
+    fn = _model_ss if family == "ss" else _model_eis
+    return np.array([fn(t, c) for t in tris for c in centers], dtype=np.uint64).astype(np.uint32)
+
+
+def triangles(mesh, spec, family: str) -> tuple[np.ndarray, np.ndarray]:
+    """The voxel-space triangles each family sees, and the column centers of the grid:
+    ss-solid's float32 vertices with centers in (y, z); eisemann's double vertices
+    (render axis z) with centers in (x, y)."""
+    ny, nz = spec.dims[1], spec.dims[2]
+    if family == "ss":
+        tris = gpu_vertices_voxel(mesh, spec)[mesh.faces]
+        grid = np.stack(np.meshgrid(np.arange(ny), np.arange(nz), indexing="ij"), -1).reshape(-1, 2)
+    else:
+        tris = gpu_vertices_voxel(mesh, spec, double=True)[mesh.faces]
+        grid = np.stack(np.meshgrid(np.arange(spec.dims[0]), np.arange(ny), indexing="ij"), -1).reshape(-1, 2)
+    return tris, grid.astype(np.float32) + np.float32(0.5)
+
+
+def run_probe(ctx, family: str, stage: str, tris: np.ndarray, centers: np.ndarray) -> np.ndarray:
+    """(pairs, WORDS) uint32 written by ``testing/tie_probe`` on this GL."""
+    pairs = len(tris) * len(centers)
+    uniforms = {"u_pairs": pairs, "u_centers": len(centers)}
+    cen = np.ascontiguousarray(centers, np.float32)
+    out = (pairs * WORDS, np.uint32)
+    if family == "ss":
+        buffers = {"ProbeTris": np.ascontiguousarray(tris, np.float32).reshape(-1), "ProbeCenters": cen,
+                   "ProbeOut": out}
+    else:
+        buffers = {"EisVox": np.ascontiguousarray(tris, np.float64).reshape(-1),
+                   "EisFaces": np.arange(3 * len(tris), dtype=np.uint32), "ProbeCenters": cen, "ProbeOut": out}
+    if stage == "compute":
+        got = run_compute(ctx, "testing/tie_probe.comp", -(-pairs // 64), buffers=buffers, read=["ProbeOut"],
+                          uniforms=uniforms, defines={"PROBE_EIS": int(family == "eis")})
+    else:
+        width = min(pairs, 1024)
+        _, got = run_fragment(ctx, "testing/tie_probe.frag", (width, -(-pairs // width)), buffers=buffers,
+                              read=["ProbeOut"], uniforms={**uniforms, "u_width": width})
+    return got["ProbeOut"].reshape(pairs, WORDS)
+
+
+def probe(ctx, mesh, spec, model_fn=model) -> tuple[int, list[Difference]]:
+    """Every pair of ``mesh`` on ``spec`` through each of :data:`KINDS`: (pairs probed,
+    the differences from ``model_fn``)."""
+    total, diffs = 0, []
+    for kind, family, stage in KINDS:
+        tris, centers = triangles(mesh, spec, family)
+        got = run_probe(ctx, family, stage, tris, centers)
+        want = model_fn(family, tris, centers)
+        total += len(got)
+        for p in np.flatnonzero((got != want).any(axis=1)):
+            fields = [name for name, sl in FIELDS.items() if (got[p, sl] != want[p, sl]).any()]
+            c = centers[p % len(centers)]
+            diffs.append(Difference(kind, int(p // len(centers)), (float(c[0]), float(c[1])), fields,
+                                    got[p], want[p]))
+    return total, diffs

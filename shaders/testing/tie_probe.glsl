@@ -1,0 +1,81 @@
+// The verdict of one (triangle, column center) pair by the exact tie functions of
+// ss/solid.glsl (PROBE_EIS 0: float32 voxel-space vertices, columns along x, centers
+// in (y, z)) or eisemann/column.glsl (PROBE_EIS 1: double vertices, EIS_AXIS 2:
+// columns along z, centers in (x, y)), with every intermediate the verdict rests on,
+// PROBE_WORDS uint32 words per pair:
+//   0      1 where the triangle takes part (the normal component along the ray != 0)
+//   1-2    that normal component, double bits (low, high)
+//   3-8    the three edge functions at the center, oriented inside-positive, double bits
+//   9-11   the three top-left flags
+//   12     1 where the center is covered
+//   13     the first voxel the crossing flips (covered pairs only)
+// Run by compare/probe_ties.py in a compute shader (tie_probe.comp) and, for
+// eisemann, in a fragment shader (tie_probe.frag), as the method runs it.
+#define PROBE_WORDS 14
+
+layout(std430, binding = 2) readonly buffer ProbeCenters { vec2 probe_centers[]; };
+layout(std430, binding = 3) writeonly buffer ProbeOut { uint probe_out[]; };
+uniform uint u_pairs;
+uniform uint u_centers;
+
+#if PROBE_EIS
+// eisemann/column.glsl (with EIS_AXIS) is included by the caller: vertices from EisVox
+// (binding 0), faces from EisFaces (binding 1)
+void probe_pair(uint p) {
+    uint t = p / u_centers;
+    dvec2 c = dvec2(probe_centers[p % u_centers]);
+    dvec3 p0, p1, p2;
+    eis_triangle(t, p0, p1, p2);
+    dvec3 n = eis_normal(p0, p1, p2);
+    uint o = p * uint(PROBE_WORDS);
+    uvec2 nb = unpackDouble2x32(n.z);
+    probe_out[o] = n.z != 0.0 ? 1u : 0u;
+    probe_out[o + 1u] = nb.x;
+    probe_out[o + 2u] = nb.y;
+    double sgn = n.z > 0.0 ? 1.0 : -1.0;
+    dvec2 q[3] = dvec2[3](p0.xy, p1.xy, p2.xy);
+    for (int i = 0; i < 3; ++i) {
+        dvec2 s = q[i];
+        precise dvec2 e = q[(i + 1) % 3] - s;
+        precise double f = eis_edge(s, q[(i + 1) % 3], c) * sgn;
+        precise double nu = -e.y * sgn;
+        precise double nv = e.x * sgn;
+        uvec2 fb = unpackDouble2x32(f);
+        probe_out[o + 3u + 2u * uint(i)] = fb.x;
+        probe_out[o + 4u + 2u * uint(i)] = fb.y;
+        probe_out[o + 9u + uint(i)] = (nu > 0.0 || (nu == 0.0 && nv < 0.0)) ? 1u : 0u;
+    }
+    bool covered = n.z != 0.0 && eis_covers(p0, p1, p2, n.z, c);
+    probe_out[o + 12u] = covered ? 1u : 0u;
+    probe_out[o + 13u] = covered ? uint(eis_first_flipped(eis_crossing(p0, p1, p2, n, c))) : 0u;
+}
+#else
+// ss/solid.glsl is included by the caller
+layout(std430, binding = 0) readonly buffer ProbeTris { float probe_tris[]; };  // 9 per triangle
+
+vec3 probe_vertex(uint t, uint k) {
+    uint b = 9u * t + 3u * k;
+    return vec3(probe_tris[b], probe_tris[b + 1u], probe_tris[b + 2u]);
+}
+
+void probe_pair(uint p) {
+    uint t = p / u_centers;
+    vec2 c = probe_centers[p % u_centers];
+    SolidTri T;
+    bool ok = solid_setup(probe_vertex(t, 0u), probe_vertex(t, 1u), probe_vertex(t, 2u), T);
+    uint o = p * uint(PROBE_WORDS);
+    uvec2 nb = unpackDouble2x32(T.n.x);
+    probe_out[o] = ok ? 1u : 0u;
+    probe_out[o + 1u] = nb.x;
+    probe_out[o + 2u] = nb.y;
+    for (int i = 0; i < 3; ++i) {
+        uvec2 fb = ok ? unpackDouble2x32(solid_edge(T, i, dvec2(c))) : uvec2(0u);
+        probe_out[o + 3u + 2u * uint(i)] = fb.x;
+        probe_out[o + 4u + 2u * uint(i)] = fb.y;
+        probe_out[o + 9u + uint(i)] = ok && T.tl[i] ? 1u : 0u;
+    }
+    bool covered = ok && solid_covers(T, c);
+    probe_out[o + 12u] = covered ? 1u : 0u;
+    probe_out[o + 13u] = covered ? uint(solid_first_flip(T, c)) : 0u;
+}
+#endif
