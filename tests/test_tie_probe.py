@@ -25,15 +25,24 @@ def test_this_gl_decides_every_tie_as_the_float64_model(gl_context, index):
     assert pairs >= len(KINDS) * len(mesh.faces) and not diffs, [str(d) for d in diffs[:5]]
 
 
-def test_the_tie_cases_put_centers_on_edges_where_the_top_left_rule_decides(gl_context):
-    """The probe looks where it matters: in every case some covered pair has an edge function
-    exactly zero, so the top-left flag decided it."""
+def test_the_tie_cases_put_centers_on_edges(gl_context):
+    """The probe looks where it matters: every case has a pair of a triangle that takes part
+    whose center lies on one of its edges up to double rounding (an edge function within 1e-12
+    of zero), and both families meet edge functions that are exactly zero, where the top-left
+    flag decides (the boxes on center planes; the tetrahedron's, whose vertices are thirds, is
+    5.6e-17 along eisemann's render axis)."""
+    exact = {"ss": 0, "eis": 0}
     for label, mesh, spec in tie_cases():
-        for family in ("ss", "eis"):
+        near = False
+        for family in exact:
             tris, centers = tie_probe.triangles(mesh, spec, family)
             words = tie_probe.model(family, tris, centers)
-            f = words[:, 3:9].copy().view(np.uint64) & np.uint64(0x7FFFFFFFFFFFFFFF)
-            assert (f == 0).any(), (label, family)
+            part = words[:, 0:1] == 1
+            f = np.ascontiguousarray(words[:, 3:9]).view(np.float64)
+            exact[family] += int((part & (f == 0)).sum())
+            near |= bool((part & (np.abs(f) <= 1e-12)).any())
+        assert near, label
+    assert exact["ss"] > 0 and exact["eis"] > 0, exact
 
 
 def test_a_model_that_differs_is_named_with_the_quantity(gl_context):

@@ -6,7 +6,7 @@ would: ``cuda_voxelizer -f MESH -s N -o binvox``, which writes
 ``<MESH without suffix>_<N>.binvox`` beside the mesh (its current source,
 built for an H100 in November 2026, keeps the suffix: ``<MESH>_<N>.binvox``;
 either is read), so the mesh is written to a temporary folder first, as
-binary PLY and prints, among other lines,
+binary PLY.  It prints, among other lines,
 ``[Perf] Voxelization GPU time: <ms> ms`` (its CUDA kernel, timed with CUDA
 events; absent on its CPU fallback, which it announces) and ``[Perf] Total
 runtime: <ms> ms``.
