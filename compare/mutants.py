@@ -136,8 +136,8 @@ MUTANTS: list[Mutant] = [
            (EXACT, "-k", "solid_methods and ss-solid")),
     Mutant("eisemann-top-left-non-strict", "eisemann column test: centers on every projected edge covered "
            "(the top-left rule's strict comparison made non-strict)", "shaders/eisemann/column.glsl",
-           (("        if (!(f > 0.0 || (f == 0.0 && top_left))) return false;",
-             "        if (!(f >= 0.0 || (f == 0.0 && top_left))) return false;"),),
+           (("        if (!(f > 0.0 || (f == 0.0 && eis_top_left(p, i, sgn)))) return false;",
+             "        if (!(f >= 0.0 || (f == 0.0 && eis_top_left(p, i, sgn)))) return false;"),),
            (EXACT, "-k", "solid_methods and eisemann-solid")),
     Mutant("depth-top-left-swapped", "depth layers' rasterization: the top-left rule's tie break inverted "
            "(n_v > 0 owns horizontal edges)", "shaders/depth/raster.frag",

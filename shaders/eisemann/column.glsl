@@ -60,22 +60,38 @@ double eis_edge(dvec2 p, dvec2 q, dvec2 c) {
     return swap ? -f : f;
 }
 
-// Is the column center c inside the projected triangle?  Counter-clockwise
-// orientation by the sign of the normal's a component; a center on an edge
-// counts only for a left edge (inward normal n_u > 0) or a top edge
-// (n_u == 0, n_v < 0): each center on a shared edge counts exactly once.
+// The projected triangle's orientation: +1 counter-clockwise (the normal's a
+// component positive), else -1.
+double eis_orientation(double n_a) { return n_a > 0.0 ? 1.0 : -1.0; }
+
+// Edge i (p[i] -> p[i + 1]) of the projected triangle p at c, oriented by sgn
+// so that the inside is positive.
+// exact: eis_edge's value times +-1
+double eis_edge_at(dvec2 p[3], int i, double sgn, dvec2 c) {
+    precise double f = eis_edge(p[i], p[(i + 1) % 3], c) * sgn;
+    return f;
+}
+
+// Does edge i own the centers exactly on it?  Only a left edge (inward normal
+// n_u > 0) or a top edge (n_u == 0, n_v < 0) does.
+// exact: a difference, negations and products by +-1
+bool eis_top_left(dvec2 p[3], int i, double sgn) {
+    precise dvec2 e = p[(i + 1) % 3] - p[i];
+    precise double nu = -e.y * sgn;
+    precise double nv = e.x * sgn;
+    return nu > 0.0 || (nu == 0.0 && nv < 0.0);
+}
+
+// Is the column center c inside the projected triangle?  A center on an edge
+// counts only for a top-left edge: each center on a shared edge counts exactly
+// once.  (testing/tie_probe.glsl reads the same edge values and flags.)
 // exact: the reference's coverage test
 bool eis_covers(dvec3 p0, dvec3 p1, dvec3 p2, double n_a, dvec2 c) {
-    double sgn = n_a > 0.0 ? 1.0 : -1.0;
+    double sgn = eis_orientation(n_a);
     dvec2 p[3] = dvec2[3](p0.xy, p1.xy, p2.xy);
     for (int i = 0; i < 3; ++i) {
-        dvec2 s = p[i];
-        precise dvec2 e = p[(i + 1) % 3] - s;
-        precise double f = eis_edge(s, p[(i + 1) % 3], c) * sgn;
-        precise double nu = -e.y * sgn;
-        precise double nv = e.x * sgn;
-        bool top_left = nu > 0.0 || (nu == 0.0 && nv < 0.0);
-        if (!(f > 0.0 || (f == 0.0 && top_left))) return false;
+        double f = eis_edge_at(p, i, sgn, c);
+        if (!(f > 0.0 || (f == 0.0 && eis_top_left(p, i, sgn)))) return false;
     }
     return true;
 }

@@ -70,7 +70,7 @@ void main() {
     bool miter = n_a != 0.0 && all(lessThan(abs(lo), dvec2(EIS_FLOAT_SAFE)))
                  && all(lessThan(abs(hi), dvec2(EIS_FLOAT_SAFE)));
     // outward unit normals of the edges p[i] -> p[i+1]
-    double sgn = n_a > 0.0 ? 1.0 : -1.0;
+    double sgn = eis_orientation(n_a);
     dvec2 nrm[3];
     for (int i = 0; i < 3; ++i) {
         dvec2 e = p[(i + 1) % 3] - p[i];

@@ -32,18 +32,13 @@ void probe_pair(uint p) {
     probe_out[o] = n.z != 0.0 ? 1u : 0u;
     probe_out[o + 1u] = nb.x;
     probe_out[o + 2u] = nb.y;
-    double sgn = n.z > 0.0 ? 1.0 : -1.0;
+    double sgn = eis_orientation(n.z);
     dvec2 q[3] = dvec2[3](p0.xy, p1.xy, p2.xy);
     for (int i = 0; i < 3; ++i) {
-        dvec2 s = q[i];
-        precise dvec2 e = q[(i + 1) % 3] - s;
-        precise double f = eis_edge(s, q[(i + 1) % 3], c) * sgn;
-        precise double nu = -e.y * sgn;
-        precise double nv = e.x * sgn;
-        uvec2 fb = unpackDouble2x32(f);
+        uvec2 fb = unpackDouble2x32(eis_edge_at(q, i, sgn, c));
         probe_out[o + 3u + 2u * uint(i)] = fb.x;
         probe_out[o + 4u + 2u * uint(i)] = fb.y;
-        probe_out[o + 9u + uint(i)] = (nu > 0.0 || (nu == 0.0 && nv < 0.0)) ? 1u : 0u;
+        probe_out[o + 9u + uint(i)] = eis_top_left(q, i, sgn) ? 1u : 0u;
     }
     bool covered = n.z != 0.0 && eis_covers(p0, p1, p2, n.z, c);
     probe_out[o + 12u] = covered ? 1u : 0u;
