@@ -398,6 +398,63 @@ def test_overlapping_spheres_give_their_union_and_two_inside_both(gl_context):
     assert not ((one != (sa | sb)) & ~ties).any()
 
 
+def _nested_boxes(flips):
+    """Boxes nested 0.05 voxel apart on a 16^3 grid of unit voxels, one per entry of
+    ``flips`` (True: inside out): every box's walls along x fall into the same voxel of
+    each row (crossings at 2.0-2.2 flip voxel 2, at 13.7-13.9 voxel 14), no wall near a
+    voxel center, and the voxels 2..13 of every axis lie inside all of them."""
+    parts = []
+    for i, flip in enumerate(flips):
+        b = trimesh.creation.box(bounds=[[2.0 + 0.05 * i] * 3, [13.9 - 0.05 * i] * 3])
+        if flip:
+            b.invert()
+        parts.append(b)
+    return load_mesh(trimesh.util.concatenate(parts)), GridSpec((16, 16, 16), (0.0, 0.0, 0.0), 1.0)
+
+
+@pytest.mark.parametrize("flips, w", [((False, False, False), 3), ((False, True, False), 1),
+                                      ((False,) * 5, 5)], ids=["three", "one-inside-out", "five"])
+def test_crossing_counts_of_one_voxel_add_up(gl_context, flips, w):
+    """gwn/events.comp counts a voxel's crossings of each sign in two bit planes (0 to 3):
+    three walls crossing a row in one voxel count 3 (plane 1 carries), an inside-out wall
+    among them takes one off, and five (past the planes) run again with an int per voxel.
+    Hand-worked: w is the number of boxes (minus the inside-out ones) over the cube
+    [2, 14)^3 and 0 elsewhere."""
+    mesh, spec = _nested_boxes(flips)
+    cube = np.zeros(spec.dims, bool)
+    cube[2:14, 2:14, 2:14] = True
+    for threshold in (w - 0.5, w + 0.5):
+        g = run_method("gwn-solid", mesh, spec, threshold=threshold)
+        assert g.run.stats["boundary_edges"] == 0
+        assert g.run.stats.get("event_overflow", False) == (len(flips) >= 2 ** gwn.PLANES)
+        want = cube if threshold < w else np.zeros_like(cube)
+        assert np.array_equal(g.dense(), want), f"threshold {threshold}: {int(g.count)} voxels"
+        assert np.array_equal(want, run_method("reference-gwn", mesh, spec, threshold=threshold).dense())
+    field = run_method("gwn-solid", mesh, spec, winding=True).fields["winding"]
+    assert np.array_equal(field, np.where(cube, float(w), 0.0).astype(np.float32))
+
+
+def test_closed_meshes_in_slabs_keep_their_counts(gl_context, shared_mesh, monkeypatch):
+    """The bit planes hold one slab of z slices at a time: a closed mesh in many slabs
+    (and nested boxes past the planes, run again with an int per voxel, in slabs too)
+    gives the one-slab voxels.  Closed meshes keep eight slab cells per cell of the
+    open ones' (planes only)."""
+    mesh = load_mesh(shared_mesh("stanford_armadillo_libigl_86k.obj"))
+    spec = glvox.grid_for(mesh, 40)
+    boxes, box_spec = _nested_boxes((False,) * 5)
+    whole = run_method("gwn-solid", mesh, spec)
+    whole_boxes = run_method("gwn-solid", boxes, box_spec, threshold=4.5)
+    assert whole.run.stats["slabs"] == 1 and whole_boxes.count == 12 ** 3
+    slice_cells = 32 * spec.words_per_row * spec.dims[1]
+    monkeypatch.setattr(gwn, "SLAB_CELLS", slice_cells * 3 // 8)  # 3 slices of planes
+    sliced = run_method("gwn-solid", mesh, spec)
+    assert sliced.run.stats["slabs"] == -(-spec.dims[2] // 3)
+    assert sliced.equal(whole)
+    sliced_boxes = run_method("gwn-solid", boxes, box_spec, threshold=4.5)
+    assert sliced_boxes.run.stats["event_overflow"] and sliced_boxes.run.stats["slabs"] > 1
+    assert sliced_boxes.equal(whole_boxes)
+
+
 def test_inside_out_mesh_is_empty_with_w_minus_one(gl_context):
     m = trimesh.creation.icosphere(3, radius=1.0)
     inside = run_method("reference-solid", load_mesh(m), glvox.grid_for(load_mesh(m), 32)).dense()

@@ -12,6 +12,19 @@
 // One invocation per triangle and chunk of GWN_CHUNK columns, as ss/solid.comp
 // (FIRST 1: the first chunk of every triangle, listing those with more;
 // FIRST 0: the listed triangles' other chunks, by an indirect dispatch).
+//
+// PLANES 1: the counts go into bit planes instead of an int per voxel, eight
+// times less memory to clear and for gwn/rows.comp to read.  Two planes count
+// the +1 crossings of each voxel (0 to 3), two more the -1 ones, each plane a
+// bit grid of the slab, the four words of one grid word side by side (one
+// uvec4 in gwn/rows.comp: +1 plane 0, +1 plane 1, -1 plane 0, -1 plane 1).
+// A crossing increments its voxel's counter bit-serially with atomicXor: it
+// toggles the bit of plane 0 and, where the bit was set (1 -> 0), carries
+// into plane 1.  Every plane's toggles are atomic, so plane p ends up toggled
+// floor(n / 2^p) times for n crossings in any order: the planes hold n mod 4
+// exactly.  A carry out of plane 1 (4 or more crossings of one sign in one
+// voxel: nearly coincident sheets) sets `overflow`, and the caller runs the
+// slabs again with PLANES 0.
 #include "common/voxel_space.glsl"
 #include "ss/solid.glsl"
 #define SOLID_UNIT 1
@@ -19,7 +32,21 @@
 layout(local_size_x = 64) in;
 #include "common/dispatch.glsl"
 #include "gwn/layout.glsl"
+#if PLANES
+layout(std430, binding = 0) buffer Events { uint events[]; };
+layout(std430, binding = 8) buffer Count { uint count_words[5]; uint overflow; };
+
+// One crossing of sign `step` at voxel i of row (j, k) of the slab.
+void add_event(int i, int j, int k, int step) {
+    uint at = 4u * (row_base(j, k) / 32u + uint(i) / 32u) + (step > 0 ? 0u : 2u);
+    uint b = 1u << (uint(i) & 31u);
+    if ((atomicXor(events[at], b) & b) == 0u) return;
+    if ((atomicXor(events[at + 1u], b) & b) == 0u) return;
+    atomicOr(overflow, 1u);
+}
+#else
 layout(std430, binding = 3) buffer Counts { int counts[]; };
+#endif
 layout(std430, binding = 4) buffer Big { uint big_count; uint big_max_chunks; uint big_list[]; };
 uniform uint u_triangles;
 
@@ -64,7 +91,11 @@ void main() {
         vec2 center = vec2(j, k) + 0.5;
         if (solid_covers(T, center)) {
             int first = solid_first_flip(T, center);
+#if PLANES
+            if (first < u_dims.x) add_event(max(first, 0), j, k, step);
+#else
             if (first < u_dims.x) atomicAdd(counts[cell_index(max(first, 0), j, k)], step);
+#endif
         }
         if (++j > c.z) { j = c.x; ++k; }
     }

@@ -18,11 +18,36 @@
 // their cells, and Masks gets every segment's mask of such blocks (indexed as
 // gwn/field.comp numbers segments), which gwn/todo.comp lists for
 // gwn/field.comp.
+//
+// PLANES 1: the crossings come as gwn/events.comp's bit planes (two for the
+// +1 counts, two for the -1 ones), not as an int per voxel; the
+// Cells then only receive C where a later pass reads it.  Closed meshes
+// (EDGES 0, no WINDING) go word by word: a word without crossings has one C
+// throughout, a word with some is cut at them.
+#include "common/bits.glsl"
 #include "common/voxel_space.glsl"
 layout(local_size_x = 64) in;
 #include "common/dispatch.glsl"
 #include "gwn/layout.glsl"
 layout(std430, binding = 3) buffer Cells { ivec4 cells[]; };
+#if PLANES
+// gwn/events.comp's counts, per word of the slab's bit grid: +1 crossings
+// (planes 0 and 1 of a count 0..3), then -1 crossings
+layout(std430, binding = 0) readonly buffer Events { uvec4 events[]; };
+
+// The crossing counts of voxels shift .. shift + 3 of a word whose planes are e.
+ivec4 block_deltas(uvec4 e, uint shift) {
+    uvec4 sh = uvec4(shift) + uvec4(0u, 1u, 2u, 3u);
+    return ivec4((uvec4(e.x) >> sh) & 1u) + 2 * ivec4((uvec4(e.y) >> sh) & 1u)
+           - ivec4((uvec4(e.z) >> sh) & 1u) - 2 * ivec4((uvec4(e.w) >> sh) & 1u);
+}
+
+// The crossing count of voxel i (0..31) of that word.
+int voxel_delta(uvec4 e, uint i) {
+    ivec4 b = ivec4((e >> i) & 1u);
+    return b.x + 2 * b.y - b.z - 2 * b.w;
+}
+#endif
 layout(std430, binding = 7) buffer Bits { uint bits[]; };
 layout(std430, binding = 8) buffer Count {
     uint voxel_count; uint refine_count; uint todo_count; uint todo_total;
@@ -70,8 +95,40 @@ void main() {
     vec4 rec;
     bool later = false;
 #endif
+#if PLANES
+    uint ev_row = row_base(j, k) / 32u;  // the row's first word
+    uvec4 ev;
+#endif
+#if PLANES && !EDGES && !WINDING
+    uint wpr = words_per_row();
+    for (uint w = 0u; w < wpr; ++w) {
+        ev = events[ev_row + w];
+        uint any = ev.x | ev.y | ev.z | ev.w;
+        // voxels from .. i - 1 have C = run; voxel i adds its own crossings
+        uint from = 0u;
+        while (any != 0u) {
+            uint i = uint(findLSB(any));
+            any &= any - 1u;
+            if (i > from && float(run) >= u_threshold) word |= mask_range(from, i - 1u);
+            run += voxel_delta(ev, i);
+            from = i;
+        }
+        if (float(run) >= u_threshold) word |= mask_from(from);
+        if (w + 1u == wpr) word &= mask_upto(uint(u_dims.x) - 1u - 32u * w);  // bits past nx stay zero
+        if (word != 0u) {
+            bits[wbase + w] = word;
+            count += uint(bitCount(word));
+            word = 0u;
+        }
+    }
+#else
     for (uint q = 0u; q < row_cells() / 4u; ++q) {
+#if PLANES
+        if ((q & 7u) == 0u) ev = events[ev_row + q / 8u];
+        ivec4 c = block_deltas(ev, (q & 7u) * 4u);
+#else
         ivec4 c = cells[base + q];
+#endif
         c.x += run;
         c.y += c.x;
         c.z += c.y;
@@ -128,6 +185,7 @@ void main() {
         }
 #endif
     }
+#endif
 #if BRICKS
     // the blocks of -x split bricks: w = (C - T) + F-, T = the row's total crossings
     // (T from the boundary chain: the row sums miss crossings past the grid;

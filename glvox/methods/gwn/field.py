@@ -7,10 +7,11 @@ et al. 2013) is at least ``threshold``.  The number is ``w = C + F``
 
 * ``crossings`` (``shaders/gwn/events.comp``): every triangle adds
   ``-sign(n_x)`` at the first voxel of each row its (y, z) projection covers,
-  decided by ss-solid's arithmetic (``ss/solid.glsl``);
+  decided by ss-solid's arithmetic (``ss/solid.glsl``), counted in
+  :data:`PLANES` bit planes per sign (4 bits a voxel, not an int);
 * ``rows`` (``gwn/rows.comp``): prefix sums along each row give ``C``; when
   every half-edge cancels (closed meshes, also nested, overlapping or
-  inside-out ones) ``F = 0`` and this pass writes the bits;
+  inside-out ones) ``F = 0`` and this pass writes the bits, word by word;
 * ``bricks`` (``gwn/bricks.comp``; without ``winding``): per brick of
   :data:`BRICK`^3 voxels, ``F`` at its center from the tree, that value's
   error bound and a bound of ``|grad F|`` over the brick (the Biot-Savart
@@ -116,8 +117,19 @@ BRICKS_MIN_FREE = 0.5
 BRICKS_MIN_VOXELS = 2**20
 
 #: Cells (voxels of padded rows) per slab: the slab buffer takes 4 bytes a
-#: cell, the chunk sums (several tree chunks only) 8.
+#: cell, the chunk sums (several tree chunks only) 8.  Eight times as many
+#: where only the crossings' bit planes are kept (closed meshes, no field).
 SLAB_CELLS = 1 << 24
+
+#: Bit planes per sign of the crossing counts (gwn/events.comp, which fixes
+#: it at 2: one uvec4 per grid word): a voxel's count of +1 (and of -1)
+#: crossings is held modulo 2^PLANES.  The crossings
+#: of one sign in one voxel and row are one or none but where sheets of the
+#: mesh nearly coincide; 4 or more set a flag, and the slabs run again with an
+#: int per voxel (``run.stats['event_overflow']``).  Against that int per
+#: voxel, the planes cut the memory cleared and read by the row pass eightfold
+#: (closed meshes, llvmpipe: see docs/methods/gwn.md).
+PLANES = 2
 
 
 def plan_chunks(tree: ClusterTree) -> list[list[int]]:
@@ -233,13 +245,25 @@ class GwnSolid(Method):
         if tree is not None and tree.depth >= TREE_STACK:
             raise LimitError(f"gwn-solid walks its boundary tree with a stack of {TREE_STACK}; this mesh's tree "
                              f"({loops.n_edges} boundary edges) is {tree.depth} deep")
-        run = _Run(ctx, spec, pool, bufs, vox, bits, tree, timer, float(threshold), float(accuracy), bool(winding))
-        if run.bricks:
-            rows, segs = run.field_part()
-            free = strip_free_share(tree, vox64, rows)
-            run.bricks = free >= BRICKS_MIN_FREE and rows[1] * rows[3] * segs[1] * 4 * SEGV >= BRICKS_MIN_VOXELS
-            run.stats["strip_free"] = round(free, 3)
+
+        def prepare(planes: bool) -> _Run:
+            run = _Run(ctx, spec, pool, bufs, vox, bits, tree, timer, float(threshold), float(accuracy),
+                       bool(winding), planes)
+            if run.bricks:
+                rows, segs = run.field_part()
+                free = strip_free_share(tree, vox64, rows)
+                run.bricks = free >= BRICKS_MIN_FREE and rows[1] * rows[3] * segs[1] * 4 * SEGV >= BRICKS_MIN_VOXELS
+                run.stats["strip_free"] = round(free, 3)
+            return run
+
+        run = prepare(planes=True)
         field = run.all_slabs(mesh.n_triangles)
+        if run.overflowed():
+            # 2^PLANES or more crossings of one sign in one voxel: again with an int per voxel
+            clear_buffer(ctx, bits, spec.n_words * 4)
+            run = prepare(planes=False)
+            run.stats["event_overflow"] = True
+            field = run.all_slabs(mesh.n_triangles)
         if shell:
             with timer.stage("shell", gpu=False):
                 self._add_shell(ctx, mesh, spec, bits, run.count)
@@ -270,11 +294,14 @@ class GwnSolid(Method):
 class _Run:
     """One gwn-solid run: the slabs, their passes and their statistics."""
 
-    def __init__(self, ctx, spec, pool, bufs, vox, bits, tree, timer, threshold, beta, winding):
+    def __init__(self, ctx, spec, pool, bufs, vox, bits, tree, timer, threshold, beta, winding, planes=True):
         self.ctx, self.spec, self.pool, self.bufs, self.vox, self.bits = ctx, spec, pool, bufs, vox, bits
         self.tree, self.timer, self.threshold, self.beta, self.winding = tree, timer, threshold, beta, winding
-        # voxels, refine list, todo list (slab), todo total, blocks of the -x split
-        self.count = pool.get("count", 20)
+        # the crossing counts in bit planes (else an int per voxel)
+        self.planes = planes
+        # voxels, refine list, todo list (slab), todo total, blocks of the -x split,
+        # and the planes' overflow flag
+        self.count = pool.get("count", 24)
         # bricks need the voxels alone: the field asked for is the tree's everywhere
         self.bricks = tree is not None and not winding
         # the mirrored split's T (gwn/rows.comp, chain_winding) walks the whole tree
@@ -302,7 +329,12 @@ class _Run:
         nx, ny, nz = self.spec.dims
         row = 32 * self.spec.words_per_row
         limit = int(self.ctx.limits()["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"])
-        per_slab = max(1, min(SLAB_CELLS, limit // 8) // (row * ny))
+        if self.planes and not self.winding and self.tree is None:
+            # no cells at all: the slab's planes take 2 * PLANES bits a cell
+            cells = min(8 * SLAB_CELLS, limit * 8 // (2 * PLANES))
+        else:
+            cells = min(SLAB_CELLS, limit // 8)
+        per_slab = max(1, cells // (row * ny))
         field = np.empty((nz, ny, row), np.float32) if self.winding else None
         j0, k0, nj, nk = mesh_rows(self.spec, self.bufs)
         for s0 in range(0, nz, per_slab):
@@ -311,13 +343,29 @@ class _Run:
             self._slab(n_triangles, s0, s1, (j0, k0, nj, nk), field)
         return None if field is None else field[:, :, :nx].transpose(2, 1, 0)
 
+    def overflowed(self) -> bool:
+        """Did a voxel get 2^PLANES or more crossings of one sign (the planes' flag)?
+        Reads one word: waits for the passes so far."""
+        return self.planes and bool(np.frombuffer(self.count.read(size=4, offset=20), dtype="<u4")[0])
+
     def _slab(self, n, s0, s1, rows, field):
         ctx, spec, pool = self.ctx, self.spec, self.pool
         ny = spec.dims[1]
         cells_n = (s1 - s0) * ny * 32 * spec.words_per_row
-        cells = pool.get("cells", cells_n * 4, what=f"slab of {s1 - s0} z slices")
+        plane_words = (s1 - s0) * ny * spec.words_per_row
+        events = None
+        if self.planes:
+            events = pool.get("events", 2 * PLANES * plane_words * 4,
+                              what=f"crossing counts of {s1 - s0} z slices ({2 * PLANES} bit planes)")
+        # an int per voxel: the counts without planes; C where a later pass reads it (the
+        # field and refinement, only where the bricks left blocks: written before read
+        # then, no clear), or w itself
+        cells = None
+        if not self.planes or self.winding or self.tree is not None:
+            cleared = not self.planes or self.winding or not self.bricks
+            cells = pool.get("cells", cells_n * 4, what=f"slab of {s1 - s0} z slices", clear=cleared)
         common = {**self.uniforms, "u_slab": (s0, s1), "u_threshold": self.threshold}
-        self._crossings(n, cells, common)
+        self._crossings(n, cells, events, common)
         j0, k0, nj, nk = rows
         fbox, segs = self._field_part(s0, s1, rows) if self.tree is not None else (None, None)
         if self.bricks:
@@ -334,9 +382,13 @@ class _Run:
                                                           "WINDING": int(self.winding),
                                                           "BRICKS": int(self.bricks), "GWN_BRICK": BRICK,
                                                           "GWN_NODE_VEC4": NODE_VEC4, "GWN_SEGV": SEGV,
-                                                          "GWN_SPLIT": int(self.split)})
+                                                          "GWN_SPLIT": int(self.split), **self._plane_defines})
             set_uniforms(prog, {**common, "u_rows": box})
-            blocks = {"Cells": cells, "Bits": self.bits, "Count": self.count}
+            blocks = {"Bits": self.bits, "Count": self.count}
+            if cells is not None:
+                blocks["Cells"] = cells
+            if events is not None:
+                blocks["Events"] = events
             if self.bricks:
                 set_uniforms(prog, {"u_segs": segs, "u_margin": WINDING_TIE})
                 t = self.gpu_tree
@@ -352,18 +404,24 @@ class _Run:
             with self.timer.stage("readback_field", gpu=False):
                 cells.read_into(field[s0:s1], size=cells_n * 4)
 
-    def _crossings(self, n, cells, common):
+    @property
+    def _plane_defines(self) -> dict:
+        return {"PLANES": int(self.planes)}
+
+    def _crossings(self, n, cells, events, common):
         ctx, pool = self.ctx, self.pool
         big = pool.get("big", (n + 2) * 4, what="the triangles with several column chunks", clear=False)
         clear_buffer(ctx, big, 8)
         args = pool.get("args", 3 * 4, clear=False)
-        first, rest = (compute_program(ctx, "gwn/events.comp", {"GWN_CHUNK": COLUMN_CHUNK, "FIRST": f})
+        first, rest = (compute_program(ctx, "gwn/events.comp", {"GWN_CHUNK": COLUMN_CHUNK, "FIRST": f,
+                                                                 **self._plane_defines})
                        for f in (1, 0))
         for prog in (first, rest):
             set_uniforms(prog, {**common, "u_triangles": n})
+        counts = {"Events": events, "Count": self.count} if self.planes else {"Counts": cells}
         with self.timer.stage("crossings"):
             chunked_passes(ctx, (first, rest), n, self.max_groups,
-                           {"VoxVerts": self.vox, "Faces": self.bufs.faces, "Counts": cells}, big, args, _LOCAL)
+                           {"VoxVerts": self.vox, "Faces": self.bufs.faces, **counts}, big, args, _LOCAL)
 
     def field_part(self):
         """Rows and slices ``(j0, nj, k0, nk)`` and segments ``(s0, ns)`` the field is
