@@ -10,12 +10,18 @@ that decide the tie cases of ``glvox selftest``.
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
+from glvox.gl.shaders import builtin_shader_dir
+
 from glvox.study.selftest import tie_cases
 from glvox.testing import tie_probe
-from glvox.testing.tie_probe import KINDS, WORDS, probe
+from glvox.testing.tie_probe import KINDS, TRACED, WORDS, probe, trace
 
 
 @pytest.mark.parametrize("index", range(len(tie_cases())), ids=[c[0] for c in tie_cases()])
@@ -59,3 +65,62 @@ def test_a_model_that_differs_is_named_with_the_quantity(gl_context):
     assert all("top-left flags" in d.fields for d in diffs)
     assert all(d.gpu.shape == (WORDS,) for d in diffs)
     assert "ss-solid (compute): triangle" in str(diffs[0])
+
+
+@pytest.mark.parametrize("index", range(len(tie_cases())), ids=[c[0] for c in tie_cases()])
+def test_the_methods_own_passes_decide_as_the_model(gl_context, index):
+    """ss-solid's voxelize pass and eisemann-solid's render, traced, flip exactly the
+    (triangle, column) pairs the float64 model covers, from the model's first voxel, and
+    the render draws a fragment over every one of them (what GL guarantees there: GL 4.6
+    Sec. 14.6.1 covers every pixel center inside a polygon, and the proxies are grown past
+    the vertex snap)."""
+    label, mesh, spec = tie_cases()[index]
+    pairs, diffs = trace(gl_context, mesh, spec)
+    assert not diffs, [str(d) for d in diffs[:5]]
+    assert pairs > 0 or label.startswith("tetrahedron")
+
+
+def _covers_ties(family, tris, centers):
+    """The model with every tie (a zero edge function) decided the other way."""
+    words = tie_probe.model(family, tris, centers)
+    f = np.ascontiguousarray(words[:, 3:9]).view(np.float64)
+    words[:, 12] ^= ((words[:, 0] == 1) & (f == 0).any(axis=1)).astype(np.uint32)
+    return words
+
+
+def test_a_pass_that_differs_from_the_model_is_named(gl_context):
+    """Against a model that decides every tie the other way, the traces of both passes
+    name the pairs: covered by the pass and not by the model, or the other way round."""
+    label, mesh, spec = tie_cases()[1]
+    pairs, diffs = trace(gl_context, mesh, spec, model_fn=_covers_ties)
+    assert {d.kind for d in diffs} == {k for k, _ in TRACED}
+    whats = {d.what.split(" (")[0].split(",")[0] for d in diffs}
+    assert "covered by the pass" in str(diffs) and "the model covers" in str(diffs), whats
+    assert str(diffs[0]).startswith("ss-solid voxelize: triangle ")
+
+
+def test_the_trace_tells_a_missed_fragment_from_a_coverage_decision(tmp_path):
+    """With eisemann's proxies shrunk instead of grown (a shader overlay through
+    GLVOX_SHADER_PATH), the rasterizer leaves out centers on and near the triangles' edges:
+    the trace says no fragment was drawn there, while the probe, which evaluates the same
+    functions without the rasterizer, stays clean."""
+    rel = "eisemann/setup.comp"
+    text = (builtin_shader_dir() / rel).read_text()
+    grow = "#define EIS_GROW 0.0625"
+    assert text.count(grow) == 1
+    (tmp_path / "eisemann").mkdir()
+    (tmp_path / rel).write_text(text.replace(grow, "#define EIS_GROW -0.25"))
+    script = (
+        "from glvox.gl.context import get_context\n"
+        "from glvox.study.selftest import tie_cases\n"
+        "from glvox.testing.tie_probe import probe, trace\n"
+        "ctx = get_context()\n"
+        "label, mesh, spec = tie_cases()[3]\n"
+        "print(len(probe(ctx, mesh, spec)[1]))\n"
+        "for d in trace(ctx, mesh, spec)[1]: print(d)\n")
+    env = {**os.environ, "GLVOX_SHADER_PATH": str(tmp_path)}
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    lines = proc.stdout.splitlines()
+    assert lines[0] == "0" and len(lines) > 1, proc.stdout[-2000:]
+    assert all(line.startswith("eisemann-solid render: ") and "no fragment drawn" in line for line in lines[1:])

@@ -39,7 +39,12 @@ ties with (:mod:`glvox.testing.tie_probe`): on every (triangle, column center)
 pair of the tie cases, ss-solid's and eisemann's edge functions, top-left
 flags, verdicts and crossings on the GPU, in a compute and a fragment
 shader, must equal their float64 model word for word; a detail line names
-each pair that differs and the quantity (the first few).
+each pair that differs and the quantity (the first few).  Then the methods'
+own passes, traced: every crossing ss-solid's voxelize pass flips and every
+fragment eisemann-solid's render draws must be a pair the model covers, from
+its first voxel, and every pair the model covers must be there; a detail line
+says which pass did otherwise and how (no fragment drawn: the rasterizer;
+drawn and decided otherwise: the fragment stage).
 
 The third, ``readback``, checks the way large results leave the GPU
 (:mod:`glvox.gpu.readback`; the cases above are too small to take it): a
@@ -71,7 +76,7 @@ from ..methods.scanline.voxelize import gpu_voxel_coords
 from ..metrics import not_tie_words, popcount
 from ..reference.scanline import scanline_surface
 from ..testing.cells import cells_mesh, occupancy
-from ..testing.tie_probe import probe
+from ..testing.tie_probe import probe, trace
 from . import harness
 from .plan import Contender
 
@@ -187,15 +192,22 @@ TIE_DETAIL = 6
 
 
 def ties_row(ctx) -> Row:
-    """The ``ties`` row: the tie functions on the GPU against their float64 model (module docstring)."""
+    """The ``ties`` row: the tie functions on the GPU, then ss-solid's and eisemann-solid's
+    own passes traced, against their float64 model (module docstring)."""
     t0 = time.perf_counter()
-    row = Row("ties", "tie decisions = float64 model (edge functions)")
+    row = Row("ties", "tie decisions = float64 model (edge functions, traced passes)")
     try:
+        traced: list[str] = []
         for label, mesh, spec in tie_cases():
             pairs, diffs = probe(ctx, mesh, spec)
             row.cases += pairs
             row.mismatches += len(diffs)
             row.detail += [f"{label}: {d}" for d in diffs[:max(0, TIE_DETAIL - len(row.detail))]]
+            pairs, diffs = trace(ctx, mesh, spec)
+            row.cases += pairs
+            row.mismatches += len(diffs)
+            traced += [f"{label}: {d}" for d in diffs[:max(0, TIE_DETAIL - len(traced))]]
+        row.detail += traced
     except GlvoxError as exc:
         row.status = "error"
         row.detail.append(str(exc))

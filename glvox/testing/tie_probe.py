@@ -18,6 +18,15 @@ every word with :func:`model`, the same formulas in numpy float64.  A
 difference names the pair and the quantity, so a GPU that decides a tie
 otherwise is pinned to the operation that differs (``compare/probe_ties.py``
 prints them).
+
+:func:`trace` goes one step further, into the methods themselves: it runs
+ss-solid's voxelize pass and eisemann-solid's render on the mesh with a trace
+compiled in, which records every crossing ss-solid flips and every fragment
+the render draws (covered or not), and compares them with the model's covered
+pairs.  A pair the model covers and the render drew no fragment for is the
+rasterizer's (the grown proxy missed the center); one drawn and decided
+otherwise is the fragment stage's; a crossing ss-solid flips that the probe
+does not is the voxelize pass's own.
 """
 
 from __future__ import annotations
@@ -27,7 +36,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..gl.timing import StageTimer
+from ..gpu.buffers import buffer_pool, clear_buffer
 from ..gpu.transform import gpu_vertices_voxel
+from ..methods.eisemann.passes import SliceRender, render_slice_masks
+from ..methods.ss.solid import parity_on_gpu
+from ..methods.ss.solid_tuning import ORDER_MIN_BYTES
 from .harness import run_compute, run_fragment
 
 #: uint32 words per pair (``PROBE_WORDS`` of the shader).
@@ -178,4 +192,99 @@ def probe(ctx, mesh, spec, model_fn=model) -> tuple[int, list[Difference]]:
             c = centers[p % len(centers)]
             diffs.append(Difference(kind, int(p // len(centers)), (float(c[0]), float(c[1])), fields,
                                     got[p], want[p]))
+    return total, diffs
+
+
+#: The pipelines :func:`trace` runs: (name, model family).
+TRACED = (("ss-solid voxelize", "ss"), ("eisemann-solid render", "eis"))
+
+#: The word a trace holds for a fragment drawn over a center its triangle does not cover.
+NOT_COVERED = 0xFFFFFFFF
+
+_OWNER = "tie-trace"
+
+
+@dataclass
+class TraceDifference:
+    """A (triangle, column) where a method's own pass did other than the model."""
+
+    kind: str
+    triangle: int
+    column: tuple[int, int]
+    what: str
+
+    def __str__(self) -> str:
+        return f"{self.kind}: triangle {self.triangle}, column {self.column}: {self.what}"
+
+
+def _expected(family: str, tris: np.ndarray, centers: np.ndarray,
+              model_fn=model) -> dict[tuple[int, int, int], int]:
+    """(triangle, column u, column v) -> first voxel, for the pairs ``model_fn`` covers."""
+    words = model_fn(family, tris, centers)
+    out = {}
+    for p in np.flatnonzero(words[:, FIELDS["covered"].start]):
+        c = centers[p % len(centers)]
+        out[(int(p // len(centers)), int(c[0]), int(c[1]))] = int(words[p, FIELDS["first voxel"].start])
+    return out
+
+
+def _run_traced(ctx, mesh, spec, family: str, capacity: int) -> np.ndarray:
+    """(records, 4) uint32: the traced pass of ``family`` on ``mesh``."""
+    pool = buffer_pool(ctx, _OWNER)
+    buf = pool.get("trace", 4 + 16 * capacity, clear=False)
+    clear_buffer(ctx, buf, 4)
+    timer = StageTimer(ctx)
+    if family == "ss":
+        if spec.n_words * 4 >= ORDER_MIN_BYTES:  # the pass would read its faces reordered by row
+            raise ValueError(f"trace runs grids under {ORDER_MIN_BYTES} bytes, got {spec.dims}")
+        parity_on_gpu(ctx, mesh, spec, timer, pool, trace=buf)
+    else:
+        render_slice_masks(ctx, mesh, spec, SliceRender("xor", axis=2, trace=buf), timer=timer, owner=_OWNER)
+    n = int(np.frombuffer(buf.read(size=4), dtype="<u4")[0])
+    if n > capacity:
+        raise ValueError(f"the {family} trace holds {capacity} records, the pass wrote {n}")
+    if n == 0:
+        return np.zeros((0, 4), np.uint32)
+    return np.frombuffer(buf.read(size=16 * n, offset=4), dtype="<u4").reshape(n, 4)
+
+
+def trace(ctx, mesh, spec, model_fn=model) -> tuple[int, list[TraceDifference]]:
+    """ss-solid's crossings and eisemann-solid's fragments on ``mesh`` against the
+    covered pairs of ``model_fn``: (pairs it covers, the differences).  Small grids
+    (the selftest's tie cases): the pass must read the mesh's own face order."""
+    total, diffs = 0, []
+    try:
+        for kind, family in TRACED:
+            tris, centers = triangles(mesh, spec, family)
+            want = _expected(family, tris, centers, model_fn)
+            got = _run_traced(ctx, mesh, spec, family, len(tris) * len(centers))
+            if family == "eis":
+                # the render culls a triangle whose crossings all lie past the grid's slices, and
+                # a fragment past them flips nothing: those pairs are left out on both sides
+                beyond = spec.dims[2]
+                want = {k: f for k, f in want.items() if np.int32(np.uint32(f)) < beyond}
+                got = got[(got[:, 3] == NOT_COVERED) | (got[:, 3].view(np.int32) < beyond)]
+            total += len(want)
+            drawn: dict[tuple[int, int, int], list[int]] = {}
+            for t, u, v, first in got.tolist():
+                drawn.setdefault((t, u, v), []).append(first)
+            for key in sorted(set(want) | set(drawn)):
+                firsts = drawn.get(key, [])
+                covered = [f for f in firsts if f != NOT_COVERED]
+                if len(firsts) > 1:
+                    what = f"{len(firsts)} records of one pair"
+                elif key in want and not firsts:
+                    what = ("no fragment drawn over a center the model covers" if family == "eis"
+                            else "no crossing where the model covers the center")
+                elif key in want and not covered:
+                    what = "drawn, but the render's coverage test said not covered (the model: covered)"
+                elif key not in want and covered:
+                    what = f"covered by the pass (first voxel {covered[0]}), not by the model"
+                elif key in want and covered[0] != want[key]:
+                    what = f"first voxel {covered[0]}, the model's {want[key]}"
+                else:
+                    continue
+                diffs.append(TraceDifference(kind, key[0], (key[1], key[2]), what))
+    finally:
+        buffer_pool(ctx, _OWNER).release()
     return total, diffs

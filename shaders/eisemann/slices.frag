@@ -14,15 +14,40 @@ uniform int u_axis_n;  // slices of the whole grid along EIS_AXIS
 
 flat in uint v_tri;
 
+#if EIS_TRACE
+// EIS_TRACE 1 (glvox.testing.tie_probe.trace): every fragment of the first pass
+// as (triangle, column u, column v, first slice flipped, or ~0 where the
+// triangle does not cover the center), so that a fragment the rasterizer never
+// made tells itself apart from a coverage decided otherwise.
+layout(std430, binding = 5) buffer EisTrace { uint eis_trace_n; uint eis_trace[]; };
+
+void eis_trace_fragment(ivec2 column, uint first) {
+    if (u_slice_lo != 0) return;
+    uint at = atomicAdd(eis_trace_n, 1u);
+    if (4u * at + 3u >= uint(eis_trace.length())) return;
+    eis_trace[4u * at] = v_tri;
+    eis_trace[4u * at + 1u] = uint(column.x);
+    eis_trace[4u * at + 2u] = uint(column.y);
+    eis_trace[4u * at + 3u] = first;
+}
+#endif
+
 void main() {
     dvec3 p0, p1, p2;
     eis_triangle(v_tri, p0, p1, p2);
     dvec3 n = eis_normal(p0, p1, p2);
     // gl_FragCoord.xy is the pixel center, pixel + 0.5
-    dvec2 c = dvec2(ivec2(gl_FragCoord.xy) + u_tile_lo) + 0.5;
+    ivec2 column = ivec2(gl_FragCoord.xy) + u_tile_lo;
+    dvec2 c = dvec2(column) + 0.5;
 #if EIS_COVERAGE == 0
-    if (!eis_covers(p0, p1, p2, n.z, c)) discard;
+    bool covered = eis_covers(p0, p1, p2, n.z, c);
+#else
+    bool covered = true;
 #endif
+#if EIS_TRACE
+    eis_trace_fragment(column, covered ? uint(eis_first_flipped(eis_crossing(p0, p1, p2, n, c))) : ~0u);
+#endif
+    if (!covered) discard;
     double q = eis_crossing(p0, p1, p2, n, c);
 #if EIS_OP == 0
     int first = eis_first_flipped(q) - u_slice_lo;

@@ -51,6 +51,22 @@ void flip_from(int first, int j, int k) {
 #endif
 }
 
+#if SOLID_TRACE
+// SOLID_TRACE 1 (glvox.testing.tie_probe.trace): every crossing as (triangle,
+// j, k, first voxel flipped), before the grid's bounds are applied.
+layout(std430, binding = 6) buffer SolidTrace { uint trace_n; uint trace[]; };
+uint g_triangle;
+
+void trace_crossing(int j, int k, int first) {
+    uint at = atomicAdd(trace_n, 1u);
+    if (4u * at + 3u >= uint(trace.length())) return;
+    trace[4u * at] = g_triangle;
+    trace[4u * at + 1u] = uint(j);
+    trace[4u * at + 2u] = uint(k);
+    trace[4u * at + 3u] = uint(first);
+}
+#endif
+
 // Columns chunk * SOLID_CHUNK .. of the covered-center range c (n columns).
 void voxelize_chunk(SolidTri T, ivec4 c, uint n, uint chunk) {
     uint nj = uint(c.z - c.x + 1);
@@ -60,6 +76,9 @@ void voxelize_chunk(SolidTri T, ivec4 c, uint n, uint chunk) {
         vec2 center = vec2(j, k) + 0.5;
         if (solid_covers(T, center)) {
             int first = solid_first_flip(T, center);
+#if SOLID_TRACE
+            trace_crossing(j, k, first);
+#endif
             if (first < u_dims.x) flip_from(first, j, k);
         }
         if (++j > c.z) { j = c.x; ++k; }
@@ -78,6 +97,9 @@ void main() {
     uint t = big_list[i];
 #endif
     SolidTri T;
+#if SOLID_TRACE
+    g_triangle = t;
+#endif
     if (!load_solid_triangle(t, T)) return;
     uint n = solid_units(T).w;
     uint chunks = (n + uint(SOLID_CHUNK) - 1u) / uint(SOLID_CHUNK);

@@ -224,6 +224,10 @@ class SliceRender:
     tile : int
         The ``tile`` option: 0 (the context's limits) or the largest tile
         side in pixels, rounded down to a multiple of 32 (:func:`tile_limit`).
+    trace : moderngl.Buffer, optional
+        A buffer that receives every fragment of the first pass (``EisTrace`` of
+        ``eisemann/slices.frag``: a count, then 4 words per fragment), for
+        :func:`glvox.testing.tie_probe.trace`; None (the methods) compiles no trace.
 
     Raises
     ------
@@ -238,6 +242,7 @@ class SliceRender:
     coverage: str = "exact"
     targets: int = TARGETS
     tile: int = 0
+    trace: Any = None
 
     def __post_init__(self) -> None:
         if self.op not in OPS:
@@ -254,7 +259,8 @@ class SliceRender:
     @property
     def kind_defines(self) -> dict[str, int]:
         """The defines of the op and the coverage, shared by the setup and the draw."""
-        return {"EIS_OP": OPS[self.op], "EIS_COVERAGE": COVERAGES.index(self.coverage)}
+        return {"EIS_OP": OPS[self.op], "EIS_COVERAGE": COVERAGES.index(self.coverage),
+                "EIS_TRACE": int(self.trace is not None)}
 
     def targets_per_pass(self, n_a: int) -> list[int]:
         """Targets of each pass over ``n_a`` slices: only what its slices need (a 128^3
@@ -334,6 +340,8 @@ def _draw_pass(ctx, render: SliceRender, pp: _PassPrograms, on_grid: _OnGrid, ti
     pp.clear_vao.render(moderngl.TRIANGLES, vertices=3)
     set_uniforms(pp.draw, tile)
     on_grid.bind(pp.draw)
+    if render.trace is not None:
+        bind(pp.draw, EisTrace=render.trace)
     if pp.table is not None:
         pp.table.use(_MASK_UNIT)
     with ctx.logic_op(render.op):

@@ -254,7 +254,7 @@ assert AXIS_SEGMENT < LOOP_BUDGET
 
 
 def parity_on_gpu(ctx, mesh, spec, timer, pool, *, axis: int = 0, tag: str = "",
-                  slabs: list[tuple[int, int]] | None = None, read_slab=None) -> Parity:
+                  slabs: list[tuple[int, int]] | None = None, read_slab=None, trace=None) -> Parity:
     """ss-solid's parity of crossings along grid axis ``axis`` in GPU buffers, nothing
     read back: stages ``transform``, ``voxelize``, ``fill`` (each name + ``tag``).
 
@@ -285,6 +285,10 @@ def parity_on_gpu(ctx, mesh, spec, timer, pool, *, axis: int = 0, tag: str = "",
         own) into the grid buffer, which holds one slab, and
         ``read_slab(k0, nk, grid)`` takes it before the next.  ``count`` then
         sums every slab's voxels; ``big`` holds the last slab's list.
+    trace : moderngl.Buffer, optional
+        Receives every crossing (``SolidTrace`` of ``ss/solid.comp``: a count, then
+        4 words per crossing), for :func:`glvox.testing.tie_probe.trace`; None
+        (the methods) compiles no trace.
 
     Returns
     -------
@@ -308,14 +312,15 @@ def parity_on_gpu(ctx, mesh, spec, timer, pool, *, axis: int = 0, tag: str = "",
     clear_buffer(ctx, big, 8)
     uniforms = grid_uniforms(rspec, bufs.anchor[list(rotation(axis))])
     slab = {} if slabs is None else {"VOX_SLAB": 1}
+    traced = {} if trace is None else {"SOLID_TRACE": 1}
     first, rest = (compute_program(ctx, "ss/solid.comp", {"SOLID_CHUNK": COLUMN_CHUNK, "FIRST": f,
-                                                          "FLIP_AXIS": axis, **slab}) for f in (1, 0))
+                                                          "FLIP_AXIS": axis, **slab, **traced}) for f in (1, 0))
     for prog in (first, rest):
         set_uniforms(prog, {**uniforms, "u_triangles": n})
     count = pool.get("count" + tag, 4)
     args = pool.get("args" + tag, 3 * 4, clear=False)
     faces = voxelize_faces(ctx, mesh, spec, bufs)
-    blocks = {"VoxVerts": vox, "Faces": faces, "Crossings": grid}
+    blocks = {"VoxVerts": vox, "Faces": faces, "Crossings": grid, **({} if trace is None else {"SolidTrace": trace})}
     rows = mesh_rows(spec, bufs, 0)
     if slabs is None:
         with timer.stage("voxelize" + tag):
