@@ -21,7 +21,7 @@ import trimesh
 from conftest import SHARED_MESHES
 
 import glvox
-from glvox.errors import GridError, MethodError, NotWatertightWarning
+from glvox.errors import GridError, LimitError, MethodError, NotWatertightWarning
 from glvox.grid import GridSpec
 from glvox.mesh import load_mesh
 from glvox.methods import run_method
@@ -453,6 +453,30 @@ def test_closed_meshes_in_slabs_keep_their_counts(gl_context, shared_mesh, monke
     sliced_boxes = run_method("gwn-solid", boxes, box_spec, threshold=4.5)
     assert sliced_boxes.run.stats["event_overflow"] and sliced_boxes.run.stats["slabs"] > 1
     assert sliced_boxes.equal(whole_boxes)
+
+
+def test_a_grid_over_the_storage_limit_is_streamed(gl_context, monkeypatch):
+    """A bit grid over GL_MAX_SHADER_STORAGE_BLOCK_SIZE (forced here to half of it) is
+    voxelized slab by slab, each slab's bits read into its part of the result: the voxels
+    and the count of the whole grid, on an open mesh (the boundary's field) and a closed one.
+    shell and winding, which need the whole grid at once, are refused in one line first."""
+    open_sphere = trimesh.creation.icosphere(1)
+    open_sphere.update_faces(np.arange(len(open_sphere.faces)) >= 3)
+    for m in (open_sphere, trimesh.creation.icosphere(1)):
+        mesh = load_mesh(m)
+        spec = glvox.grid_for(mesh, dims=(32, 16, 100))
+        whole = run_method("gwn-solid", mesh, spec)
+        assert 0 < whole.count and "bit_slabs" not in whole.run.stats
+        real = gl_context.limits()
+        monkeypatch.setattr(gl_context, "limits",
+                            lambda: {**real, "GL_MAX_SHADER_STORAGE_BLOCK_SIZE": spec.n_words * 4 // 2})
+        sliced = run_method("gwn-solid", mesh, spec)
+        assert sliced.run.stats["bit_slabs"] > 1
+        assert sliced.equal(whole) and sliced.count == whole.count
+        for opt in ("shell", "winding"):
+            with pytest.raises(LimitError, match=rf"streams the .* {opt}=true needs the whole grid"):
+                run_method("gwn-solid", mesh, spec, **{opt: True})
+        monkeypatch.setattr(gl_context, "limits", lambda: real)
 
 
 def test_inside_out_mesh_is_empty_with_w_minus_one(gl_context):

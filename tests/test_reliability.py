@@ -719,7 +719,7 @@ def test_grid_buffer_at_the_exact_storage_limit(gl_context, monkeypatch, name):
     method runs and matches an unlimited run; one word less and it is refused
     before allocating anything, naming the size, the limit and ss-octree, or, for
     the methods that stream z slabs (the method ``solid`` picks for the mesh, too),
-    runs in two and matches it again."""
+    runs in slabs and matches it again."""
     mesh = small_mesh()
     spec = glvox.grid_for(mesh, dims=(64, 40, 48))  # 2 words per row
     unlimited = run_method(name, mesh, spec)
@@ -734,7 +734,8 @@ def test_grid_buffer_at_the_exact_storage_limit(gl_context, monkeypatch, name):
     before = live_gl_objects(gl_context)
     if get_method(get_method(name).resolve(mesh)).info.max_voxels > MAX_VOXELS:  # solid: ss-solid here
         sliced = run_method(name, mesh, spec)
-        assert sliced.run.stats["slabs"] == 2
+        # the grid's two slabs; gwn-solid's own are sized by its crossing planes, 4x the bits
+        assert sliced.run.stats["slabs"] == 2 or (name == "gwn-solid" and sliced.run.stats["slabs"] > 2)
         assert_same(sliced, unlimited, f"{name} in slabs")
         return
     with pytest.raises(LimitError, match=r"GL_MAX_SHADER_STORAGE_BLOCK_SIZE .*ss-octree"):

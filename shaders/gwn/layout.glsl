@@ -11,3 +11,10 @@ uint row_cells() { return 32u * words_per_row(); }
 uint row_base(int j, int k) { return (uint(k - u_slab.x) * uint(u_dims.y) + uint(j)) * row_cells(); }
 
 uint cell_index(int i, int j, int k) { return row_base(j, k) + uint(i); }
+
+// The Bits buffer (the packed result) holds z slices u_bits_k0 on: 0 where it
+// holds the whole grid, the slab's first slice where a grid over the storage
+// block limit is streamed slab by slab.
+uniform int u_bits_k0;
+
+uint bits_row(int j, int k) { return (uint(k - u_bits_k0) * uint(u_dims.y) + uint(j)) * words_per_row(); }

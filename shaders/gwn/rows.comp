@@ -82,7 +82,7 @@ void main() {
     int run = 0;
 #if !EDGES || BRICKS
     uint word = 0u, count = 0u;
-    uint wbase = (uint(k) * uint(u_dims.y) + uint(j)) * words_per_row();
+    uint wbase = bits_row(j, k);
 #endif
 #if BRICKS
     uint todo_mask = 0u;

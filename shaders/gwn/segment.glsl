@@ -47,7 +47,7 @@ void finish_segment(Segment S, vec4 w[GWN_SEGV], uint blocks) {
 #endif
     }
     if (word != 0u) {
-        atomicOr(bits[(uint(S.k) * uint(u_dims.y) + uint(S.j)) * words_per_row() + uint(S.seg * SEG) / 32u], word);
+        atomicOr(bits[bits_row(S.j, S.k) + uint(S.seg * SEG) / 32u], word);
         atomicAdd(voxel_count, uint(bitCount(word)));
     }
 }

@@ -53,7 +53,9 @@ import numpy as np
 from ...errors import LimitError, MethodError
 from ...gl.shaders import compute_program
 from ...gl.timing import StageTimer
-from ...gpu.buffers import buffer_pool, clear_buffer, mesh_buffers, read_grid_words
+from ...grid import MAX_VOXELS
+from ...gpu.buffers import (MAX_SLAB_VOXELS, buffer_pool, clear_buffer, mesh_buffers, read_grid_words, slab_reader,
+                             z_slabs)
 from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
 from ...gpu.transform import transform_vertices
 from ...results.voxels import VoxelGrid
@@ -216,7 +218,7 @@ class GwnSolid(Method):
               "(after Barill et al. 2018) with a proven bound, undecided voxels refined exactly",
         summary="robust solid for any mesh (open, self-intersecting, soups): w >= threshold at centers",
         reference="reference-gwn", any_mesh=True,
-        requires=_REQUIRES,
+        requires=_REQUIRES, max_voxels=MAX_SLAB_VOXELS,
         options={
             "threshold": Option(0.5, "inside when w >= threshold (w: 1 inside a closed shell)"),
             "accuracy": Option(2.0, "beta: a cluster is expanded from beta times its radius on (> 1); "
@@ -236,7 +238,25 @@ class GwnSolid(Method):
         if not math.isfinite(threshold):
             raise MethodError(f"option threshold must be a finite number, got {threshold!r}")
         pool = buffer_pool(ctx, self.info.name)
-        bits = pool.get("bits", spec.n_words * 4, what=f"the {spec.dims} bit grid")
+        if winding and spec.n_voxels > MAX_VOXELS:
+            raise LimitError(f"winding=true returns a dense float32 field, and {spec.dims} has {spec.n_voxels} "
+                             f"voxels, more than the {MAX_VOXELS} kept dense; use a smaller grid")
+        # a packed grid over the storage-block limit is streamed: the bits of one slab
+        # of z slices at a time, each read into its part of the result
+        stream = z_slabs(ctx, spec)
+        if stream is not None and (shell or winding):
+            what = "shell" if shell else "winding"
+            limit = ctx.limits()["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"]
+            raise LimitError(f"gwn-solid streams the {spec.dims} grid in z slabs (its bit grid is over "
+                             f"GL_MAX_SHADER_STORAGE_BLOCK_SIZE {limit} of this context), and {what}=true needs "
+                             f"the whole grid at once; use a smaller grid or leave {what} off")
+        if stream is None:
+            bits = pool.get("bits", spec.n_words * 4, what=f"the {spec.dims} bit grid")
+            words = read_slab = None
+        else:
+            bits = pool.get("bits", max(nk for _, nk in stream) * spec.dims[1] * spec.words_per_row * 4,
+                            what=f"one z slab of the {spec.dims} bit grid")
+            words, read_slab = slab_reader(ctx, spec, timer)
         bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool)
         with timer.stage("tree", gpu=False):
             loops = boundary_loops(mesh)
@@ -248,7 +268,8 @@ class GwnSolid(Method):
 
         def prepare(planes: bool) -> _Run:
             run = _Run(ctx, spec, pool, bufs, vox, bits, tree, timer, float(threshold), float(accuracy),
-                       bool(winding), planes)
+                       bool(winding), planes, stream=None if stream is None else (max(nk for _, nk in stream),
+                                                                                   read_slab))
             if run.bricks:
                 rows, segs = run.field_part()
                 free = strip_free_share(tree, vox64, rows)
@@ -260,7 +281,7 @@ class GwnSolid(Method):
         field = run.all_slabs(mesh.n_triangles)
         if run.overflowed():
             # 2^PLANES or more crossings of one sign in one voxel: again with an int per voxel
-            clear_buffer(ctx, bits, spec.n_words * 4)
+            clear_buffer(ctx, bits)
             run = prepare(planes=False)
             run.stats["event_overflow"] = True
             field = run.all_slabs(mesh.n_triangles)
@@ -268,13 +289,19 @@ class GwnSolid(Method):
             with timer.stage("shell", gpu=False):
                 self._add_shell(ctx, mesh, spec, bits, run.count)
         with timer.stage("readback", gpu=False):
-            words = read_grid_words(ctx, bits, spec)
+            if stream is None:
+                words = read_grid_words(ctx, bits, spec)
             voxels, _, _, left, split = (int(x) for x in np.frombuffer(run.count.read(size=20), dtype="<u4"))
+        if stream is not None:
+            run.stats["bit_slabs"] = run.stats["slabs"]
+            timer.merge_repeats()
         if run.bricks:
             run.stats["field_segments"] = left  # the segments the bricks left to the tree walk
             run.stats["split_blocks"] = split  # blocks of 4 voxels the -x split decided
         timer.stats.update(boundary_edges=loops.n_edges, loops=len(loops.loops), **run.stats)
-        return VoxelGrid(words=words, spec=spec, count=voxels, fields={"winding": field} if winding else None)
+        # the passes count in a uint32: not where a grid has 2^32 voxels or more
+        return VoxelGrid(words=words, spec=spec, count=voxels if spec.n_voxels < 2**32 else None,
+                         fields={"winding": field} if winding else None)
 
     def _add_shell(self, ctx, mesh, spec, bits, count) -> None:
         """OR the conservative surface into ``bits`` on the GPU, adding the voxels it
@@ -294,8 +321,11 @@ class GwnSolid(Method):
 class _Run:
     """One gwn-solid run: the slabs, their passes and their statistics."""
 
-    def __init__(self, ctx, spec, pool, bufs, vox, bits, tree, timer, threshold, beta, winding, planes=True):
+    def __init__(self, ctx, spec, pool, bufs, vox, bits, tree, timer, threshold, beta, winding, planes=True,
+                 stream=None):
         self.ctx, self.spec, self.pool, self.bufs, self.vox, self.bits = ctx, spec, pool, bufs, vox, bits
+        # (slices the bits buffer holds, read_slab) where the grid is streamed slab by slab
+        self.stream = stream
         self.tree, self.timer, self.threshold, self.beta, self.winding = tree, timer, threshold, beta, winding
         # the crossing counts in bit planes (else an int per voxel)
         self.planes = planes
@@ -335,6 +365,8 @@ class _Run:
         else:
             cells = min(SLAB_CELLS, limit // 8)
         per_slab = max(1, cells // (row * ny))
+        if self.stream is not None:
+            per_slab = min(per_slab, self.stream[0])
         field = np.empty((nz, ny, row), np.float32) if self.winding else None
         j0, k0, nj, nk = mesh_rows(self.spec, self.bufs)
         for s0 in range(0, nz, per_slab):
@@ -364,7 +396,8 @@ class _Run:
         if not self.planes or self.winding or self.tree is not None:
             cleared = not self.planes or self.winding or not self.bricks
             cells = pool.get("cells", cells_n * 4, what=f"slab of {s1 - s0} z slices", clear=cleared)
-        common = {**self.uniforms, "u_slab": (s0, s1), "u_threshold": self.threshold}
+        common = {**self.uniforms, "u_slab": (s0, s1), "u_threshold": self.threshold,
+                  "u_bits_k0": 0 if self.stream is None else s0}
         self._crossings(n, cells, events, common)
         j0, k0, nj, nk = rows
         fbox, segs = self._field_part(s0, s1, rows) if self.tree is not None else (None, None)
@@ -403,6 +436,10 @@ class _Run:
         if field is not None:
             with self.timer.stage("readback_field", gpu=False):
                 cells.read_into(field[s0:s1], size=cells_n * 4)
+        if self.stream is not None:
+            per_slice = ny * spec.words_per_row * 4
+            self.stream[1](s0, s1 - s0, self.bits)
+            clear_buffer(ctx, self.bits, (s1 - s0) * per_slice)
 
     @property
     def _plane_defines(self) -> dict:
