@@ -59,21 +59,26 @@ def test_method_contract_on_a_small_mesh(name, gl_context):
 
 def test_dense_results_beyond_int32_voxels_are_refused_before_any_work():
     """Beyond MAX_VOXELS (int32 flat indices) a dense method is refused in one line that
-    names the methods of its kind that take the grid (ss-conservative, ss-6sep and ss-solid
-    index packed words and stream z slabs: up to 2^36 voxels) and the sparse ss-octree."""
+    names the methods of its kind that take the grid (ss-conservative, ss-6sep, ss-solid and
+    gwn-solid index packed words and stream z slabs: up to 2^36 voxels) and the sparse
+    ss-octree."""
     mesh = load_mesh("gen:sphere")
     spec = glvox.grid_for(mesh, 2048)  # 2^33 voxels: a valid spec, too big for most methods
     for name in ("reference-solid", "carve-solid"):
         with pytest.raises(LimitError, match=r"more than the 2147483647 it keeps dense; use a smaller grid, "
-                                             r"ss-solid, or the sparse ss-octree$"):
+                                             r"gwn-solid or ss-solid, or the sparse ss-octree$"):
             run_method(name, mesh, spec)
-    # an open mesh: ss-solid takes the grid but has no inside for it, so it is not offered
+    # an open mesh: ss-solid takes the grid but has no inside for it, so only gwn-solid is offered
     box = load_mesh("gen:box")
     open_box = load_mesh((box.vertices, box.faces[:-2]))
     assert not open_box.watertight
-    with pytest.raises(LimitError, match=r"more than the 2147483647 it keeps dense; use a smaller grid or the "
-                                         r"sparse ss-octree$"):
-        run_method("gwn-solid", open_box, glvox.grid_for(open_box, 2048))
+    with pytest.raises(LimitError, match=r"more than the 2147483647 it keeps dense; use a smaller grid, gwn-solid, "
+                                         r"or the sparse ss-octree$"):
+        run_method("carve-solid", open_box, glvox.grid_for(open_box, 2048))
+    # its winding field is dense float32: refused before any work
+    with pytest.raises(LimitError, match=r"^winding=true returns a dense float32 field, and \(2048, 2048, 2048\) has "
+                                         r"8589934592 voxels, more than the 2147483647 kept dense; use a smaller grid$"):
+        run_method("gwn-solid", open_box, glvox.grid_for(open_box, 2048), winding=True)
     for name in ("reference-conservative", "scanline-ilv"):
         with pytest.raises(LimitError, match=r"more than the 2147483647 it keeps dense; use a smaller grid, "
                                              r"ss-6sep or ss-conservative, or the sparse ss-octree$"):
