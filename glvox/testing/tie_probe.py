@@ -36,6 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import GlvoxError
 from ..gl.timing import StageTimer
 from ..gpu.buffers import buffer_pool, clear_buffer
 from ..gpu.transform import gpu_vertices_voxel
@@ -236,13 +237,13 @@ def _run_traced(ctx, mesh, spec, family: str, capacity: int) -> np.ndarray:
     timer = StageTimer(ctx)
     if family == "ss":
         if spec.n_words * 4 >= ORDER_MIN_BYTES:  # the pass would read its faces reordered by row
-            raise ValueError(f"trace runs grids under {ORDER_MIN_BYTES} bytes, got {spec.dims}")
+            raise GlvoxError(f"the tie trace runs grids under {ORDER_MIN_BYTES} bytes of bits, got {spec.dims}")
         parity_on_gpu(ctx, mesh, spec, timer, pool, trace=buf)
     else:
         render_slice_masks(ctx, mesh, spec, SliceRender("xor", axis=2, trace=buf), timer=timer, owner=_OWNER)
     n = int(np.frombuffer(buf.read(size=4), dtype="<u4")[0])
     if n > capacity:
-        raise ValueError(f"the {family} trace holds {capacity} records, the pass wrote {n}")
+        raise GlvoxError(f"the {family} trace holds {capacity} records, the pass wrote {n}")
     if n == 0:
         return np.zeros((0, 4), np.uint32)
     return np.frombuffer(buf.read(size=16 * n, offset=4), dtype="<u4").reshape(n, 4)
