@@ -203,12 +203,22 @@ MUTANTS: list[Mutant] = [
     # (the same comparison in gwn/segment.glsl is left out: it decides w there only where w is
     # farther from the threshold than the error bound, or refined in float32 from an open
     # mesh's strips, where w equal to the threshold never came up: an equivalent mutant in practice)
-    Mutant("gwn-rows-threshold-strict", "gwn-solid's closed rows: inside when C > threshold",
+    Mutant("gwn-rows-threshold-strict", "gwn-solid's closed rows (word by word): inside when C > threshold",
+           "shaders/gwn/rows.comp", (("            if (i > from && float(run) >= u_threshold) word |= mask_range(from, i - 1u);",
+                                      "            if (i > from && float(run) > u_threshold) word |= mask_range(from, i - 1u);"),
+                                     ("        if (float(run) >= u_threshold) word |= mask_from(from);",
+                                      "        if (float(run) > u_threshold) word |= mask_from(from);")),
+           ("tests/test_gwn.py", "-k", "overlapping_spheres or add_up")),
+    Mutant("gwn-rows-block-threshold-strict", "gwn-solid's closed rows with the field: inside when C > threshold",
            "shaders/gwn/rows.comp", (("        vec4 w = vec4(c);\n        uint x = 4u * q;\n"
                                       "        uvec4 in4 = uvec4(greaterThanEqual(w, vec4(u_threshold)))",
                                       "        vec4 w = vec4(c);\n        uint x = 4u * q;\n"
                                       "        uvec4 in4 = uvec4(greaterThan(w, vec4(u_threshold)))"),),
-           ("tests/test_gwn.py", "-k", "overlapping_spheres")),
+           ("tests/test_gwn.py", "-k", "add_up")),
+    Mutant("gwn-events-no-carry", "gwn-solid's crossing counts: plane 0 toggles, nothing carries into plane 1",
+           "shaders/gwn/events.comp", (("    if ((atomicXor(events[at], b) & b) == 0u) return;",
+                                        "    atomicXor(events[at], b);\n    return;"),),
+           ("tests/test_gwn.py", "-k", "add_up")),
     Mutant("carve-runs-not-joined", "carve-solid: a free run no longer carries into the next word of its row",
            "shaders/carve/sweep.comp", (("            if (carry != 0u) AT(g, c) |= (~fc & (fc + 1u)) - 1u;\n", ""),),
            ("tests/test_carve.py", "-k", "corridor or random_blockers")),

@@ -430,7 +430,12 @@ def test_crossing_counts_of_one_voxel_add_up(gl_context, flips, w):
         want = cube if threshold < w else np.zeros_like(cube)
         assert np.array_equal(g.dense(), want), f"threshold {threshold}: {int(g.count)} voxels"
         assert np.array_equal(want, run_method("reference-gwn", mesh, spec, threshold=threshold).dense())
-    field = run_method("gwn-solid", mesh, spec, winding=True).fields["winding"]
+    # the threshold is inclusive: w itself keeps the cube, in the rows word by word and, with
+    # the field, block by block
+    for opts in ({}, {"winding": True}):
+        g = run_method("gwn-solid", mesh, spec, threshold=float(w), **opts)
+        assert np.array_equal(g.dense(), cube), f"threshold {w} {opts}: {int(g.count)} voxels"
+    field = g.fields["winding"]
     assert np.array_equal(field, np.where(cube, float(w), 0.0).astype(np.float32))
 
 
