@@ -291,17 +291,17 @@ def test_solid_slabs_write_inside_their_slab(gl_context, monkeypatch):
 
 def test_surfaces_take_grids_over_the_dense_limit(gl_context):
     """ss-conservative on 2048 x 2048 x 513 voxels (more than MAX_VOXELS, 269 MB of bits:
-    z slabs on llvmpipe), and ss-solid too: their corners equal a small grid's; ss-solid-tiled
-    still refuses it, naming ss-solid and the sparse ss-octree."""
+    z slabs on llvmpipe), and ss-solid and gwn-solid too: their corners equal a small grid's;
+    ss-solid-tiled still refuses it, naming those two and the sparse ss-octree."""
     mesh, big, small = _corner_grids((2048, 2048, 513), (32, 32, 32))
     assert big.n_voxels > MAX_VOXELS
-    for name in ("ss-conservative", "ss-solid"):
+    for name in ("ss-conservative", "ss-solid", "gwn-solid"):
         got = run_method(name, mesh, big)
         want = run_method(name, mesh, small)
         np.testing.assert_array_equal(got.words()[:32, :32, :1], want.words())
         assert got.count == want.count > 0, name
-    with pytest.raises(LimitError, match=r"more than the 2147483647 it keeps dense; use a smaller grid, ss-solid, or "
-                                         r"the sparse ss-octree"):
+    with pytest.raises(LimitError, match=r"more than the 2147483647 it keeps dense; use a smaller grid, gwn-solid or "
+                                         r"ss-solid, or the sparse ss-octree"):
         run_method("ss-solid-tiled", load_mesh("gen:box"), big)
 
 
