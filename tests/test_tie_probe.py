@@ -99,17 +99,31 @@ def test_a_pass_that_differs_from_the_model_is_named(gl_context):
     assert str(diffs[0]).startswith("ss-solid voxelize: triangle ")
 
 
-def test_the_trace_tells_a_missed_fragment_from_a_coverage_decision(tmp_path):
-    """With eisemann's proxies shrunk instead of grown (a shader overlay through
-    GLVOX_SHADER_PATH), the rasterizer leaves out centers on and near the triangles' edges:
-    the trace says no fragment was drawn there, while the probe, which evaluates the same
-    functions without the rasterizer, stays clean."""
-    rel = "eisemann/setup.comp"
+#: Overlays that break one step of eisemann-solid's render after another, and what the trace
+#: must then say (and only that): (file, text, replacement, the words of every difference).
+BROKEN_STEPS = {
+    "proxies shrunk": ("eisemann/setup.comp", "#define EIS_GROW 0.0625", "#define EIS_GROW -0.25",
+                       "no fragment drawn"),
+    "masks a slice late": ("eisemann/masks.glsl", "ivec4 lo = clamp(ivec4(first - 128 * t)",
+                           "ivec4 lo = clamp(ivec4(first + 1 - 128 * t)", "the masks written or the logic op"),
+    "pack flips a bit": ("eisemann/pack.comp", "grid[row_word(j, s0 + c, x_word)] = a[c][ch];",
+                         "grid[row_word(j, s0 + c, x_word)] = a[c][ch] ^ 1u;", "(the pack)"),
+}
+
+
+@pytest.mark.parametrize("step", sorted(BROKEN_STEPS))
+def test_the_trace_names_the_step_of_the_render_that_differs(tmp_path, step):
+    """With one step of eisemann's render broken (a shader overlay through GLVOX_SHADER_PATH),
+    the trace names that step and no other, while the probe, which evaluates the tie
+    functions without the render, stays clean: shrunk proxies leave centers on and near the
+    edges without a fragment (the rasterizer), masks a slice late make targets that are not
+    the XOR of the fragments drawn (the fragment's masks or the logic op), and a pack that
+    flips a bit makes a grid that is not the targets' masks."""
+    rel, old, new, words = BROKEN_STEPS[step]
     text = (builtin_shader_dir() / rel).read_text()
-    grow = "#define EIS_GROW 0.0625"
-    assert text.count(grow) == 1
-    (tmp_path / "eisemann").mkdir()
-    (tmp_path / rel).write_text(text.replace(grow, "#define EIS_GROW -0.25"))
+    assert text.count(old) == 1
+    (tmp_path / rel).parent.mkdir(parents=True)
+    (tmp_path / rel).write_text(text.replace(old, new))
     script = (
         "from glvox.gl.context import get_context\n"
         "from glvox.study.selftest import tie_cases\n"
@@ -123,4 +137,4 @@ def test_the_trace_tells_a_missed_fragment_from_a_coverage_decision(tmp_path):
     assert proc.returncode == 0, proc.stderr[-2000:]
     lines = proc.stdout.splitlines()
     assert lines[0] == "0" and len(lines) > 1, proc.stdout[-2000:]
-    assert all(line.startswith("eisemann-solid render: ") and "no fragment drawn" in line for line in lines[1:])
+    assert all(line.startswith("eisemann-solid render: ") and words in line for line in lines[1:]), lines[:5]

@@ -42,9 +42,11 @@ shader, must equal their float64 model word for word; a detail line names
 each pair that differs and the quantity (the first few).  Then the methods'
 own passes, traced: every crossing ss-solid's voxelize pass flips and every
 fragment eisemann-solid's render draws must be a pair the model covers, from
-its first voxel, and every pair the model covers must be there; a detail line
-says which pass did otherwise and how (no fragment drawn: the rasterizer;
-drawn and decided otherwise: the fragment stage).
+its first voxel, and every pair the model covers must be there, and the
+render's targets and packed grid must be what those fragments make; a detail
+line says which step did otherwise (no fragment drawn: the rasterizer; drawn
+and decided otherwise: the fragment stage; then the masks and logic op, or
+the pack).
 
 The third, ``readback``, checks the way large results leave the GPU
 (:mod:`glvox.gpu.readback`; the cases above are too small to take it): a

@@ -26,7 +26,10 @@ the render draws (covered or not), and compares them with the model's covered
 pairs.  A pair the model covers and the render drew no fragment for is the
 rasterizer's (the grown proxy missed the center); one drawn and decided
 otherwise is the fragment stage's; a crossing ss-solid flips that the probe
-does not is the voxelize pass's own.
+does not is the voxelize pass's own.  The render's later steps are checked
+too, on grids of one tile and one target: every pixel of the target must hold
+the XOR of the masks of the fragments traced there (the masks written and
+the logic op), and the packed grid those masks' slices (the pack).
 """
 
 from __future__ import annotations
@@ -40,7 +43,9 @@ from ..errors import GlvoxError
 from ..gl.timing import StageTimer
 from ..gpu.buffers import buffer_pool, clear_buffer
 from ..gpu.transform import gpu_vertices_voxel
-from ..methods.eisemann.passes import SliceRender, render_slice_masks
+from ..grid import unpack_bits
+from ..methods.eisemann.passes import SLICES_PER_TARGET, SliceRender, last_pass_targets, render_slice_masks, \
+    tile_limit
 from ..methods.ss.solid import parity_on_gpu
 from ..methods.ss.solid_tuning import ORDER_MIN_BYTES
 from .harness import run_compute, run_fragment
@@ -199,23 +204,26 @@ def probe(ctx, mesh, spec, model_fn=model) -> tuple[int, list[Difference]]:
 #: The pipelines :func:`trace` runs: (name, model family).
 TRACED = (("ss-solid voxelize", "ss"), ("eisemann-solid render", "eis"))
 
-#: The word a trace holds for a fragment drawn over a center its triangle does not cover.
-NOT_COVERED = 0xFFFFFFFF
+#: The bit of a trace record's column u that marks a fragment drawn over a center its
+#: triangle does not cover (eisemann/slices.frag).
+NOT_COVERED = 0x80000000
 
 _OWNER = "tie-trace"
 
 
 @dataclass
 class TraceDifference:
-    """A (triangle, column) where a method's own pass did other than the model."""
+    """A (triangle, column) where a method's own pass did other than the model; ``triangle``
+    None: a column whose masks or packed voxels differ from what its traced fragments make."""
 
     kind: str
-    triangle: int
+    triangle: int | None
     column: tuple[int, int]
     what: str
 
     def __str__(self) -> str:
-        return f"{self.kind}: triangle {self.triangle}, column {self.column}: {self.what}"
+        at = f"column {self.column}" if self.triangle is None else f"triangle {self.triangle}, column {self.column}"
+        return f"{self.kind}: {at}: {self.what}"
 
 
 def _expected(family: str, tris: np.ndarray, centers: np.ndarray,
@@ -229,8 +237,42 @@ def _expected(family: str, tris: np.ndarray, centers: np.ndarray,
     return out
 
 
-def _run_traced(ctx, mesh, spec, family: str, capacity: int) -> np.ndarray:
-    """(records, 4) uint32: the traced pass of ``family`` on ``mesh``."""
+def _suffix(first: int) -> np.ndarray:
+    """The 4 words of a render target's pixel that a fragment flipping slices >= first XORs in."""
+    bits = (np.arange(SLICES_PER_TARGET) >= first).astype(np.uint8)
+    return np.packbits(bits, bitorder="little").view("<u4")
+
+
+def _after_the_fragments(ctx, spec, records: np.ndarray, grid) -> list[TraceDifference]:
+    """The render's next steps on a one-tile, one-target grid: each pixel of the target must
+    hold the XOR of the suffix masks of the covered fragments traced there (the masks the
+    fragment shader writes and the logic op), and the packed grid must hold those masks'
+    slices (the pack)."""
+    nu, nv, na = spec.dims
+    if na > SLICES_PER_TARGET or max(nu, nv) > tile_limit(ctx):
+        return []
+    tex = last_pass_targets(ctx)[0]
+    masks = np.frombuffer(tex.read(), dtype="<u4").reshape(tex.size[1], tex.size[0], 4)[:nv, :nu]
+    want = np.zeros((nv, nu, 4), np.uint32)
+    for _, u, v, first in records.tolist():
+        first = int(np.uint32(first).view(np.int32))
+        if not u & NOT_COVERED and first < SLICES_PER_TARGET:
+            want[v, u] ^= _suffix(first)
+    kind = TRACED[1][0]
+    diffs = [TraceDifference(kind, None, (int(u), int(v)), "the render target holds other masks than the XOR of the "
+                                                          "fragments traced there (the masks written or the logic op)")
+             for v, u in np.argwhere((masks != want).any(axis=-1))]
+    slices = np.unpackbits(np.ascontiguousarray(masks).view(np.uint8), axis=-1, bitorder="little")[..., :na]
+    packed = unpack_bits(np.frombuffer(grid.read(size=spec.n_words * 4), dtype="<u4"), spec.dims)
+    diffs += [TraceDifference(kind, None, (int(u), int(v)), "the packed grid differs from the render target's "
+                                                           "masks (the pack)")
+              for u, v in np.argwhere((packed != slices.transpose(1, 0, 2).astype(bool)).any(axis=-1))]
+    return diffs
+
+
+def _run_traced(ctx, mesh, spec, family: str, capacity: int) -> tuple[np.ndarray, list[TraceDifference]]:
+    """(records, 4) uint32: the traced pass of ``family`` on ``mesh``; and for the render,
+    the differences of its later steps (:func:`_after_the_fragments`)."""
     pool = buffer_pool(ctx, _OWNER)
     buf = pool.get("trace", 4 + 16 * capacity, clear=False)
     clear_buffer(ctx, buf, 4)
@@ -240,13 +282,14 @@ def _run_traced(ctx, mesh, spec, family: str, capacity: int) -> np.ndarray:
             raise GlvoxError(f"the tie trace runs grids under {ORDER_MIN_BYTES} bytes of bits, got {spec.dims}")
         parity_on_gpu(ctx, mesh, spec, timer, pool, trace=buf)
     else:
-        render_slice_masks(ctx, mesh, spec, SliceRender("xor", axis=2, trace=buf), timer=timer, owner=_OWNER)
+        grid, _ = render_slice_masks(ctx, mesh, spec, SliceRender("xor", axis=2, trace=buf), timer=timer,
+                                     owner=_OWNER)
     n = int(np.frombuffer(buf.read(size=4), dtype="<u4")[0])
     if n > capacity:
         raise GlvoxError(f"the {family} trace holds {capacity} records, the pass wrote {n}")
-    if n == 0:
-        return np.zeros((0, 4), np.uint32)
-    return np.frombuffer(buf.read(size=16 * n, offset=4), dtype="<u4").reshape(n, 4)
+    records = np.zeros((0, 4), np.uint32) if n == 0 else \
+        np.frombuffer(buf.read(size=16 * n, offset=4), dtype="<u4").reshape(n, 4)
+    return records, [] if family == "ss" else _after_the_fragments(ctx, spec, records, grid)
 
 
 def trace(ctx, mesh, spec, model_fn=model) -> tuple[int, list[TraceDifference]]:
@@ -258,20 +301,22 @@ def trace(ctx, mesh, spec, model_fn=model) -> tuple[int, list[TraceDifference]]:
         for kind, family in TRACED:
             tris, centers = triangles(mesh, spec, family)
             want = _expected(family, tris, centers, model_fn)
-            got = _run_traced(ctx, mesh, spec, family, len(tris) * len(centers))
+            got, later = _run_traced(ctx, mesh, spec, family, len(tris) * len(centers))
+            uncovered = (got[:, 1] & NOT_COVERED) != 0
             if family == "eis":
                 # the render culls a triangle whose crossings all lie past the grid's slices, and
                 # a fragment past them flips nothing: those pairs are left out on both sides
                 beyond = spec.dims[2]
                 want = {k: f for k, f in want.items() if np.int32(np.uint32(f)) < beyond}
-                got = got[(got[:, 3] == NOT_COVERED) | (got[:, 3].view(np.int32) < beyond)]
+                keep = uncovered | (got[:, 3].view(np.int32) < beyond)
+                got, uncovered = got[keep], uncovered[keep]
             total += len(want)
-            drawn: dict[tuple[int, int, int], list[int]] = {}
-            for t, u, v, first in got.tolist():
-                drawn.setdefault((t, u, v), []).append(first)
+            drawn: dict[tuple[int, int, int], list[int | None]] = {}
+            for (t, u, v, first), out in zip(got.tolist(), uncovered.tolist()):
+                drawn.setdefault((t, u & ~NOT_COVERED, v), []).append(None if out else first)
             for key in sorted(set(want) | set(drawn)):
                 firsts = drawn.get(key, [])
-                covered = [f for f in firsts if f != NOT_COVERED]
+                covered = [f for f in firsts if f is not None]
                 if len(firsts) > 1:
                     what = f"{len(firsts)} records of one pair"
                 elif key in want and not firsts:
@@ -286,6 +331,7 @@ def trace(ctx, mesh, spec, model_fn=model) -> tuple[int, list[TraceDifference]]:
                 else:
                     continue
                 diffs.append(TraceDifference(kind, key[0], (key[1], key[2]), what))
+            diffs += later
     finally:
         buffer_pool(ctx, _OWNER).release()
     return total, diffs

@@ -16,19 +16,19 @@ flat in uint v_tri;
 
 #if EIS_TRACE
 // EIS_TRACE 1 (glvox.testing.tie_probe.trace): every fragment of the first pass
-// as (triangle, column u, column v, first slice flipped, or ~0 where the
-// triangle does not cover the center), so that a fragment the rasterizer never
-// made tells itself apart from a coverage decided otherwise.
+// as (triangle, column u with bit 31 set where the triangle does not cover the
+// center, column v, first slice flipped), so that a fragment the rasterizer
+// never made tells itself apart from a coverage decided otherwise.
 layout(std430, binding = 5) buffer EisTrace { uint eis_trace_n; uint eis_trace[]; };
 
-void eis_trace_fragment(ivec2 column, uint first) {
+void eis_trace_fragment(ivec2 column, bool covered, int first) {
     if (u_slice_lo != 0) return;
     uint at = atomicAdd(eis_trace_n, 1u);
     if (4u * at + 3u >= uint(eis_trace.length())) return;
     eis_trace[4u * at] = v_tri;
-    eis_trace[4u * at + 1u] = uint(column.x);
+    eis_trace[4u * at + 1u] = uint(column.x) | (covered ? 0u : 0x80000000u);
     eis_trace[4u * at + 2u] = uint(column.y);
-    eis_trace[4u * at + 3u] = first;
+    eis_trace[4u * at + 3u] = uint(first);
 }
 #endif
 
@@ -45,7 +45,7 @@ void main() {
     bool covered = true;
 #endif
 #if EIS_TRACE
-    eis_trace_fragment(column, covered ? uint(eis_first_flipped(eis_crossing(p0, p1, p2, n, c))) : ~0u);
+    eis_trace_fragment(column, covered, covered ? eis_first_flipped(eis_crossing(p0, p1, p2, n, c)) : 0);
 #endif
     if (!covered) discard;
     double q = eis_crossing(p0, p1, p2, n, c);

@@ -147,6 +147,14 @@ def _targets(ctx, n: int, size: tuple[int, int]) -> _Targets:
     return tg
 
 
+def last_pass_targets(ctx) -> list:
+    """The render targets as the last pass left them (RGBA32UI textures of the last tile;
+    pixel (u, v) holds 128 slices a target, 32 a word): the masks before the pack, for
+    :func:`glvox.testing.tie_probe.trace`.  Empty before any render in ``ctx``."""
+    tg = _cache(ctx).get("targets")
+    return [] if tg is None else list(tg.textures)
+
+
 def _framebuffer(ctx, tg: _Targets, n: int):
     """The framebuffer of the first ``n`` targets."""
     fbo = tg.fbos.get(n)
