@@ -27,7 +27,7 @@ from .methods import Request, get_method, method_infos, run_method
 from .methods.ldi.leung_wang import overlap_bounds, overlap_grid, run_intersection
 from .methods.sdf.field import signed_distance_field
 from .methods.sdf.samples import save_samples, sdf_samples
-from .progress import Stages
+from .progress import Progress, Stages
 from .visuals import load_visual_mesh
 from .results import LDI, SDFGrid, SparseOctree
 
@@ -77,6 +77,29 @@ def _summary(result) -> str:
     return f"{voxels if voxels is not None else result.count} voxels set"
 
 
+class SlabProgress:
+    """A method's slabs as ``glvox voxelize`` shows them: a bar on a terminal, else a line
+    every few seconds and one at the end (:class:`~glvox.progress.Progress`); a method
+    that runs its slabs again (gwn-solid past its bit planes) starts a new one."""
+
+    def __init__(self, enabled: bool):
+        self.enabled = enabled
+        self.bar: Progress | None = None
+
+    def __call__(self, done: int, total: int) -> None:
+        if not self.enabled:
+            return
+        if self.bar is None or done <= self.bar.done:
+            self.close()
+            self.bar = Progress(total, unit="slab")
+        self.bar.update(done - self.bar.done)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
+
+
 def cmd_voxelize(args) -> int:
     call: preflight.VoxelizeCall = args.checked
     info = call.request.info
@@ -103,9 +126,14 @@ def cmd_voxelize(args) -> int:
             f"picked by {call.request.name}: {why})")
     else:
         say(f"voxelizing with {info.name} ({info.family} family, {info.pipeline}, {info.kind})")
+    slabs = SlabProgress(not (args.quiet or args.json))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        result = run_method(call.request, mesh, spec, backend=args.backend, allow_open=args.allow_open)
+        try:
+            result = run_method(call.request, mesh, spec, backend=args.backend, allow_open=args.allow_open,
+                                progress=slabs)
+        finally:
+            slabs.close()
     for w in caught:
         print(f"glvox: warning: {w.message}", file=sys.stderr)
     run = result.run

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 
@@ -14,6 +15,7 @@ from glvox import io
 from glvox.cli import build_parser
 from glvox.cli import main as cli_main
 from glvox.methods import request
+from glvox.methods.gwn import field as gwn
 from glvox.study.compare import plan_from
 from glvox.methods import method_names
 
@@ -68,6 +70,21 @@ def test_voxelize_shows_progress_on_stderr(tmp_path):
     p = glvox("voxelize", "gen:sphere", "-r", 16, "-m", "reference-conservative", "-o", tmp_path / "s.npz")
     assert p.returncode == 0
     assert "loading gen:sphere" in p.stderr and "voxels set" in p.stderr and "wrote" in p.stderr
+
+
+def test_voxelize_shows_the_slabs_of_a_long_run(gl_context, tmp_path, monkeypatch, capsys):
+    """A method that works the grid in z slabs reports each one, and glvox voxelize shows
+    them: off a terminal, a line now and then and one at the end (gwn-solid forced into
+    slabs of 4 slices here); --quiet shows none."""
+    monkeypatch.setattr(gwn, "SLAB_CELLS", 32 * 24 * 4 // 8)  # 4 slices of 24 rows of 32 voxels at most
+    out = tmp_path / "t.npz"
+    assert cli_main(["voxelize", "gen:torus", "-r", "24", "-m", "gwn-solid", "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if " slab/s" in line]
+    done = re.search(r"\] (\d+)/(\d+) 100%", lines[-1]) if lines else None
+    assert done and done[1] == done[2] and int(done[1]) > 1, err
+    assert cli_main(["voxelize", "gen:torus", "-r", "24", "-m", "gwn-solid", "-o", str(out), "-q"]) == 0
+    assert "slab" not in capsys.readouterr().err
 
 
 def test_voxelize_grid_options(tmp_path):

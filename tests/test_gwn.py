@@ -463,7 +463,8 @@ def test_closed_meshes_in_slabs_keep_their_counts(gl_context, shared_mesh, monke
 def test_a_grid_over_the_storage_limit_is_streamed(gl_context, monkeypatch):
     """A bit grid over GL_MAX_SHADER_STORAGE_BLOCK_SIZE (forced here to half of it) is
     voxelized slab by slab, each slab's bits read into its part of the result: the voxels
-    and the count of the whole grid, on an open mesh (the boundary's field) and a closed one.
+    and the count of the whole grid, on an open mesh (the boundary's field) and a closed one,
+    and run_method's progress hears of every slab.
     shell and winding, which need the whole grid at once, are refused in one line first."""
     open_sphere = trimesh.creation.icosphere(1)
     open_sphere.update_faces(np.arange(len(open_sphere.faces)) >= 3)
@@ -475,8 +476,10 @@ def test_a_grid_over_the_storage_limit_is_streamed(gl_context, monkeypatch):
         real = gl_context.limits()
         monkeypatch.setattr(gl_context, "limits",
                             lambda: {**real, "GL_MAX_SHADER_STORAGE_BLOCK_SIZE": spec.n_words * 4 // 2})
-        sliced = run_method("gwn-solid", mesh, spec)
-        assert sliced.run.stats["bit_slabs"] > 1
+        calls = []
+        sliced = run_method("gwn-solid", mesh, spec, progress=lambda done, total: calls.append((done, total)))
+        n = sliced.run.stats["bit_slabs"]
+        assert n > 1 and calls == [(i, n) for i in range(1, n + 1)]  # progress after every slab
         assert sliced.equal(whole) and sliced.count == whole.count
         for opt in ("shell", "winding"):
             with pytest.raises(LimitError, match=rf"streams the .* {opt}=true needs the whole grid"):

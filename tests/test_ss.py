@@ -296,7 +296,10 @@ def test_surfaces_take_grids_over_the_dense_limit(gl_context):
     mesh, big, small = _corner_grids((2048, 2048, 513), (32, 32, 32))
     assert big.n_voxels > MAX_VOXELS
     for name in ("ss-conservative", "ss-solid", "gwn-solid"):
-        got = run_method(name, mesh, big)
+        calls = []
+        got = run_method(name, mesh, big, progress=lambda done, total: calls.append((done, total)))
+        n = got.run.stats["slabs"]
+        assert n > 1 and calls == [(i, n) for i in range(1, n + 1)], name  # progress after every slab
         want = run_method(name, mesh, small)
         np.testing.assert_array_equal(got.words()[:32, :32, :1], want.words())
         assert got.count == want.count > 0, name

@@ -83,12 +83,17 @@ class StageTimer:
         method and the stage (``GLVOX_DEBUG=1`` turns this on).
     method : str
         For error messages.
+    progress : callable, optional
+        ``progress(done, total)`` after each slab of a grid worked in slabs (:meth:`slab_done`).
     """
 
-    def __init__(self, ctx=None, *, debug: bool = False, method: str = ""):
+    def __init__(self, ctx=None, *, debug: bool = False, method: str = "", progress=None):
         self.ctx = ctx
         self.debug = debug
         self.method = method
+        #: ``progress(done, total)``: called by methods that work a grid in slabs, after each
+        #: slab (``glvox voxelize`` shows it for long runs); None ignores them
+        self.progress = progress
         self.timings = Timings()
         #: statistics a method reports beside its result (counts, case shares)
         self.stats: dict[str, Any] = {}
@@ -117,6 +122,11 @@ class StageTimer:
         self.timings.stages.append(Stage(name, wall, gpu_s))
         if self.debug and self.ctx is not None:
             self.ctx.check_error(f"method {self.method!r}, stage {name!r}")
+
+    def slab_done(self, done: int, total: int) -> None:
+        """Slab ``done`` of ``total`` is voxelized (a grid worked in z slabs)."""
+        if self.progress is not None and total > 1:
+            self.progress(done, total)
 
     def merge_repeats(self) -> None:
         """Sum the stages that share a name into one, in the order of their first run

@@ -54,7 +54,7 @@ def method_names(kind: str | None = None, family: str | None = None, pipeline: s
 
 def run_method(name: str | Request, mesh: Mesh, spec: GridSpec, *, ctx=None, backend: str | None = None,
                allow_open: bool = False, debug: bool | None = None, attributes=None, normals: str = "face",
-               fill_attributes: str = "none", **options: Any):
+               fill_attributes: str = "none", progress=None, **options: Any):
     """Run method ``name`` on a validated mesh and grid spec.
 
     Parameters
@@ -86,6 +86,9 @@ def run_method(name: str | Request, mesh: Mesh, spec: GridSpec, *, ctx=None, bac
     fill_attributes : {'none', 'nearest'}
         Solids: interior voxels carry nothing (triangle -1, alpha 0), or the
         attributes of the nearest surface voxel (a GPU jump flood).
+    progress : callable, optional
+        ``progress(done, total)`` after each z slab, where the method works the
+        grid in slabs (grids over the storage-block limit; gwn-solid's passes).
     **options
         Method options (see ``glvox methods``).
 
@@ -122,7 +125,7 @@ def run_method(name: str | Request, mesh: Mesh, spec: GridSpec, *, ctx=None, bac
         return result
 
     result = run_in_envelope(method.info, (mesh,), spec, work, options=opts, ctx=ctx, backend=backend,
-                             allow_open=allow_open, debug=debug)
+                             allow_open=allow_open, debug=debug, progress=progress)
     if request is not asked:
         result.run.stats["requested"] = asked.name
         result.run.stats["picked_because"] = asked.method.why(mesh)

@@ -72,7 +72,7 @@ def check_inputs(info: MethodInfo, meshes: Sequence[Any], spec: GridSpec, allow_
 def run_in_envelope(info: MethodInfo, meshes: Sequence[Any], spec: GridSpec,
                     work: Callable[[Any, StageTimer], Result], *, options: dict[str, Any],
                     ctx=None, backend: str | None = None, allow_open: bool = False,
-                    debug: bool | None = None) -> Result:
+                    debug: bool | None = None, progress=None) -> Result:
     """Run ``work(ctx, timer)`` for ``info`` on ``meshes`` and ``spec``.
 
     Parameters
@@ -86,7 +86,7 @@ def run_in_envelope(info: MethodInfo, meshes: Sequence[Any], spec: GridSpec,
         ``ctx`` is the made-current GLContext for GL work, None for CPU work.
     options : dict
         Validated options, recorded in the run info.
-    ctx, backend, allow_open, debug
+    ctx, backend, allow_open, debug, progress
         As :func:`glvox.methods.run_method`.
 
     Returns
@@ -108,7 +108,7 @@ def run_in_envelope(info: MethodInfo, meshes: Sequence[Any], spec: GridSpec,
             ctx.check_error(f"method {info.name!r}, before the first stage")
     else:
         ctx = None
-    timer = StageTimer(ctx, debug=debug, method=info.name)
+    timer = StageTimer(ctx, debug=debug, method=info.name, progress=progress)
     result = work(ctx, timer)
     timings = timer.finish()
     stats: dict[str, Any] = {"triangles": sum(m.n_triangles for m in meshes),

@@ -369,10 +369,12 @@ class _Run:
             per_slab = min(per_slab, self.stream[0])
         field = np.empty((nz, ny, row), np.float32) if self.winding else None
         j0, k0, nj, nk = mesh_rows(self.spec, self.bufs)
+        total = -(-nz // per_slab)
         for s0 in range(0, nz, per_slab):
             s1 = min(nz, s0 + per_slab)
             self.stats["slabs"] += 1
             self._slab(n_triangles, s0, s1, (j0, k0, nj, nk), field)
+            self.timer.slab_done(self.stats["slabs"], total)
         return None if field is None else field[:, :, :nx].transpose(2, 1, 0)
 
     def overflowed(self) -> bool:

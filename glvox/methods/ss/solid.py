@@ -329,7 +329,7 @@ def parity_on_gpu(ctx, mesh, spec, timer, pool, *, axis: int = 0, tag: str = "",
             _fill(ctx, spec, grid, count, rows, axis)
         return Parity(grid, count, big, rows)
     j0, k0_rows, nj, nk_rows = rows
-    for k0, nk in slabs:
+    for i, (k0, nk) in enumerate(slabs):
         if k0:
             clear_buffer(ctx, grid, nk * per_slice)
             clear_buffer(ctx, big, 8)
@@ -343,6 +343,7 @@ def parity_on_gpu(ctx, mesh, spec, timer, pool, *, axis: int = 0, tag: str = "",
             if hi > lo and nj:
                 _fill(ctx, spec, grid, count, (j0, lo - k0, nj, hi - lo), axis)
         read_slab(k0, nk, grid)
+        timer.slab_done(i + 1, len(slabs))
     return Parity(grid, count, big, rows)
 
 

@@ -220,11 +220,12 @@ def surface_on_gpu(ctx, mesh, spec, timer, pool, *, variant: str, criterion: int
     # classify saw the whole grid (its case counts and chunks are the triangles');
     # each slab's voxelization visits its slices alone
     per_slice = spec.dims[1] * spec.words_per_row * 4
-    for k0, nk in slabs:
+    for i, (k0, nk) in enumerate(slabs):
         if k0:
             clear_buffer(ctx, grid, nk * per_slice)
         voxelize({**defines, "VOX_SLAB": 1}, {**common, "u_slab": (k0, nk)})
         read_slab(k0, nk, grid)
+        timer.slab_done(i + 1, len(slabs))
     return grid, stats
 
 
