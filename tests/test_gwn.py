@@ -439,6 +439,18 @@ def test_crossing_counts_of_one_voxel_add_up(gl_context, flips, w):
     assert np.array_equal(field, np.where(cube, float(w), 0.0).astype(np.float32))
 
 
+def test_open_sheets_past_the_planes_run_again_and_stay_exact(gl_context):
+    """Five nested boxes with a face each removed: open, so the boundary's field adds to C,
+    and five walls in one voxel of a row, past the planes: the slabs run again with an
+    int per voxel, bricks, field and refinement included, and equal reference-gwn."""
+    mesh, spec = _nested_boxes((False,) * 5)
+    open_mesh = load_mesh((mesh.vertices, np.delete(mesh.faces, np.arange(0, len(mesh.faces), 12), axis=0)))
+    assert not open_mesh.watertight
+    g, ref, _ = _check_gwn(open_mesh, spec, threshold=2.5)
+    assert g.run.stats["event_overflow"] and g.run.stats["boundary_edges"] > 0
+    assert 0 < g.count < spec.n_voxels
+
+
 def test_closed_meshes_in_slabs_keep_their_counts(gl_context, shared_mesh, monkeypatch):
     """The bit planes hold one slab of z slices at a time: a closed mesh in many slabs
     (and nested boxes past the planes, run again with an int per voxel, in slabs too)
