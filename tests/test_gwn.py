@@ -24,7 +24,7 @@ import glvox
 from glvox.errors import GridError, LimitError, MethodError, NotWatertightWarning
 from glvox.grid import GridSpec
 from glvox.mesh import load_mesh
-from glvox.methods import run_method
+from glvox.methods import get_method, run_method
 from glvox.methods.gwn import field as gwn
 from glvox.methods.gwn.tree import boundary_loops, build_tree, fan_moments, far_bound, far_field, pack_moments
 from glvox.metrics import check_against_reference, tie_set
@@ -462,6 +462,8 @@ def test_closed_meshes_in_slabs_keep_their_counts(gl_context, shared_mesh, monke
     whole = run_method("gwn-solid", mesh, spec)
     whole_boxes = run_method("gwn-solid", boxes, box_spec, threshold=4.5)
     assert whole.run.stats["slabs"] == 1 and whole_boxes.count == 12 ** 3
+    # fresh buffers: the whole grid's would still hold its counts where a slab mis-indexes
+    get_method("gwn-solid").release(gl_context)
     slice_cells = 32 * spec.words_per_row * spec.dims[1]
     monkeypatch.setattr(gwn, "SLAB_CELLS", slice_cells * 3 // 8)  # 3 slices of planes
     sliced = run_method("gwn-solid", mesh, spec)
@@ -486,6 +488,7 @@ def test_a_grid_over_the_storage_limit_is_streamed(gl_context, monkeypatch):
         whole = run_method("gwn-solid", mesh, spec)
         assert 0 < whole.count and "bit_slabs" not in whole.run.stats
         real = gl_context.limits()
+        get_method("gwn-solid").release(gl_context)  # fresh buffers, as above
         monkeypatch.setattr(gl_context, "limits",
                             lambda: {**real, "GL_MAX_SHADER_STORAGE_BLOCK_SIZE": spec.n_words * 4 // 2})
         calls = []
