@@ -84,7 +84,7 @@ def voxelize(mesh: Any, resolution: int | None = None, method: str = DEFAULT_MET
              voxel_size: float | None = None, bounds: Any = None, padding: int = 0,
              tight: bool = False, allow_open: bool = False, backend: str | None = None,
              ctx=None, attributes: Any = None, normals: str = "face", fill_attributes: str = "none",
-             **options: Any):
+             progress=None, **options: Any):
     """Voxelize a mesh with a registered method.
 
     Parameters
@@ -113,6 +113,9 @@ def voxelize(mesh: Any, resolution: int | None = None, method: str = DEFAULT_MET
     normals : {'face', 'vertex'}
     fill_attributes : {'none', 'nearest'}
         Solid methods: what interior voxels carry.
+    progress : callable, optional
+        ``progress(done, total)`` after each z slab where the method works the grid
+        in slabs (as :func:`glvox.methods.run_method`).
     **options
         Method options.
 
@@ -129,7 +132,7 @@ def voxelize(mesh: Any, resolution: int | None = None, method: str = DEFAULT_MET
             resolution = DEFAULT_RESOLUTION
         grid = grid_for(m, resolution, dims=dims, voxel_size=voxel_size, bounds=bounds,
                         padding=padding, tight=tight)
-    return run_method(request, m, grid, ctx=ctx, backend=backend, allow_open=allow_open)
+    return run_method(request, m, grid, ctx=ctx, backend=backend, allow_open=allow_open, progress=progress)
 
 
 def ldi(mesh: Any, resolution: int | None = None, method: str = "leung-wang-ldi", *,

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from glvox import io
+from glvox import io, voxelize
 from glvox.cli import build_parser
 from glvox.cli import main as cli_main
 from glvox.methods import request
@@ -85,6 +85,10 @@ def test_voxelize_shows_the_slabs_of_a_long_run(gl_context, tmp_path, monkeypatc
     assert done and done[1] == done[2] and int(done[1]) > 1, err
     assert cli_main(["voxelize", "gen:torus", "-r", "24", "-m", "gwn-solid", "-o", str(out), "-q"]) == 0
     assert "slab" not in capsys.readouterr().err
+    # the same from Python
+    calls = []
+    voxelize("gen:torus", 24, method="gwn-solid", progress=lambda done, total: calls.append((done, total)))
+    assert len(calls) > 1 and calls[-1][0] == calls[-1][1] == len(calls)
 
 
 def test_voxelize_grid_options(tmp_path):
