@@ -26,6 +26,7 @@ from glvox.grid import GridSpec
 from glvox.mesh import load_mesh
 from glvox.methods import get_method, run_method
 from glvox.methods.gwn import field as gwn
+from glvox.methods.gwn import plan
 from glvox.methods.gwn.tree import boundary_loops, build_tree, fan_moments, far_bound, far_field, pack_moments
 from glvox.metrics import check_against_reference, tie_set
 from glvox.reference import point_triangle_distance, solid_ties
@@ -268,7 +269,7 @@ def test_tree_covers_every_edge_once(shared_mesh):
     ranges = sorted((int(lk[0, 0]), int(lk[0, 1])) for lk in leaves)
     assert ranges[0][0] == 0 and all(a + n == b for (a, n), (b, _) in zip(ranges, ranges[1:]))
     assert sum(n for _, n in ranges) == len(tree.edges) == 1280
-    chunks = gwn.plan_chunks(tree)
+    chunks = plan.plan_chunks(tree)
     assert chunks == [[0]]  # the whole tree fits one dispatch
 
 
@@ -370,6 +371,7 @@ def test_accuracy_only_moves_work_not_voxels(gl_context, shared_mesh, monkeypatc
     monkeypatch.setattr(gwn, "SLAB_CELLS", 48 * 64 * 5)
     monkeypatch.setattr(gwn, "REFINE_EDGES", 7)
     monkeypatch.setattr(gwn, "LOOP_BUDGET", 3000)
+    monkeypatch.setattr(plan, "LOOP_BUDGET", 3000)  # the tree's chunks too
     split, _, _ = _check_gwn(mesh, spec, accuracy=1.5)
     stats = split.run.stats
     assert stats["slabs"] > 5 and stats["tree_chunks"] > 3 and stats["refined_segments"] > 0
@@ -486,14 +488,15 @@ def test_a_grid_over_the_storage_limit_is_streamed(gl_context, monkeypatch):
         mesh = load_mesh(m)
         spec = glvox.grid_for(mesh, dims=(32, 16, 100))
         whole = run_method("gwn-solid", mesh, spec)
-        assert 0 < whole.count and "bit_slabs" not in whole.run.stats
+        assert 0 < whole.count and "streamed" not in whole.run.stats
         real = gl_context.limits()
         get_method("gwn-solid").release(gl_context)  # fresh buffers, as above
         monkeypatch.setattr(gl_context, "limits",
                             lambda: {**real, "GL_MAX_SHADER_STORAGE_BLOCK_SIZE": spec.n_words * 4 // 2})
         calls = []
         sliced = run_method("gwn-solid", mesh, spec, progress=lambda done, total: calls.append((done, total)))
-        n = sliced.run.stats["bit_slabs"]
+        n = sliced.run.stats["slabs"]
+        assert sliced.run.stats["streamed"]
         assert n > 1 and calls == [(i, n) for i in range(1, n + 1)]  # progress after every slab
         assert sliced.equal(whole) and sliced.count == whole.count
         for opt in ("shell", "winding"):

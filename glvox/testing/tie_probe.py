@@ -44,8 +44,8 @@ from ..gl.timing import StageTimer
 from ..gpu.buffers import buffer_pool, clear_buffer
 from ..gpu.transform import gpu_vertices_voxel
 from ..grid import unpack_bits
-from ..methods.eisemann.passes import SLICES_PER_TARGET, SliceRender, last_pass_targets, render_slice_masks, \
-    tile_limit
+from ..methods.eisemann.passes import (SLICES_PER_TARGET, SliceRender, last_pass_targets, mask_table,
+                                       render_slice_masks, tile_limit)
 from ..methods.ss.solid import parity_on_gpu
 from ..methods.ss.solid_tuning import ORDER_MIN_BYTES
 from .harness import run_compute, run_fragment
@@ -237,12 +237,6 @@ def _expected(family: str, tris: np.ndarray, centers: np.ndarray,
     return out
 
 
-def _suffix(first: int) -> np.ndarray:
-    """The 4 words of a render target's pixel that a fragment flipping slices >= first XORs in."""
-    bits = (np.arange(SLICES_PER_TARGET) >= first).astype(np.uint8)
-    return np.packbits(bits, bitorder="little").view("<u4")
-
-
 def _after_the_fragments(ctx, spec, records: np.ndarray, grid) -> list[TraceDifference]:
     """The render's next steps on a one-tile, one-target grid: each pixel of the target must
     hold the XOR of the suffix masks of the covered fragments traced there (the masks the
@@ -254,10 +248,11 @@ def _after_the_fragments(ctx, spec, records: np.ndarray, grid) -> list[TraceDiff
     tex = last_pass_targets(ctx)[0]
     masks = np.frombuffer(tex.read(), dtype="<u4").reshape(tex.size[1], tex.size[0], 4)[:nv, :nu]
     want = np.zeros((nv, nu, 4), np.uint32)
+    suffix = mask_table("xor", 1)[:, 0]  # row r: the words of slices >= r
     for _, u, v, first in records.tolist():
         first = int(np.uint32(first).view(np.int32))
         if not u & NOT_COVERED and first < SLICES_PER_TARGET:
-            want[v, u] ^= _suffix(first)
+            want[v, u] ^= suffix[max(first, 0)]
     kind = TRACED[1][0]
     diffs = [TraceDifference(kind, None, (int(u), int(v)), "the render target holds other masks than the XOR of the "
                                                           "fragments traced there (the masks written or the logic op)")

@@ -1,0 +1,108 @@
+"""How ``gwn-solid`` (:mod:`.field`) divides its work: the boundary tree in
+chunks of subtrees per field dispatch (:func:`plan_chunks`, within the loop
+budget), the share of brick columns where bricks can decide at all
+(:func:`strip_free_share`), and the row segments along x the mesh can reach
+(:func:`x_range`)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ...gpu.dispatch import LOOP_BUDGET
+from .tree import ClusterTree
+
+#: vec4 per row segment: a segment is 4 * SEGV voxels, a whole 32-bit word,
+#: so each invocation of the field pass writes its word alone.
+SEGV = 8
+
+#: Loop iterations charged per tree node and per boundary edge in one field
+#: invocation, should the compiler keep every loop (a node: the walk, its
+#: record, the far test, expansion and chord strip over the segment's blocks;
+#: an edge: its strip over them).  Chunks keep their sum under half of
+#: LOOP_BUDGET.
+NODE_COST = 8 + 4 * SEGV
+EDGE_COST = 1 + SEGV
+
+#: Edge of a brick (voxels): gwn/bricks.comp bounds F over cubes of BRICK^3
+#: voxels.  A brick of 8 needs one tree walk per 512 voxels, and leaves
+#: 2-6% of the voxels of the bunny and the teapot at 256^3 to the per-voxel
+#: walk (4 walks 4 times as many bricks for a few percent fewer voxels;
+#: 16 leaves twice as many).  It divides 4 * SEGV: a block of 4 voxels lies in
+#: one brick.
+BRICK = 8
+
+def plan_chunks(tree: ClusterTree) -> list[list[int]]:
+    """Subtree roots per field dispatch, so that one invocation's loops stay
+    within half of LOOP_BUDGET even if every node and edge of its chunk is
+    visited: the root is split into its children until each subtree fits,
+    and the subtrees are packed in order."""
+    links = tree.links
+    size: dict[int, tuple[int, int]] = {}
+
+    def measure(n: int) -> tuple[int, int]:
+        first, count, left, right = (int(x) for x in links[n, 0])
+        if left < 0:
+            size[n] = (1, count)
+        else:
+            a, b = measure(left), measure(right)
+            size[n] = (1 + a[0] + b[0], count)
+        return size[n]
+
+    measure(0)
+    cost = {n: m * NODE_COST + e * EDGE_COST + 1 for n, (m, e) in size.items()}
+    limit = LOOP_BUDGET // 2 - 4 * SEGV
+    cut, todo = [], [0]
+    while todo:
+        n = todo.pop(0)
+        left, right = int(links[n, 0, 2]), int(links[n, 0, 3])
+        if cost[n] <= limit or left < 0:
+            cut.append(n)
+        else:
+            todo[:0] = [left, right]
+    chunks, cur, used = [], [], 0
+    for n in cut:
+        if cur and used + cost[n] > limit:
+            chunks.append(cur)
+            cur, used = [], 0
+        cur.append(n)
+        used += cost[n]
+    chunks.append(cur)
+    return chunks
+
+
+def strip_free_share(tree: ClusterTree | None, vox: np.ndarray, rows: tuple[int, int, int, int]) -> float:
+    """The share of the (y, z) columns of bricks over ``rows`` = (j0, nj, k0, nk)
+    (voxel rows and slices) that no boundary edge's strip can enter, judged by
+    the edges' (y, z) bounding boxes: bricks decide voxels only there.
+    ``vox``: the mesh's vertices in voxel space.  1.0 without boundary edges."""
+    j0, nj, k0, nk = rows
+    if tree is None or not len(tree.edges) or nj <= 0 or nk <= 0:
+        return 1.0
+    lo = np.array([j0 // BRICK, k0 // BRICK])
+    n = np.array([(j0 + nj - 1) // BRICK, (k0 + nk - 1) // BRICK]) - lo + 1
+    ends = vox[:, 1:][tree.edges.astype(np.int64)]  # (E, 2 ends, (y, z))
+    a = np.clip(np.floor(ends.min(axis=1) / BRICK).astype(np.int64) - lo, 0, n)
+    b = np.clip(np.floor(ends.max(axis=1) / BRICK).astype(np.int64) - lo + 1, 0, n)
+    marks = np.zeros((n[0] + 1, n[1] + 1), np.int64)  # a 2D difference array of the rectangles
+    np.add.at(marks, (a[:, 0], a[:, 1]), 1)
+    np.add.at(marks, (b[:, 0], a[:, 1]), -1)
+    np.add.at(marks, (a[:, 0], b[:, 1]), -1)
+    np.add.at(marks, (b[:, 0], b[:, 1]), 1)
+    covered = marks.cumsum(axis=0).cumsum(axis=1)[:-1, :-1] > 0
+    return float(1.0 - covered.mean())
+
+
+def x_range(spec, bufs) -> tuple[int, int]:
+    """Segments (s0, ns) of SEG voxels that can hold a voxel within a voxel of the mesh's x extent."""
+    seg = 4 * SEGV
+    o = float(spec.origin[0] - bufs.anchor[0])
+    lo = (bufs.bounds[0, 0] - o) / spec.voxel_size - 1.5
+    hi = (bufs.bounds[1, 0] - o) / spec.voxel_size + 1.5
+    n_segs = -(-spec.dims[0] // seg)
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        return 0, 0
+    s0 = int(np.clip(math.floor(lo / seg), 0, n_segs))
+    s1 = int(np.clip(math.floor(hi / seg), -1, n_segs - 1))
+    return s0, max(0, s1 - s0 + 1)
