@@ -42,6 +42,8 @@ in the last word of a row are zero.
 from __future__ import annotations
 
 import math
+import os
+import threading
 from dataclasses import dataclass
 from typing import Any, Sequence
 
@@ -61,6 +63,18 @@ MAX_VOXELS = 2**31 - 1
 #: grids are bounded by MAX_VOXELS and the storage-block size, ss-octree by
 #: glvox.results.octree.MAX_OCTREE_DIM (4096, 32-bit Morton codes).
 MAX_DIM = 2**16
+
+#: Dense grids of at least this many bytes are unpacked by :func:`host_threads`
+#: threads (``np.unpackbits`` releases the GIL); below it a thread costs more
+#: than it saves.
+THREADED_UNPACK_BYTES = 1 << 23
+
+#: Bytes of dense output per ``np.unpackbits`` call when unpacking in threads:
+#: each call's temporary stays in the cache before it is copied to the result.
+UNPACK_CHUNK_BYTES = 1 << 20
+
+#: Most threads :func:`host_threads` gives by default.
+MAX_HOST_THREADS = 8
 
 #: N of the cubic N^3 grid used when no grid is given (``glvox voxelize MESH``,
 #: ``glvox.voxelize(mesh)``, ``glvox ldi``, ``glvox volume``, ``glvox batch``):
@@ -372,20 +386,77 @@ def pack_bits(dense: np.ndarray) -> np.ndarray:
     return packed.view("<u4").reshape(nz, ny, wpr)
 
 
+def host_threads() -> int:
+    """Threads glvox's host-side array work may use (today: :func:`unpack_bits`).
+
+    ``GLVOX_THREADS`` when set (a positive integer; ``glvox batch`` sets it per
+    worker to the CPUs divided among the workers), else the CPUs this process
+    may run on, at most :data:`MAX_HOST_THREADS`.
+    """
+    raw = os.environ.get("GLVOX_THREADS", "").strip()
+    if raw:
+        try:
+            n = int(raw)
+        except ValueError:
+            n = 0
+        if n < 1:
+            raise GridError(f"GLVOX_THREADS must be a positive integer, got {raw!r}")
+        return n
+    try:
+        cpus = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # not Linux
+        cpus = os.cpu_count() or 1
+    return max(1, min(cpus, MAX_HOST_THREADS))
+
+
 def unpack_bits(words: np.ndarray, dims: Sequence[int]) -> np.ndarray:
     """uint32 words (any shape with the right size) -> dense bool (nx, ny, nz).
 
-    One ``np.unpackbits`` into fresh memory, viewed as bool and transposed:
-    no further copy (an ``astype(bool)`` copy doubled the time).  The result
-    is a Fortran-ordered view (x fastest in memory, the GPU's layout).
+    ``np.unpackbits`` into fresh memory, viewed as bool and transposed: no
+    further copy (an ``astype(bool)`` copy doubled the time).  The result is a
+    Fortran-ordered view (x fastest in memory, the GPU's layout).  From
+    :data:`THREADED_UNPACK_BYTES` of output on, :func:`host_threads` threads each
+    unpack a run of rows, :data:`UNPACK_CHUNK_BYTES` at a time, into one array
+    allocated up front (docs/performance.md has the measurement).
     """
     nx, ny, nz = dims
     wpr = (nx + 31) // 32
     w = np.ascontiguousarray(np.asarray(words).reshape(-1).astype("<u4", copy=False))
     if w.size != wpr * ny * nz:
         raise GridError(f"expected {wpr * ny * nz} words for dims {tuple(dims)}, got {w.size}")
-    bits = np.unpackbits(w.view(np.uint8).reshape(nz, ny, wpr * 4), axis=2, bitorder="little")
-    return bits[:, :, :nx].view(bool).transpose(2, 1, 0)
+    rows = w.view(np.uint8).reshape(nz * ny, wpr * 4)
+    threads = host_threads() if rows.size * 8 >= THREADED_UNPACK_BYTES else 1
+    if threads < 2 or rows.shape[0] < 2:
+        bits = np.unpackbits(rows, axis=1, bitorder="little")
+    else:
+        bits = np.empty((nz * ny, wpr * 32), dtype=np.uint8)
+        chunk = max(1, UNPACK_CHUNK_BYTES // (wpr * 32))  # rows per np.unpackbits call
+
+        def unpack(r0: int, r1: int) -> None:
+            for r in range(r0, r1, chunk):
+                e = min(r + chunk, r1)
+                bits[r:e] = np.unpackbits(rows[r:e], axis=1, bitorder="little")
+
+        threads = min(threads, rows.shape[0])
+        cuts = [rows.shape[0] * t // threads for t in range(threads + 1)]
+        errors: list[BaseException] = []
+
+        def run(r0: int, r1: int) -> None:
+            try:
+                unpack(r0, r1)
+            except BaseException as exc:  # noqa: BLE001 - re-raised in the caller's thread
+                errors.append(exc)
+
+        helpers = [threading.Thread(target=run, args=(a, b), name=f"glvox-unpack-{t}", daemon=True)
+                   for t, (a, b) in enumerate(zip(cuts[1:-1], cuts[2:]), start=1)]
+        for h in helpers:
+            h.start()
+        run(cuts[0], cuts[1])  # the first run of rows in this thread
+        for h in helpers:
+            h.join()
+        if errors:
+            raise errors[0]
+    return bits.reshape(nz, ny, wpr * 32)[:, :, :nx].view(bool).transpose(2, 1, 0)
 
 
 def set_indices(words: np.ndarray, dims: Sequence[int]) -> np.ndarray:

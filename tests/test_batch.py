@@ -550,6 +550,7 @@ def test_workers_divide_llvmpipe_threads_and_take_egl_devices_in_turn(dataset, t
     from glvox.testing.worker_env import WorkerEnvTask
 
     monkeypatch.delenv("LP_NUM_THREADS", raising=False)
+    monkeypatch.delenv("GLVOX_THREADS", raising=False)
     root, files = dataset
     rels = [r for r, i in files.items() if i["broken"] is None][:CHUNK_MESHES + 4]  # two messages
     assert len(rels) == CHUNK_MESHES + 4
@@ -560,7 +561,7 @@ def test_workers_divide_llvmpipe_threads_and_take_egl_devices_in_turn(dataset, t
                   task=WorkerEnvTask(), egl_devices=[0])
     assert s.done == len(rels) and s.mode == "local cluster (2 workers)"
     rows = manifest_rows(tmp_path / "out" / "manifest.csv")
-    want = f"LP_NUM_THREADS={lp_threads(2)} GLVOX_EGL_DEVICE=0"
+    want = f"LP_NUM_THREADS={lp_threads(2)} GLVOX_THREADS={lp_threads(2)} GLVOX_EGL_DEVICE=0"
     assert {rows[r]["warnings"] for r in rels} == {want}
     assert lp_threads(2) == str(max(1, (os.cpu_count() or 1) // 2)) and lp_threads(10**6) == "1"
     assert len({rows[r]["worker"] for r in rels}) == 2  # both worker processes took meshes

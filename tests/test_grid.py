@@ -98,6 +98,57 @@ def test_pack_unpack_round_trip(dims):
     np.testing.assert_array_equal(unpack_bits(words, dims), occ)
 
 
+@pytest.mark.parametrize("dims", [(64, 7, 5), (33, 4, 9), (100, 3, 1), (5, 2, 1)])
+def test_unpacking_in_threads_gives_every_row_once(dims, monkeypatch):
+    """Past THREADED_UNPACK_BYTES the rows are split among GLVOX_THREADS threads, each
+    unpacking UNPACK_CHUNK_BYTES at a time: forced here on small grids (3 threads, chunks
+    of 1-2 rows, uneven splits), every voxel must still come back where pack_bits put it."""
+    import threading
+
+    import glvox.grid as grid_module
+
+    monkeypatch.setattr(grid_module, "THREADED_UNPACK_BYTES", 0)
+    monkeypatch.setattr(grid_module, "UNPACK_CHUNK_BYTES", 64 * 2)
+    monkeypatch.setenv("GLVOX_THREADS", "3")
+    calls: list[tuple[str, int]] = []
+    real = np.unpackbits
+
+    def spy(a, *args, **kwargs):
+        calls.append((threading.current_thread().name, a.shape[0]))
+        return real(a, *args, **kwargs)
+
+    monkeypatch.setattr(np, "unpackbits", spy)
+    occ = np.random.default_rng(11).random(dims) < 0.5
+    out = unpack_bits(pack_bits(occ), dims)
+    np.testing.assert_array_equal(out, occ)
+    assert out.shape == dims and out.dtype == bool
+    rows, wpr = dims[1] * dims[2], (dims[0] + 31) // 32
+    assert sum(n for _, n in calls) == rows  # every row unpacked once
+    threads = min(3, rows)
+    assert max(n for _, n in calls) == min(max(1, 128 // (32 * wpr)), -(-rows // threads))  # in chunks
+    helpers = {f"glvox-unpack-{t}" for t in range(1, threads)}
+    assert {name for name, _ in calls} == {threading.current_thread().name} | helpers
+    if dims[0] % 32 == 0:
+        assert out.flags.f_contiguous  # the GPU's layout, as without threads
+    monkeypatch.setenv("GLVOX_THREADS", "1")  # one thread: one call in this thread
+    calls.clear()
+    np.testing.assert_array_equal(unpack_bits(pack_bits(occ), dims), occ)
+    assert calls == [(threading.current_thread().name, rows)]
+
+
+@pytest.mark.parametrize("value", ["0", "-2", "four", "1.5"])
+def test_bad_glvox_threads_is_one_line(value, monkeypatch):
+    from glvox.grid import host_threads
+
+    monkeypatch.setenv("GLVOX_THREADS", value)
+    with pytest.raises(GridError, match=r"^GLVOX_THREADS must be a positive integer, got '.*'$"):
+        host_threads()
+    monkeypatch.setenv("GLVOX_THREADS", "5")
+    assert host_threads() == 5
+    monkeypatch.delenv("GLVOX_THREADS")
+    assert 1 <= host_threads() <= 8
+
+
 def test_pack_bit_positions_by_hand():
     occ = np.zeros((40, 2, 1), dtype=bool)
     occ[0, 0, 0] = occ[31, 0, 0] = occ[32, 1, 0] = occ[39, 1, 0] = True

@@ -18,7 +18,8 @@ With ``workers=K`` (default 1) the meshes go to K local worker processes
 (:mod:`glvox.batch.pool`: started from a forkserver that has imported glvox,
 several small meshes per message, one row back per mesh), each with its own
 GL context and compiled programs for the whole batch, llvmpipe's threads
-divided among them (``LP_NUM_THREADS``) and, with ``egl_devices``, one EGL
+divided among them (``LP_NUM_THREADS``, and glvox's own host threads,
+``GLVOX_THREADS``) and, with ``egl_devices``, one EGL
 device each.  With ``scheduler`` the batch runs on that existing Dask
 cluster instead (its workers need glvox installed and the input and output
 folders at the same paths); inside a Dask worker every GL call runs on one

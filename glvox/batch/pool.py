@@ -71,11 +71,12 @@ def lp_threads(workers: int) -> str:
 
 
 def worker_envs(workers: int, egl_devices: Sequence[int] | None = None) -> list[dict[str, str]]:
-    """The environment defaults of each worker: llvmpipe's threads (:func:`lp_threads`), and an
+    """The environment defaults of each worker: llvmpipe's threads and glvox's host threads
+    (``GLVOX_THREADS``: :func:`glvox.grid.host_threads`), both :func:`lp_threads`, and an
     EGL device per worker, round robin over ``egl_devices``.  Variables already set win."""
     envs = []
     for i in range(workers):
-        env = {"LP_NUM_THREADS": lp_threads(workers)}
+        env = {"LP_NUM_THREADS": lp_threads(workers), "GLVOX_THREADS": lp_threads(workers)}
         if egl_devices:
             env["GLVOX_EGL_DEVICE"] = str(egl_devices[i % len(egl_devices)])
         envs.append(env)

@@ -1,8 +1,8 @@
 """A batch task that records the worker's GL environment, to test how workers are set up.
 
 ``run_batch(..., workers=K, task=WorkerEnvTask())`` voxelizes as usual and
-writes ``LP_NUM_THREADS`` and ``GLVOX_EGL_DEVICE`` as the worker process saw
-them into each row's ``warnings`` column (``"LP_NUM_THREADS=1 GLVOX_EGL_DEVICE=0"``),
+writes ``LP_NUM_THREADS``, ``GLVOX_THREADS`` and ``GLVOX_EGL_DEVICE`` as the worker process saw
+them into each row's ``warnings`` column (``"LP_NUM_THREADS=1 GLVOX_THREADS=1 GLVOX_EGL_DEVICE=0"``),
 so a test (or a user checking a multi-GPU machine) can read from the manifest
 which settings each worker process ran with.
 """
@@ -16,7 +16,7 @@ from typing import Any
 from ..batch import BatchSettings, Job, voxelize_one
 
 #: The variables recorded, in this order.
-RECORDED = ("LP_NUM_THREADS", "GLVOX_EGL_DEVICE")
+RECORDED = ("LP_NUM_THREADS", "GLVOX_THREADS", "GLVOX_EGL_DEVICE")
 
 
 @dataclass(frozen=True)
