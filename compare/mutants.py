@@ -219,6 +219,16 @@ MUTANTS: list[Mutant] = [
            "shaders/gwn/events.comp", (("    if ((atomicXor(events[at], b) & b) == 0u) return;",
                                         "    atomicXor(events[at], b);\n    return;"),),
            ("tests/test_gwn.py", "-k", "add_up")),
+    Mutant("gwn-todo-run-short", "gwn-solid's listing of the segments the bricks left: the last of "
+           "each run of segments is never listed", "shaders/gwn/todo.comp",
+           (("    uint end = min(first + uint(GWN_TODO_RUN), u_items);",
+             "    uint end = min(first + uint(GWN_TODO_RUN) - 1u, u_items);"),),
+           ("tests/test_gwn.py", "-k", "open_shared_meshes_64")),
+    Mutant("gwn-todo-last-run-dropped", "gwn-solid's listing: the dispatch rounds the runs down, the "
+           "partial last run is never listed", "glvox/methods/gwn/field.py",
+           (("        dispatch_1d(ctx, prog, -(-n // TODO_RUN), _LOCAL)",
+             "        dispatch_1d(ctx, prog, n // TODO_RUN, _LOCAL)"),),
+           ("tests/test_gwn.py", "-k", "storage_limit_is_streamed")),
     Mutant("carve-runs-not-joined", "carve-solid: a free run no longer carries into the next word of its row",
            "shaders/carve/sweep.comp", (("            if (carry != 0u) AT(g, c) |= (~fc & (fc + 1u)) - 1u;\n", ""),),
            ("tests/test_carve.py", "-k", "corridor or random_blockers")),

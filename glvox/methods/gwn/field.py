@@ -73,6 +73,11 @@ _REQUIRES = Requirements(gl_version=430, extensions=("GL_ARB_gpu_shader_fp64",),
                          limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 12},
                          compute=(("gwn/*.comp", {}),) + SOLID_COMPUTE + SURFACE_COMPUTE)
 
+#: Segments one invocation of gwn/todo.comp lists (as many as a work group of
+#: the field pass takes, so that the list keeps their order as a work group's
+#: prefix sum did, without its barriers).
+TODO_RUN = _LOCAL
+
 #: Boundary edges per refinement dispatch.
 REFINE_EDGES = (LOOP_BUDGET // 2 - 4 * SEGV) // EDGE_COST
 
@@ -400,10 +405,10 @@ class _Run:
         todo = pool.get("todo", n * 8, what="segments left by the bricks", clear=False)
         args = pool.get("todo_args", 12, clear=False)
         clear_buffer(ctx, self.count, 4, offset=8)
-        prog = compute_program(ctx, "gwn/todo.comp")
+        prog = compute_program(ctx, "gwn/todo.comp", {"GWN_TODO_RUN": TODO_RUN})
         set_uniforms(prog, {"u_items": n})
         bind(prog, Masks=self._masks(box, segs), Count=self.count, Todo=todo)
-        dispatch_1d(ctx, prog, n, _LOCAL)
+        dispatch_1d(ctx, prog, -(-n // TODO_RUN), _LOCAL)
         barrier(ctx)
         prog = compute_program(ctx, "gwn/todo_args.comp")
         set_uniforms(prog, {"u_local_size": _LOCAL, "u_max_groups": self.max_groups})
