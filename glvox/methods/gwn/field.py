@@ -96,13 +96,15 @@ TREE_STACK = 64
 #: the call 1.3-5x faster.
 BRICKS_MIN_FREE = 0.5
 
-#: Nor below this many voxels in the part the field is evaluated over: at
-#: 64^3 (2^18 voxels of a fitted grid) the bricks decided the same share but
-#: their three extra passes cost as much as they saved (0.98-1.16 against
-#: the walk alone on the bunny, the teapot, the tower and the wall, llvmpipe,
-#: `glvox bench -m gwn-solid --against` the previous head); from 128^3 on
-#: (about 2^21) they paid on all four (0.66-0.80).
-BRICKS_MIN_VOXELS = 2**20
+#: Nor below this many voxels in the part the field is evaluated over (the
+#: mesh's rows times its x segments), where their three extra passes cost
+#: what they save.  Measured with the walk alone and with bricks alternating
+#: run by run in one process (llvmpipe, 2 cores, best of 6): from 2.2e5
+#: voxels on they paid on the bunny, the teapot, the tower and the wall with
+#: a hole (0.72-0.97 at 80^3 and 96^3; the teapot 0.65 at 128^3, the bunny
+#: 0.87-0.93 at 64^3), at 1.9e5 they were level (the wall at 64^3, 0.96-1.00),
+#: and below they lost (the tower 1.04, the teapot 1.10 at 64^3).
+BRICKS_MIN_VOXELS = 200_000
 
 #: Cells (voxels of padded rows) per slab: the slab buffer takes 4 bytes a
 #: cell, the chunk sums (several tree chunks only) 8.  Eight times as many
