@@ -23,7 +23,8 @@ from ._version import __version__
 from .commands import (cmd_batch, cmd_bench, cmd_compare, cmd_convert, cmd_data, cmd_info, cmd_inspect, cmd_ldi,
                        cmd_calibrate, cmd_methods, cmd_render, cmd_sdf, cmd_selftest, cmd_voxelize, cmd_volume)
 from .errors import GlvoxError
-from .grid import DEFAULT_RESOLUTION
+from .grid import DEFAULT_RESOLUTION, host_threads
+from .gpu.readback import readback_mode
 from .methods import DEFAULT_METHOD, FAMILIES, PIPELINES
 from .methods.attributes.passes import ATTRIBUTE_NAMES, FILL_MODES, NORMAL_MODES
 from .study.options import add_bench_arguments, add_compare_arguments
@@ -366,6 +367,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     if getattr(args, "method", "x") is None:
         args.method = DEFAULT_METHOD
     try:
+        # glvox's environment settings, read where they are used, checked here first
+        readback_mode()
+        host_threads()
         validate = getattr(args, "validate", None)
         # every argument, before any work; what the check returns (a validated, frozen
         # request) is what the command runs, so nothing is checked twice

@@ -425,7 +425,8 @@ def unpack_bits(words: np.ndarray, dims: Sequence[int]) -> np.ndarray:
     if w.size != wpr * ny * nz:
         raise GridError(f"expected {wpr * ny * nz} words for dims {tuple(dims)}, got {w.size}")
     rows = w.view(np.uint8).reshape(nz * ny, wpr * 4)
-    threads = host_threads() if rows.size * 8 >= THREADED_UNPACK_BYTES else 1
+    threads = host_threads()  # read on every call: a bad GLVOX_THREADS fails alike on any grid
+    threads = threads if rows.size * 8 >= THREADED_UNPACK_BYTES else 1
     if threads < 2 or rows.shape[0] < 2:
         bits = np.unpackbits(rows, axis=1, bitorder="little")
     else:

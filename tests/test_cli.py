@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import re
 import subprocess
 import sys
@@ -190,6 +191,20 @@ def test_every_command_with_an_output_has_a_bad_output_case():
     assert writers == {c.split("-")[0] for c in BAD_OUTPUT}
     assert all(p.get_default("validate") is not None for name, p in sub.choices.items()
                if name not in ("info", "methods"))
+
+
+@pytest.mark.parametrize("var, value, msg", [
+    ("GLVOX_THREADS", "four", "GLVOX_THREADS must be a positive integer, got 'four'"),
+    ("GLVOX_READBACK", "dma", "GLVOX_READBACK must be one of mapped, copy, got 'dma'"),
+])
+def test_bad_environment_settings_are_one_line_before_work(tmp_path, var, value, msg):
+    """Read where they are used (a dense array, a read-back), but checked before any work: the
+    npz writer of a small grid touches neither, and would have written the file."""
+    env = {**os.environ, var: value}
+    p = subprocess.run([sys.executable, "-m", "glvox", "voxelize", "gen:torus", "-r", "8", "-o", "t.npz"],
+                       capture_output=True, text=True, timeout=600, cwd=tmp_path, env=env)
+    assert p.returncode == 1 and p.stderr.strip().splitlines() == [f"glvox: error: {msg}"], p.stderr
+    assert not any(tmp_path.iterdir())
 
 
 def test_usage_errors_are_one_line_too():

@@ -143,6 +143,8 @@ def test_bad_glvox_threads_is_one_line(value, monkeypatch):
     monkeypatch.setenv("GLVOX_THREADS", value)
     with pytest.raises(GridError, match=r"^GLVOX_THREADS must be a positive integer, got '.*'$"):
         host_threads()
+    with pytest.raises(GridError, match="GLVOX_THREADS"):  # on a grid too small for threads too
+        unpack_bits(np.zeros((1, 1, 1), "<u4"), (5, 1, 1))
     monkeypatch.setenv("GLVOX_THREADS", "5")
     assert host_threads() == 5
     monkeypatch.delenv("GLVOX_THREADS")
