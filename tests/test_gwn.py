@@ -505,6 +505,30 @@ def test_a_grid_over_the_storage_limit_is_streamed(gl_context, monkeypatch):
         monkeypatch.setattr(gl_context, "limits", lambda: real)
 
 
+def test_slabs_are_as_deep_as_the_storage_block_allows(gl_context, shared_mesh, monkeypatch):
+    """An open mesh's slab holds as many slices of cells (4 bytes each) as
+    GL_MAX_SHADER_STORAGE_BLOCK_SIZE takes, half as many where several tree chunks add their
+    sums (8 bytes a cell): deeper slabs would not fit, shallower ones only cost passes.
+    The limit is forced to 6 slices of cells; the voxels are the same either way."""
+    mesh = load_mesh(shared_mesh("messy_teapot_newell.obj"))
+    spec = glvox.grid_for(mesh, 48)
+    nx, ny, nz = spec.dims
+    slice_bytes = 4 * 32 * spec.words_per_row * ny
+    whole = run_method("gwn-solid", mesh, spec)
+    real = gl_context.limits()
+    monkeypatch.setattr(gwn, "SLAB_CELLS", 1 << 30)  # the limit binds, not the constant
+    monkeypatch.setattr(gl_context, "limits", lambda: {**real, "GL_MAX_SHADER_STORAGE_BLOCK_SIZE": 6 * slice_bytes})
+    get_method("gwn-solid").release(gl_context)
+    one = run_method("gwn-solid", mesh, spec)
+    assert one.run.stats["tree_chunks"] == 1 and one.run.stats["slabs"] == -(-nz // 6)
+    monkeypatch.setattr(gwn, "LOOP_BUDGET", 3000)
+    monkeypatch.setattr(plan, "LOOP_BUDGET", 3000)  # several tree chunks
+    several = run_method("gwn-solid", mesh, spec)
+    assert several.run.stats["tree_chunks"] > 1 and several.run.stats["slabs"] == -(-nz // 3)
+    assert one.equal(whole) and several.equal(whole)
+    monkeypatch.setattr(gl_context, "limits", lambda: real)
+
+
 def test_inside_out_mesh_is_empty_with_w_minus_one(gl_context):
     m = trimesh.creation.icosphere(3, radius=1.0)
     inside = run_method("reference-solid", load_mesh(m), glvox.grid_for(load_mesh(m), 32)).dense()

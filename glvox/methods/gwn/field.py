@@ -106,10 +106,15 @@ BRICKS_MIN_FREE = 0.5
 #: and below they lost (the tower 1.04, the teapot 1.10 at 64^3).
 BRICKS_MIN_VOXELS = 200_000
 
-#: Cells (voxels of padded rows) per slab: the slab buffer takes 4 bytes a
-#: cell, the chunk sums (several tree chunks only) 8.  Eight times as many
-#: where only the crossings' bit planes are kept (closed meshes, no field).
-SLAB_CELLS = 1 << 24
+#: Cells (voxels of padded rows) per slab, at most: the slab buffer takes 4
+#: bytes a cell and, with several tree chunks, the chunk sums' buffer 8; each
+#: must fit the storage-block limit, which binds first where it is lower
+#: (llvmpipe's 128 MiB: 2^25 cells; NVIDIA's 2 GiB: this cap, 256 MiB of
+#: cells, 16 slabs at 1024^3).  Eight times as many where only the crossings'
+#: bit planes are kept (closed meshes, no field).  Every slab repeats the crossing pass over
+#: all triangles and each pass's fixed cost: on llvmpipe the bunny at 512^3
+#: took 949 / 1,082 / 1,934 ms in 8 / 32 / 128 slabs (same process, best of 3).
+SLAB_CELLS = 1 << 26
 
 #: Bit planes per sign of the crossing counts (gwn/events.comp, which fixes
 #: it at 2: one uvec4 per grid word): a voxel's count of +1 (and of -1)
@@ -276,7 +281,9 @@ class _Run:
             # no cells at all: the slab's planes take 2 * PLANES bits a cell
             cells = min(8 * SLAB_CELLS, limit * 8 // (2 * PLANES))
         else:
-            cells = min(SLAB_CELLS, limit // 8)
+            # the cells take 4 bytes each; the chunk sums 8 more, with several tree chunks only
+            several = self.tree is not None and len(self.chunks) > 1
+            cells = min(SLAB_CELLS, limit // (8 if several else 4))
         per_slab = max(1, cells // (row * ny))
         if self.stream is not None:
             per_slab = min(per_slab, self.stream[0])
