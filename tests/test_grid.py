@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 import pytest
 
+import glvox.grid as grid_module
 from glvox.errors import GridError
-from glvox.grid import GridSpec, fit_grid, pack_bits, unpack_bits
+from glvox.grid import GridSpec, fit_grid, host_threads, pack_bits, unpack_bits
 from glvox.results.voxels import VoxelGrid
 
 BOX = np.array([[0.0, 0.0, 0.0], [2.0, 1.0, 1.0]])
@@ -103,10 +106,6 @@ def test_unpacking_in_threads_gives_every_row_once(dims, monkeypatch):
     """Past THREADED_UNPACK_BYTES the rows are split among GLVOX_THREADS threads, each
     unpacking UNPACK_CHUNK_BYTES at a time: forced here on small grids (3 threads, chunks
     of 1-2 rows, uneven splits), every voxel must still come back where pack_bits put it."""
-    import threading
-
-    import glvox.grid as grid_module
-
     monkeypatch.setattr(grid_module, "THREADED_UNPACK_BYTES", 0)
     monkeypatch.setattr(grid_module, "UNPACK_CHUNK_BYTES", 64 * 2)
     monkeypatch.setenv("GLVOX_THREADS", "3")
@@ -138,8 +137,6 @@ def test_unpacking_in_threads_gives_every_row_once(dims, monkeypatch):
 
 @pytest.mark.parametrize("value", ["0", "-2", "four", "1.5"])
 def test_bad_glvox_threads_is_one_line(value, monkeypatch):
-    from glvox.grid import host_threads
-
     monkeypatch.setenv("GLVOX_THREADS", value)
     with pytest.raises(GridError, match=r"^GLVOX_THREADS must be a positive integer, got '.*'$"):
         host_threads()
