@@ -67,6 +67,23 @@ void mark_box(ivec3 lo, ivec3 hi) {
     if (hi.x != lo.x && hi.y != lo.y && hi.z != lo.z) mark(hi);
 }
 
+// mark_box less the voxel `done`, which the caller marked already (a line's
+// voxel before its event: every SLV event box holds it, see draw_float).
+void mark_unless(ivec3 v, ivec3 done) {
+    if (v != done) mark(v);
+}
+
+void mark_box_but(ivec3 lo, ivec3 hi, ivec3 done) {
+    mark_unless(lo, done);
+    if (hi.x != lo.x) mark_unless(ivec3(hi.x, lo.y, lo.z), done);
+    if (hi.y != lo.y) mark_unless(ivec3(lo.x, hi.y, lo.z), done);
+    if (hi.z != lo.z) mark_unless(ivec3(lo.x, lo.y, hi.z), done);
+    if (hi.x != lo.x && hi.y != lo.y) mark_unless(ivec3(hi.x, hi.y, lo.z), done);
+    if (hi.x != lo.x && hi.z != lo.z) mark_unless(ivec3(hi.x, lo.y, hi.z), done);
+    if (hi.y != lo.y && hi.z != lo.z) mark_unless(ivec3(lo.x, hi.y, hi.z), done);
+    if (hi.x != lo.x && hi.y != lo.y && hi.z != lo.z) mark_unless(hi, done);
+}
+
 void mark_incident(vec3 p) {
     ivec2 x = incident(p.x), y = incident(p.y), z = incident(p.z);
     mark_box(ivec3(x.x, y.x, z.x), ivec3(x.y, y.y, z.y));
@@ -176,7 +193,12 @@ void draw_float(vec3 p, vec3 q, bool super_cover, bool reduce, int a, int b, flo
             ivec2 ry = slv_range(l.p.y, l.cur.y, l.stp.y, x.y);
             ivec2 rz = slv_range(l.p.z, l.cur.z, l.stp.z, x.z);
             ivec3 lo = ivec3(rx.x, ry.x, rz.x), hi = ivec3(rx.y, ry.y, rz.y);
-            mark_box(lo, hi);
+            // the box holds l.cur (both sides of a crossed plane, cur itself on the
+            // other axes, incident(p) with cur = floor(p) where the line lies in a
+            // plane), and l.cur is marked: by mark_incident(p) first, then as the
+            // new voxel of the event before.  Marks are idempotent ORs, so leaving
+            // it out changes nothing but the count of atomics.
+            mark_box_but(lo, hi, l.cur);
             ivec3 xs = ivec3(x);
             l.cur += xs * l.stp;
             l.plane += xs * l.stp;
