@@ -231,6 +231,10 @@ MUTANTS: list[Mutant] = [
            (("        dispatch_1d(ctx, prog, -(-n // TODO_RUN), _LOCAL)",
              "        dispatch_1d(ctx, prog, n // TODO_RUN, _LOCAL)"),),
            ("tests/test_gwn.py", "-k", "storage_limit_is_streamed")),
+    Mutant("scanline-slv-box-skips-another", "scanline-slv: an event's box leaves out its far corner, "
+           "not the voxel the line marked before", "shaders/scanline/lines.glsl",
+           (("            mark_box_but(lo, hi, l.cur);", "            mark_box_but(lo, hi, hi);"),),
+           ("tests/test_scanline.py", "-k", "slv")),
     Mutant("carve-runs-not-joined", "carve-solid: a free run no longer carries into the next word of its row",
            "shaders/carve/sweep.comp", (("            if (carry != 0u) AT(g, c) |= (~fc & (fc + 1u)) - 1u;\n", ""),),
            ("tests/test_carve.py", "-k", "corridor or random_blockers")),
