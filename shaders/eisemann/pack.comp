@@ -127,9 +127,9 @@ void main() {
     // is the former bit c of a[b], so a[c] holds slice c of the 32 columns.
     // Stage j swaps, for every k with bit j clear, the bits of a[k] in the upper
     // half of each 2j-bit block (~m) with those of a[k + j] in the lower half (m).
-    // Written out: with
-    // constant indices a[] stays in registers, where the loop's computed ones
-    // put it in memory (llvmpipe: the pack at 512^3 took 2.6x as long).
+    // Written out: with constant indices a[] stays in registers, where a loop's
+    // computed ones put it in memory (llvmpipe: the pack at 512^3 took 2.6x as
+    // long).
 #define EIS_SWAP(k, j, m) { uvec4 d = ((a[k] >> j) ^ a[k + j]) & m; a[k + j] ^= d; a[k] ^= d << j; }
     // j = 16, m = 0x0000FFFFu
     EIS_SWAP(0, 16, 0x0000FFFFu) EIS_SWAP(1, 16, 0x0000FFFFu) EIS_SWAP(2, 16, 0x0000FFFFu) EIS_SWAP(3, 16, 0x0000FFFFu)
