@@ -4,8 +4,9 @@ No GPU profiler needed, on llvmpipe or a lent GPU: each side runs in its own
 child process (the patched shader through ``GLVOX_SHADER_PATH``, an overlay
 folder holding the patched copy), the two take turns ``--rounds`` times, and
 each child times ``--repeat`` warm calls of ``run_method``.  The table gives
-the best time per stage (stages repeated per slab summed), the whole call,
-the GPU time and the voxel count of each side.
+per stage the GPU time where timed, else the wall time (stages repeated
+per slab summed; the median of a child's calls, the best child), the whole
+call, and the voxel count of each side.
 
 A patch usually makes the result wrong: that is the point.  It times what is
 left when a loop, a load or a pass is gone (the count column shows how wrong).
@@ -30,43 +31,25 @@ import argparse
 import json
 import os
 import platform
-import statistics
 import subprocess
 import sys
 import tempfile
-import time
 import warnings
 from pathlib import Path
 
 import glvox
-from glvox.datasets import mesh_dir
+from glvox.datasets import resolve_mesh
 from glvox.gl.shaders import builtin_shader_dir
-from glvox.methods import run_method
+from glvox.study.harness import timed
 
 
 def _child(method: str, mesh_name: str, n: int, repeat: int) -> None:
-    """Warm-up, then ``repeat`` timed calls; one JSON line: per-stage best ms, whole calls, count."""
+    """The compare/ scripts' timing protocol (:func:`glvox.study.harness.timed`); one JSON line."""
     warnings.simplefilter("ignore")
-    path = Path(mesh_name)
-    mesh = glvox.load_mesh(str(path if path.exists() else mesh_dir() / mesh_name))
-    spec = glvox.grid_for(mesh, n)
-    run_method(method, mesh, spec, allow_open=True)  # compile and upload outside the timings
-    stages: dict[str, list[float]] = {}
-    walls, gpus, count = [], [], 0
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        g = run_method(method, mesh, spec, allow_open=True)
-        walls.append((time.perf_counter() - t0) * 1e3)
-        gpus.append(sum(s.gpu_s or 0.0 for s in g.run.timings.stages) * 1e3)
-        per: dict[str, float] = {}
-        for s in g.run.timings.stages:
-            per[s.name] = per.get(s.name, 0.0) + s.wall_s * 1e3
-        for name, ms in per.items():
-            stages.setdefault(name, []).append(ms)
-        count = int(g.count)
-        del g
-    print(json.dumps({"stages": {k: min(v) for k, v in stages.items()}, "walls": walls, "gpu": min(gpus),
-                      "count": count}), flush=True)
+    mesh = glvox.load_mesh(resolve_mesh(mesh_name, quiet=True))
+    t = timed(method, mesh, glvox.grid_for(mesh, n), repeat, allow_open=True)
+    print(json.dumps({"stages": t.stages_ms, "wall": t.wall_ms, "min": t.min_ms, "gpu": t.gpu_min_ms,
+                      "count": int(t.result.count)}), flush=True)
 
 
 def _side(args, env_extra: dict[str, str]) -> dict:
@@ -111,6 +94,10 @@ def main() -> None:
         return
     if not args.shader or not args.replace:
         ap.error("--shader and at least one --replace are needed")
+    try:
+        args.mesh = resolve_mesh(args.mesh, quiet=True)  # a bad name stops here, not in the children
+    except glvox.GlvoxError as exc:
+        raise SystemExit(f"shader_probe: {exc}") from None
     with tempfile.TemporaryDirectory(prefix="glvox-probe-") as tmp:
         overlay = _patch(args.shader, args.replace, Path(tmp))
         runs: dict[str, list[dict]] = {"as is": [], "patched": []}
@@ -119,8 +106,8 @@ def main() -> None:
             runs["patched"].append(_side(args, {"GLVOX_SHADER_PATH": str(overlay)}))
     print(f"{args.method}, {args.mesh}, {args.resolution}^3, {args.shader} patched "
           f"({len(args.replace)} replacement(s)); {platform.node()}, {os.cpu_count()} CPUs; "
-          f"best of {args.rounds} x {args.repeat} warm calls per side, ms")
-    best = {side: {} for side in runs}
+          f"{args.rounds} children x {args.repeat} warm calls per side, ms")
+    best = {side: {} for side in runs}  # per stage: the best of the rounds' medians
     for side, rs in runs.items():
         for r in rs:
             for name, ms in r["stages"].items():
@@ -131,12 +118,12 @@ def main() -> None:
         a, b = best["as is"].get(name), best["patched"].get(name)
         ratio = f"{b / a:.2f}" if a and b is not None else "-"
         print(f"| {name} | {'-' if a is None else f'{a:.1f}'} | {'-' if b is None else f'{b:.1f}'} | {ratio} |")
-    for label, key in (("whole call (best)", min), ("whole call (median)", statistics.median)):
-        a = key(sum((r["walls"] for r in runs["as is"]), []))
-        b = key(sum((r["walls"] for r in runs["patched"]), []))
+    for label, key in (("whole call (best)", "min"), ("whole call (median)", "wall")):
+        a, b = min(r[key] for r in runs["as is"]), min(r[key] for r in runs["patched"])
         print(f"| {label} | {a:.1f} | {b:.1f} | {b / a:.2f} |")
-    a, b = min(r["gpu"] for r in runs["as is"]), min(r["gpu"] for r in runs["patched"])
-    print(f"| GPU time (timer queries) | {a:.1f} | {b:.1f} | {b / a:.2f} |")
+    if all(r["gpu"] is not None for rs in runs.values() for r in rs):
+        a, b = min(r["gpu"] for r in runs["as is"]), min(r["gpu"] for r in runs["patched"])
+        print(f"| GPU time (timer queries, best) | {a:.1f} | {b:.1f} | {b / a:.2f} |")
     print(f"| voxels | {runs['as is'][-1]['count']:,} | {runs['patched'][-1]['count']:,} | |")
 
 

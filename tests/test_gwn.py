@@ -634,8 +634,8 @@ def test_bricks_skipped_where_strips_cover_the_columns(gl_context, shared_mesh):
 
 
 def test_bricks_only_from_the_floor(gl_context, shared_mesh, monkeypatch):
-    """With the default floor, the bunny's 48^3 grid (the part evaluated: 48 x 40 rows
-    of 2 segments, 1.2e5 voxels) runs the walk alone and its 64^3 grid (2.2e5) the
+    """With the default floor, the bunny's 48^3 grid (the part evaluated: 48 x 42 rows
+    of 2 segments, 1.3e5 voxels) runs the walk alone and its 64^3 grid (2.2e5) the
     bricks, with the same voxels as bricks on every grid."""
     monkeypatch.setattr(gwn, "BRICKS_MIN_VOXELS", DEFAULT_BRICKS_MIN_VOXELS)
     mesh = load_mesh(shared_mesh("stanford_bunny_bun_zipper.ply"))

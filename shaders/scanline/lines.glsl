@@ -55,34 +55,28 @@ ivec2 incident(float c) {
     return c == f ? ivec2(i - 1, i) : ivec2(i, i);
 }
 
-// Every voxel of the box [lo, hi] (at most 2 x 2 x 2), written out.
-void mark_box(ivec3 lo, ivec3 hi) {
-    mark(lo);
-    if (hi.x != lo.x) mark(ivec3(hi.x, lo.y, lo.z));
-    if (hi.y != lo.y) mark(ivec3(lo.x, hi.y, lo.z));
-    if (hi.z != lo.z) mark(ivec3(lo.x, lo.y, hi.z));
-    if (hi.x != lo.x && hi.y != lo.y) mark(ivec3(hi.x, hi.y, lo.z));
-    if (hi.x != lo.x && hi.z != lo.z) mark(ivec3(hi.x, lo.y, hi.z));
-    if (hi.y != lo.y && hi.z != lo.z) mark(ivec3(lo.x, hi.y, hi.z));
-    if (hi.x != lo.x && hi.y != lo.y && hi.z != lo.z) mark(hi);
-}
-
-// mark_box less the voxel `done`, which the caller marked already (a line's
-// voxel before its event: every SLV event box holds it, see draw_float).
-void mark_unless(ivec3 v, ivec3 done) {
-    if (v != done) mark(v);
-}
-
+// Every voxel of the box [lo, hi] (at most 2 x 2 x 2) but `done`, written
+// out; `done` is one the caller marked already (an SLV event's box holds the
+// line's voxel before the event, see draw_float), or outside the box.
 void mark_box_but(ivec3 lo, ivec3 hi, ivec3 done) {
-    mark_unless(lo, done);
-    if (hi.x != lo.x) mark_unless(ivec3(hi.x, lo.y, lo.z), done);
-    if (hi.y != lo.y) mark_unless(ivec3(lo.x, hi.y, lo.z), done);
-    if (hi.z != lo.z) mark_unless(ivec3(lo.x, lo.y, hi.z), done);
-    if (hi.x != lo.x && hi.y != lo.y) mark_unless(ivec3(hi.x, hi.y, lo.z), done);
-    if (hi.x != lo.x && hi.z != lo.z) mark_unless(ivec3(hi.x, lo.y, hi.z), done);
-    if (hi.y != lo.y && hi.z != lo.z) mark_unless(ivec3(lo.x, hi.y, hi.z), done);
-    if (hi.x != lo.x && hi.y != lo.y && hi.z != lo.z) mark_unless(hi, done);
+    if (lo != done) mark(lo);
+    ivec3 v = ivec3(hi.x, lo.y, lo.z);
+    if (hi.x != lo.x && v != done) mark(v);
+    v = ivec3(lo.x, hi.y, lo.z);
+    if (hi.y != lo.y && v != done) mark(v);
+    v = ivec3(lo.x, lo.y, hi.z);
+    if (hi.z != lo.z && v != done) mark(v);
+    v = ivec3(hi.x, hi.y, lo.z);
+    if (hi.x != lo.x && hi.y != lo.y && v != done) mark(v);
+    v = ivec3(hi.x, lo.y, hi.z);
+    if (hi.x != lo.x && hi.z != lo.z && v != done) mark(v);
+    v = ivec3(lo.x, hi.y, hi.z);
+    if (hi.y != lo.y && hi.z != lo.z && v != done) mark(v);
+    if (hi.x != lo.x && hi.y != lo.y && hi.z != lo.z && hi != done) mark(hi);
 }
+
+// Every voxel of the box [lo, hi].
+void mark_box(ivec3 lo, ivec3 hi) { mark_box_but(lo, hi, lo - 1); }
 
 void mark_incident(vec3 p) {
     ivec2 x = incident(p.x), y = incident(p.y), z = incident(p.z);
