@@ -212,10 +212,10 @@ MUTANTS: list[Mutant] = [
                                       "        if (float(run) > u_threshold) word |= mask_from(from);")),
            ("tests/test_gwn.py", "-k", "overlapping_spheres or add_up")),
     Mutant("gwn-rows-block-threshold-strict", "gwn-solid's closed rows with the field: inside when C > threshold",
-           "shaders/gwn/rows.comp", (("        vec4 w = vec4(c);\n        uint x = 4u * q;\n"
-                                      "        uvec4 in4 = uvec4(greaterThanEqual(w, vec4(u_threshold)))",
-                                      "        vec4 w = vec4(c);\n        uint x = 4u * q;\n"
-                                      "        uvec4 in4 = uvec4(greaterThan(w, vec4(u_threshold)))"),),
+           "shaders/gwn/rows.comp", (("            vec4 w = vec4(c);\n            uint x = 4u * q;\n"
+                                      "            uvec4 in4 = uvec4(greaterThanEqual(w, vec4(u_threshold)))",
+                                      "            vec4 w = vec4(c);\n            uint x = 4u * q;\n"
+                                      "            uvec4 in4 = uvec4(greaterThan(w, vec4(u_threshold)))"),),
            ("tests/test_gwn.py", "-k", "add_up")),
     Mutant("gwn-events-no-carry", "gwn-solid's crossing counts: plane 0 toggles, nothing carries into plane 1",
            "shaders/gwn/events.comp", (("    if ((atomicXor(events[at], b) & b) == 0u) return;",
@@ -231,6 +231,26 @@ MUTANTS: list[Mutant] = [
            (("        dispatch_1d(ctx, prog, -(-n // TODO_RUN), _LOCAL)",
              "        dispatch_1d(ctx, prog, n // TODO_RUN, _LOCAL)"),),
            ("tests/test_gwn.py", "-k", "storage_limit_is_streamed")),
+    Mutant("gwn-caps-always", "gwn-solid's caps decide every brick, whatever their bound",
+           "shaders/gwn/caps.glsl", (("    return sum < limit;\n}", "    return true;\n}"),),
+           ("tests/test_gwn.py", "-k", "far_from_planar")),
+    Mutant("gwn-caps-no-gradient", "gwn-solid's caps: the solid angle at the brick's center bounds the "
+           "whole brick (its gradient bound left out)", "shaders/gwn/caps.glsl",
+           (("min(crude, abs(omega) + 2e-3 + grad * hd)", "min(crude, abs(omega) + 2e-3)"),),
+           ("tests/test_gwn.py", "-k", "far_from_planar")),
+    Mutant("gwn-caps-through-the-fan", "gwn-solid's caps: the center's solid angle used for a brick the "
+           "fan passes through", "shaders/gwn/caps.glsl",
+           (("            apart = apart && dt > 0.0 && g > 0.0;", "            apart = true;"),),
+           ("tests/test_gwn.py", "-k", "caps_decide_most")),
+    Mutant("gwn-caps-word-without-caps", "gwn-solid's rows: a word the caps decide counts the mesh's "
+           "crossings alone", "shaders/gwn/rows.comp",
+           (("                if (float(run + run_caps) >= u_threshold) word |= mask_from(from);",
+             "                if (float(run) >= u_threshold) word |= mask_from(from);"),),
+           ("tests/test_gwn.py", "-k", "pipe")),
+    Mutant("gwn-caps-block-without-caps", "gwn-solid's rows: a block of a brick the caps decide counts "
+           "the mesh's crossings alone", "shaders/gwn/rows.comp",
+           (("                ivec4 closed = c + ck;", "                ivec4 closed = c;"),),
+           ("tests/test_gwn.py", "-k", "caps_decide_most")),
     Mutant("scanline-slv-box-skips-another", "scanline-slv: an event's box leaves out its far corner, "
            "not the voxel the line marked before", "shaders/scanline/lines.glsl",
            (("            mark_box_but(lo, hi, l.cur);", "            mark_box_but(lo, hi, hi);"),),

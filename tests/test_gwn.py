@@ -27,6 +27,7 @@ from glvox.mesh import load_mesh
 from glvox.methods import get_method, run_method
 from glvox.methods.gwn import field as gwn
 from glvox.methods.gwn import plan
+from glvox.methods.gwn.caps import CAP_VEC4, cap_records, capped_mesh
 from glvox.methods.gwn.tree import boundary_loops, build_tree, fan_moments, far_bound, far_field, pack_moments
 from glvox.metrics import check_against_reference, tie_set
 from glvox.reference import point_triangle_distance, solid_ties
@@ -598,13 +599,15 @@ def test_winding_field_round_trips_through_npz(gl_context, tmp_path):
         VoxelGrid(g.dense(), spec, fields={"winding": np.zeros((16, 16, 15), np.float32)})
 
 
-def test_bricks_decide_by_the_gradient_bound(gl_context):
+def test_bricks_decide_by_the_gradient_bound(gl_context, monkeypatch):
     """A flat square: its boundary's strips lie in its own plane z = 16, between two
     layers of bricks (boxes of centers z 8.5 .. 15.5 and 16.5 .. 23.5), so every brick
     above and below is strip-free and decided by C + F(center) within G |p - p0|.
     With threshold 0.45 the solid is a layer over the square where w falls from 1/2:
     its edge lies inside such bricks, and w changes by about 0.1 across a brick there,
-    so a gradient bound a tenth of the true one misplaces voxels."""
+    so a gradient bound a tenth of the true one misplaces voxels.  (Without the
+    caps, which would decide the bricks away from the square first.)"""
+    monkeypatch.setattr(gwn, "CAP_MAX", 0)
     sq = np.array([[4.0, 4.0, 16.0], [44.0, 4.0, 16.0], [44.0, 44.0, 16.0], [4.0, 44.0, 16.0]])
     mesh = load_mesh((sq, np.array([[0, 1, 2], [0, 2, 3]])))
     spec = GridSpec((48, 48, 48), (0.0, 0.0, 0.0), 1.0)
@@ -647,10 +650,12 @@ def test_bricks_only_from_the_floor(gl_context, shared_mesh, monkeypatch):
     assert forced.run.stats["bricks"] > 0 and forced.equal(small)
 
 
-def test_bricks_behind_the_holes_take_the_mirrored_split(gl_context, shared_mesh):
+def test_bricks_behind_the_holes_take_the_mirrored_split(gl_context, shared_mesh, monkeypatch):
     """Behind the bunny's holes along +x the boundary's strips cross bricks, where
     F jumps; there F + T (strips swept along -x, T the row's total crossings from
-    the boundary chain) is smooth and decides blocks too, up to ties as always."""
+    the boundary chain) is smooth and decides blocks too, up to ties as always.
+    (Without the caps, which decide those bricks first.)"""
+    monkeypatch.setattr(gwn, "CAP_MAX", 0)
     mesh = load_mesh(shared_mesh("stanford_bunny_bun_zipper.ply"))
     spec = glvox.grid_for(mesh, 64)
     g = run_method("gwn-solid", mesh, spec)
@@ -661,9 +666,123 @@ def test_bricks_behind_the_holes_take_the_mirrored_split(gl_context, shared_mesh
     assert check.ok, check.describe()
 
 
+def saddle_bowl(amp: float = 0.9, n_phi: int = 96, n_t: int = 48) -> tuple[np.ndarray, np.ndarray]:
+    """The unit sphere below the rim z = amp cos(2 phi): an open bowl whose one
+    boundary loop climbs and dips twice around, far from planar."""
+    phi = np.linspace(0.0, 2.0 * np.pi, n_phi, endpoint=False)
+    t = np.linspace(0.0, 1.0, n_t + 1)[1:]
+    rim = np.arccos(amp * np.cos(2.0 * phi))  # the rim's polar angle
+    th = np.pi + (rim[None, :] - np.pi) * t[:, None]  # from the south pole up to the rim
+    v = np.stack([np.sin(th) * np.cos(phi), np.sin(th) * np.sin(phi), np.cos(th)], axis=-1).reshape(-1, 3)
+    v = np.vstack([[0.0, 0.0, -1.0], v])
+    ring = 1 + np.arange(n_t * n_phi).reshape(n_t, n_phi)
+    faces = []
+    for i in range(n_phi):
+        j = (i + 1) % n_phi
+        faces.append((0, ring[0, j], ring[0, i]))
+        for r in range(n_t - 1):
+            a, b, c, d = ring[r, i], ring[r, j], ring[r + 1, j], ring[r + 1, i]
+            faces += [(a, b, c), (a, c, d)]
+    return v, np.array(faces)
+
+
+def test_caps_close_every_loop_and_add_up(shared_mesh):
+    """The fans close the mesh (no half-edge of mesh + caps is left over), and winding
+    numbers add: w_mesh + w_caps is an integer off both (float64, direct sums)."""
+    mesh = load_mesh(shared_mesh("stanford_bunny_bun_zipper.ply"))
+    loops = boundary_loops(mesh)
+    capped = capped_mesh(mesh, loops)
+    assert capped.first == mesh.n_triangles and capped.n_caps == loops.n_edges == 223
+    assert np.array_equal(capped.mesh.faces[:capped.first], mesh.faces)
+    assert boundary_loops(capped.mesh).n_edges == 0
+    rng = np.random.default_rng(7)
+    lo, hi = mesh.bounds
+    pts = lo + (hi - lo) * rng.random((400, 3))
+    tris = capped.mesh.triangles()
+    w_mesh = winding_direct(tris[:capped.first], pts)
+    w_caps = winding_direct(tris[capped.first:], pts)
+    assert np.abs(w_caps).max() > 0.01  # the points see the caps
+    total = w_mesh + w_caps
+    assert np.abs(total - np.rint(total)).max() < 1e-9
+    # the records: every fan in its ball, areas rounded up, the triangle ranges
+    spec = glvox.grid_for(mesh, 64)
+    vox = spec.world_to_voxel(capped.mesh.vertices)
+    rec = cap_records(capped, vox)
+    ints = rec.view(np.int32)
+    n_loops = len(capped.loops)
+    for i in range(n_loops):
+        first, count = ints[CAP_VEC4 * i + 1, 1:3]
+        fan = ints[first:first + count, :3]
+        assert np.array_equal(fan, capped.mesh.faces[capped.first + first - CAP_VEC4 * n_loops:][:count])
+        p = vox[fan].reshape(-1, 3)
+        assert np.sqrt(((p - rec[CAP_VEC4 * i, :3]) ** 2).sum(axis=1)).max() <= rec[CAP_VEC4 * i, 3]
+        t = vox[fan]
+        area = 0.5 * np.sqrt((np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]) ** 2).sum(axis=1)).sum()
+        assert area <= rec[CAP_VEC4 * i + 1, 0] <= 1.01 * area + 1e-2
+
+
+def test_caps_decide_most_bricks_with_the_same_voxels(gl_context, shared_mesh, monkeypatch):
+    """Away from its holes the bunny's caps subtend far less than a half sphere, so
+    the crossing counts of mesh and caps decide nine bricks in ten alone, with the
+    voxels the bricks give without caps.  A threshold near an integer leaves them off
+    (|w - C| would have to stay below its distance to the integers)."""
+    mesh = load_mesh(shared_mesh("stanford_bunny_bun_zipper.ply"))
+    spec = glvox.grid_for(mesh, 64)
+    capped = run_method("gwn-solid", mesh, spec)
+    stats = capped.run.stats
+    assert stats["caps"] and stats["cap_bricks"] > 0.9 * stats["bricks"]
+    monkeypatch.setattr(gwn, "CAP_MAX", 0)
+    plain = run_method("gwn-solid", mesh, spec)
+    assert "caps" not in plain.run.stats and plain.equal(capped)
+    monkeypatch.setattr(gwn, "CAP_MAX", 4096)
+    near = run_method("gwn-solid", mesh, spec, threshold=0.98)
+    assert "caps" not in near.run.stats and near.run.stats["bricks"] > 0
+
+
+def test_caps_bound_holds_where_the_loop_is_far_from_planar(gl_context):
+    """The saddle bowl's fan is a saddle through the sphere's center: near it the fan
+    subtends more than a half sphere, where the counts alone would misplace thousands
+    of voxels.  The bound leaves those bricks to the field (the solid angle at the
+    brick's center plus the Biot-Savart gradient bound over the brick, or the
+    triangles' area bound), and the voxels stay reference-gwn's up to ties."""
+    mesh = load_mesh(saddle_bowl(), name="saddle bowl")
+    spec = glvox.grid_for(mesh, 64)
+    g = run_method("gwn-solid", mesh, spec)
+    stats = g.run.stats
+    assert stats["caps"] and 0.1 * stats["bricks"] < stats["cap_bricks"] < 0.9 * stats["bricks"]
+    ref = run_method("reference-gwn", mesh, spec)
+    check = check_against_reference(g, mesh, "reference-gwn", reference_grid=ref,
+                                    ties=tie_set("reference-gwn", mesh, spec))
+    assert check.ok, check.describe()
+
+
+def test_caps_decide_a_pipe_along_the_rows(gl_context, monkeypatch):
+    """A pipe along x, open at both ends: from its middle every ray towards -x runs
+    inside it and leaves through an end's cap, not through the mesh.  Those voxels
+    are inside by the caps' crossings alone (C = 0, C_K = 1), in bricks the caps
+    decide, and equal reference-gwn's; their end circles' strips reach most brick
+    columns, so the bricks are forced on."""
+    monkeypatch.setattr(gwn, "BRICKS_MIN_FREE", 0.0)
+    tube = trimesh.creation.cylinder(radius=1.0, height=8.0, sections=48)
+    tube.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [0, 1, 0]))
+    ends = np.abs(tube.triangles_center[:, 0]) > 3.999  # the two end disks, dropped
+    mesh = load_mesh((tube.vertices, tube.faces[~ends]), name="pipe")
+    spec = glvox.grid_for(mesh, 96)
+    g = run_method("gwn-solid", mesh, spec)
+    stats = g.run.stats
+    assert stats["loops"] == 2 and stats["caps"] and stats["cap_bricks"] > 0.5 * stats["bricks"]
+    ref = run_method("reference-gwn", mesh, spec)
+    check = check_against_reference(g, mesh, "reference-gwn", reference_grid=ref,
+                                    ties=tie_set("reference-gwn", mesh, spec))
+    assert check.ok, check.describe()
+    assert ref.dense()[spec.dims[0] // 2, spec.dims[1] // 2, spec.dims[2] // 2]
+
+
 def test_the_split_needs_the_tree_within_the_loop_budget(gl_context, shared_mesh, monkeypatch):
     """T walks the whole boundary tree in one invocation of the row pass; a tree over
-    half the loop budget leaves those blocks to the walk, with the same voxels."""
+    half the loop budget leaves those blocks to the walk, with the same voxels
+    (without the caps, which decide those bricks first)."""
+    monkeypatch.setattr(gwn, "CAP_MAX", 0)
     mesh = load_mesh(shared_mesh("stanford_bunny_bun_zipper.ply"))
     spec = glvox.grid_for(mesh, 64)
     split = run_method("gwn-solid", mesh, spec)

@@ -42,6 +42,11 @@
 // -x strip does, else marks the brick.  With several chunks the sums so far
 // live in the second vec4 of each brick's pair (F, err, G, wn) and the first
 // holds the flags until the last chunk writes the record.
+//
+// CAPS 1: first the caps' bound (gwn/caps.glsl).  A brick where it stays
+// under the limit gets the record (0, 0, 0, 3) and its bit in CapBits:
+// gwn/rows.comp decides its voxels from the crossing counts of the mesh and
+// its caps, and the tree is not walked for it.
 #include "common/voxel_space.glsl"
 #include "gwn/layout.glsl"
 #include "gwn/strip.glsl"
@@ -65,6 +70,12 @@ const int GWN_STACK = 64;
 vec3 vertex(uint i) { return vec3(vox[3u * i], vox[3u * i + 1u], vox[3u * i + 2u]); }
 
 #include "gwn/winding2d.glsl"
+#if CAPS
+#include "gwn/caps.glsl"
+layout(std430, binding = 8) buffer Count { uint count_words[7]; uint cap_bricks; };
+// a bit per brick (bit brick_index(b), cleared before): the caps decide it
+layout(std430, binding = 3) buffer CapBits { uint cap_bits[]; };
+#endif
 
 // Distance from p to the box [lo, hi].
 float box_distance(vec3 p, vec3 lo, vec3 hi) { return length(max(max(lo - p, p - hi), vec3(0.0))); }
@@ -111,6 +122,19 @@ void main() {
     uint at = 2u * brick_index(b);
     float f = 0.0, err = 0.0, grad = 0.0;
     int wn = 0;  // the boundary chain's (y, z) winding number around p0
+#if CAPS
+    // the caps' bound, on the first chunk; later chunks read its flag (w: 1)
+    bool capped = u_first ? caps_decide(p0, 0.5 * sqrt(3.0) * float(GWN_BRICK - 1)) : bricks[at].w != 0.0;
+    if (capped) {
+        if (u_first) {
+            atomicAdd(cap_bricks, 1u);
+            uint bi = brick_index(b);
+            atomicOr(cap_bits[bi / 32u], 1u << (bi & 31u));
+        }
+        bricks[at] = vec4(0.0, 0.0, 0.0, u_last ? 3.0 : 1.0);
+        return;
+    }
+#endif
     // +x strips reach the box, -x strips do, p0 lies on a projected edge
     bool plus = false, minus = false, tie = false;
     if (!u_first) {

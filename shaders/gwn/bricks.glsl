@@ -9,7 +9,8 @@
 //      per voxel), so |F(p) - F(p0)| <= G |p - p0| there (F- alike),
 //   w: 0: w(p) = C(p) + F(p); 2: w(p) = C(p) - T + F-(p), T the row's total
 //      crossings; 1: no such bound holds (boundary strips reach the box
-//      along +x and along -x).
+//      along +x and along -x); 3: the caps decide (gwn/caps.glsl): w(p) is
+//      on the threshold's side of C(p), counted with the caps' crossings.
 // gwn/bricks.comp writes them, gwn/rows.comp decides voxels with them.
 
 // The brick of voxel (i, j, k), k inside the slab, and its index in Bricks

@@ -13,6 +13,9 @@
 // (FIRST 1: the first chunk of every triangle, listing those with more;
 // FIRST 0: the listed triangles' other chunks, by an indirect dispatch).
 //
+// gwn-solid's caps (gwn/caps.glsl) are counted by a second run over the fan
+// triangles alone (u_triangle0 on), into planes of their own.
+//
 // PLANES 1: the counts go into bit planes instead of an int per voxel, eight
 // times less memory to clear and for gwn/rows.comp to read.  Two planes count
 // the +1 crossings of each voxel (0 to 3), two more the -1 ones, each plane a
@@ -49,6 +52,7 @@ layout(std430, binding = 3) buffer Counts { int counts[]; };
 #endif
 layout(std430, binding = 4) buffer Big { uint big_count; uint big_max_chunks; uint big_list[]; };
 uniform uint u_triangles;
+uniform uint u_triangle0;  // the first triangle (the caps' crossings are counted apart)
 
 // The covered-center columns of T inside the grid and the slab, inclusive.
 ivec4 slab_columns(SolidTri T) {
@@ -63,6 +67,7 @@ void main() {
     uint t = global_index_1d();
     uint chunk = 0u;
     if (t >= u_triangles) return;
+    t += u_triangle0;
 #else
     uint i = gl_GlobalInvocationID.x;
     uint chunk = 1u + gl_WorkGroupID.y + gl_WorkGroupID.z * gl_NumWorkGroups.y;

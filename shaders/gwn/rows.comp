@@ -19,6 +19,11 @@
 // gwn/field.comp numbers segments), which gwn/todo.comp lists for
 // gwn/field.comp.
 //
+// CAPS 1 (with BRICKS and PLANES): CapEvents holds the crossings of the caps
+// (gwn/caps.glsl) alone, in planes like Events; their row sums C_K added to
+// C give C_{M+K}, which decides every voxel of a brick the caps decide
+// (record w 3).  Elsewhere C alone goes on as above.
+//
 // PLANES 1: the crossings come as gwn/events.comp's bit planes (two for the
 // +1 counts, two for the -1 ones), not as an int per voxel; the
 // Cells then only receive C where a later pass reads it.  Closed meshes
@@ -68,6 +73,12 @@ vec3 vertex(uint i) { return vec3(vox[3u * i], vox[3u * i + 1u], vox[3u * i + 2u
 #include "gwn/winding2d.glsl"
 uniform float u_margin;
 uniform ivec2 u_segs;   // segments s0 .. s0 + ns - 1: the rest is outside (w < threshold)
+#if CAPS
+// gwn/events.comp's planes of the caps' crossings alone, laid out as Events
+layout(std430, binding = 10) readonly buffer CapEvents { uvec4 cap_events[]; };
+// gwn/bricks.comp's bit per brick the caps decide
+layout(std430, binding = 11) readonly buffer CapBits { uint cap_bits[]; };
+#endif
 #endif
 // the rows visited: j0 .. j0 + nj - 1, k0 .. k0 + nk - 1 (inside the slab);
 // rows without crossings keep C = 0 (cleared cells; their bits stay clear
@@ -94,6 +105,10 @@ void main() {
     float dyz2 = dot(dyz, dyz);
     vec4 rec;
     bool later = false;
+#if CAPS
+    int run_caps = 0;  // the row sums of the caps' crossings
+    uvec4 cev;
+#endif
 #endif
 #if PLANES
     uint ev_row = row_base(j, k) / 32u;  // the row's first word
@@ -122,68 +137,135 @@ void main() {
         }
     }
 #else
-    for (uint q = 0u; q < row_cells() / 4u; ++q) {
-#if PLANES
-        if ((q & 7u) == 0u) ev = events[ev_row + q / 8u];
-        ivec4 c = block_deltas(ev, (q & 7u) * 4u);
-#else
-        ivec4 c = cells[base + q];
-#endif
-        c.x += run;
-        c.y += c.x;
-        c.z += c.y;
-        c.w += c.z;
-        run = c.w;
-#if BRICKS
-        int seg = int(q / 8u);
-        if (seg >= u_segs.x && seg < u_segs.x + u_segs.y) {
-            // the brick of voxel 4 q (GWN_BRICK / 4 blocks per brick along the row)
-            uint bx = q / uint(GWN_BRICK / 4);
-            if (q % uint(GWN_BRICK / 4) == 0u) rec = bricks[2u * (brick_row + bx)];
-            vec4 dx = vec4(float(4u * q) + 0.5 - center.x) + vec4(0.0, 1.0, 2.0, 3.0) - float(bx * uint(GWN_BRICK));
-            vec4 dist = sqrt(dx * dx + dyz2);
-            vec4 w = vec4(c) + rec.x * (0.5 / GWN_PI);
-            bvec4 near = lessThanEqual(abs(w - u_threshold), rec.y + rec.z * dist + u_margin);
-            if (rec.w != 0.0 || any(near)) {
-                // undecided, or -x split: decided after the row, when T is known
-                todo_mask |= 1u << (q & 7u);
-                cells[base + q] = c;
-                later = later || (GWN_SPLIT != 0 && rec.w == 2.0);
-            } else {
-                uint x = 4u * q;
-                uvec4 in4 = uvec4(greaterThanEqual(w, vec4(u_threshold)))
-                            * uvec4(lessThan(uvec4(x) + uvec4(0u, 1u, 2u, 3u), uvec4(u_dims.x)));
-                word |= (in4.x | in4.y << 1u | in4.z << 2u | in4.w << 3u) << (x & 31u);
+    // word by word (lanes of one SIMD batch stay on the same word), then its
+    // 8 blocks of 4 voxels
+    for (uint q8 = 0u; q8 < row_cells() / 4u; q8 += 8u) {
+        uint q_end = q8 + 8u;  // the blocks left to the loop below
+#if CAPS
+        // a word whose bricks the caps all decide goes whole, crossing by
+        // crossing, as a closed mesh's row does (and skips the block loop:
+        // llvmpipe runs a branch no lane takes, but leaves a loop no lane enters)
+        {
+            uint q = q8;
+            int sw = int(q / 8u);
+            // the word's 32 / GWN_BRICK bricks, whose bits share a word of CapBits
+            // (a row of bricks is 4 words_per_row() of them)
+            const uint per_word = uint(32 / GWN_BRICK);
+            uint bi = brick_row + per_word * uint(sw);
+            bool whole = sw >= u_segs.x && sw < u_segs.x + u_segs.y
+                         && ((cap_bits[bi / 32u] >> (bi & 31u)) & ((1u << per_word) - 1u)) == (1u << per_word) - 1u;
+            if (whole) {
+                uvec4 e = events[ev_row + q / 8u], f = cap_events[ev_row + q / 8u];
+                uint any = e.x | e.y | e.z | e.w | f.x | f.y | f.z | f.w;
+                uint from = 0u;
+                while (any != 0u) {
+                    uint i = uint(findLSB(any));
+                    any &= any - 1u;
+                    if (i > from && float(run + run_caps) >= u_threshold) word |= mask_range(from, i - 1u);
+                    run += voxel_delta(e, i);
+                    run_caps += voxel_delta(f, i);
+                    from = i;
+                }
+                if (float(run + run_caps) >= u_threshold) word |= mask_from(from);
+                if (uint(sw) + 1u == words_per_row()) word &= mask_upto(uint(u_dims.x) - 1u - 32u * uint(sw));
+                if (word != 0u) {
+                    bits[wbase + uint(sw)] = word;
+                    count += uint(bitCount(word));
+                    word = 0u;
+                }
+                masks[uint(sw - u_segs.x) * uint(u_rows.y * u_rows.w) + row] = 0u;
+                q_end = q8;
             }
         }
-        if ((q & 7u) == 7u) {
-            if (word != 0u) {
+#endif
+        for (uint q = q8; q < q_end; ++q) {
+#if PLANES
+            if ((q & 7u) == 0u) ev = events[ev_row + q / 8u];
+            ivec4 c = block_deltas(ev, (q & 7u) * 4u);
+#else
+            ivec4 c = cells[base + q];
+#endif
+            c.x += run;
+            c.y += c.x;
+            c.z += c.y;
+            c.w += c.z;
+            run = c.w;
+#if CAPS
+            if ((q & 7u) == 0u) cev = cap_events[ev_row + q / 8u];
+            ivec4 ck = block_deltas(cev, (q & 7u) * 4u);
+            ck.x += run_caps;
+            ck.y += ck.x;
+            ck.z += ck.y;
+            ck.w += ck.z;
+            run_caps = ck.w;
+#endif
+#if BRICKS
+            int seg = int(q / 8u);
+            if (seg >= u_segs.x && seg < u_segs.x + u_segs.y) {
+                // the brick of voxel 4 q (GWN_BRICK / 4 blocks per brick along the row)
+                uint bx = q / uint(GWN_BRICK / 4);
+                if (q % uint(GWN_BRICK / 4) == 0u) rec = bricks[2u * (brick_row + bx)];
+#if CAPS
+                // a brick the caps decide (record w 3): |w - C_{M+K}| stays under the
+                // threshold's distance to the integers, so w is on C_{M+K}'s side of it
+                bool by_caps = rec.w == 3.0;
+                ivec4 closed = c + ck;
+#else
+                const bool by_caps = false;
+                ivec4 closed = c;
+#endif
+                if (by_caps) {
+                    uint x = 4u * q;
+                    uvec4 in4 = uvec4(greaterThanEqual(vec4(closed), vec4(u_threshold)))
+                                * uvec4(lessThan(uvec4(x) + uvec4(0u, 1u, 2u, 3u), uvec4(u_dims.x)));
+                    word |= (in4.x | in4.y << 1u | in4.z << 2u | in4.w << 3u) << (x & 31u);
+                } else {
+                    vec4 dx = vec4(float(4u * q) + 0.5 - center.x) + vec4(0.0, 1.0, 2.0, 3.0) - float(bx * uint(GWN_BRICK));
+                    vec4 dist = sqrt(dx * dx + dyz2);
+                    vec4 w = vec4(c) + rec.x * (0.5 / GWN_PI);
+                    bvec4 near = lessThanEqual(abs(w - u_threshold), rec.y + rec.z * dist + u_margin);
+                    if (rec.w != 0.0 || any(near)) {
+                        // undecided, or -x split: decided after the row, when T is known
+                        todo_mask |= 1u << (q & 7u);
+                        cells[base + q] = c;
+                        later = later || (GWN_SPLIT != 0 && rec.w == 2.0);
+                    } else {
+                        uint x = 4u * q;
+                        uvec4 in4 = uvec4(greaterThanEqual(w, vec4(u_threshold)))
+                                    * uvec4(lessThan(uvec4(x) + uvec4(0u, 1u, 2u, 3u), uvec4(u_dims.x)));
+                        word |= (in4.x | in4.y << 1u | in4.z << 2u | in4.w << 3u) << (x & 31u);
+                    }
+                }
+            }
+            if ((q & 7u) == 7u) {
+                if (word != 0u) {
+                    bits[wbase + q / 8u] = word;
+                    count += uint(bitCount(word));
+                    word = 0u;
+                }
+                if (seg >= u_segs.x && seg < u_segs.x + u_segs.y) {
+                    masks[uint(seg - u_segs.x) * uint(u_rows.y * u_rows.w) + row] = todo_mask;
+                    todo_mask = 0u;
+                }
+            }
+#elif EDGES
+            cells[base + q] = c;
+#else
+            vec4 w = vec4(c);
+            uint x = 4u * q;
+            uvec4 in4 = uvec4(greaterThanEqual(w, vec4(u_threshold)))
+                        * uvec4(lessThan(uvec4(x) + uvec4(0u, 1u, 2u, 3u), uvec4(u_dims.x)));
+            word |= (in4.x | in4.y << 1u | in4.z << 2u | in4.w << 3u) << (x & 31u);
+#if WINDING
+            cells[base + q] = floatBitsToInt(w);
+#endif
+            if ((q & 7u) == 7u) {
                 bits[wbase + q / 8u] = word;
                 count += uint(bitCount(word));
                 word = 0u;
             }
-            if (seg >= u_segs.x && seg < u_segs.x + u_segs.y) {
-                masks[uint(seg - u_segs.x) * uint(u_rows.y * u_rows.w) + row] = todo_mask;
-                todo_mask = 0u;
-            }
-        }
-#elif EDGES
-        cells[base + q] = c;
-#else
-        vec4 w = vec4(c);
-        uint x = 4u * q;
-        uvec4 in4 = uvec4(greaterThanEqual(w, vec4(u_threshold)))
-                    * uvec4(lessThan(uvec4(x) + uvec4(0u, 1u, 2u, 3u), uvec4(u_dims.x)));
-        word |= (in4.x | in4.y << 1u | in4.z << 2u | in4.w << 3u) << (x & 31u);
-#if WINDING
-        cells[base + q] = floatBitsToInt(w);
 #endif
-        if ((q & 7u) == 7u) {
-            bits[wbase + q / 8u] = word;
-            count += uint(bitCount(word));
-            word = 0u;
         }
-#endif
     }
 #endif
 #if BRICKS

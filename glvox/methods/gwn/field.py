@@ -19,6 +19,11 @@ et al. 2013) is at least ``threshold``.  The number is ``w = C + F``
   brick); ``rows`` then decides every voxel whose ``C + F(center)`` is
   farther from ``threshold`` than those bounds allow, and lists the row
   segments with blocks of 4 voxels left;
+* ``caps`` (:mod:`.caps`; with bricks, off an integer threshold): a fan over
+  every boundary loop closes the mesh, and its crossings are counted too; a
+  brick where the fans' ``|w_K|`` is bounded below the threshold's distance
+  to the integers is decided by ``C + C_K`` alone (``w = C + C_K - w_K``),
+  and neither walks the tree nor bounds ``F``;
 * ``far`` (``gwn/field.comp``): ``F``, the strips of the boundary chain,
   from its cluster tree (:mod:`.tree`): far clusters by a second-order
   expansion, near ones by exact strips.  The expansion has a proven error
@@ -62,6 +67,7 @@ from ...results.voxels import VoxelGrid
 from ...tolerances import WINDING_TIE
 from ..base import Method, MethodInfo, Option, Requirements, register
 from .plan import BRICK, EDGE_COST, SEGV, plan_chunks, strip_free_share, x_range
+from .caps import cap_margin, cap_records, capped_mesh
 from .tree import NODE_VEC4, boundary_loops, build_tree
 from ..ss.chunks import chunked_passes
 from ..ss.solid import COMPUTE as SOLID_COMPUTE, COLUMN_CHUNK, mesh_rows
@@ -71,7 +77,11 @@ from ..ss.surface import COMPUTE as SURFACE_COMPUTE, surface_on_gpu
 _LOCAL = 64  # local_size_x of the gwn shaders
 _REQUIRES = Requirements(gl_version=430, extensions=("GL_ARB_gpu_shader_fp64",),
                          limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 12},
-                         compute=(("gwn/*.comp", {}),) + SOLID_COMPUTE + SURFACE_COMPUTE)
+                         # the row pass with bricks and caps binds the most blocks (12)
+                         compute=(("gwn/*.comp", {}),
+                                  ("gwn/rows.comp", {"EDGES": 1, "BRICKS": 1, "CAPS": 1, "PLANES": 1}),
+                                  ("gwn/bricks.comp", {"CAPS": 1}))
+                         + SOLID_COMPUTE + SURFACE_COMPUTE)
 
 #: Segments one invocation of gwn/todo.comp lists (as many as a work group of
 #: the field pass takes, so that the list keeps their order as a work group's
@@ -126,6 +136,16 @@ SLAB_CELLS = 1 << 26
 #: (closed meshes, llvmpipe: see docs/methods/gwn.md).
 PLANES = 2
 
+#: Fan triangles (boundary edges) up to which the caps are used: each brick
+#: near a fan sums a bound over its triangles (within the loop budget beside
+#: the tree walk's half of it), and a soup, a loop per triangle, gains nothing.
+CAP_MAX = 4096
+
+#: The caps decide a voxel only where the threshold lies at least this far
+#: from every integer (after the tie tolerance): near an integer threshold
+#: ``|w_K|`` would have to be bounded below it almost everywhere.
+CAP_MIN_MARGIN = 0.05
+
 
 @register
 class GwnSolid(Method):
@@ -175,16 +195,19 @@ class GwnSolid(Method):
             bits = pool.get("bits", max(nk for _, nk in stream) * spec.dims[1] * spec.words_per_row * 4,
                             what=f"one z slab of the {spec.dims} bit grid")
             words, read_slab = slab_reader(ctx, spec, timer)
-        bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool)
         with timer.stage("tree", gpu=False):
             loops = boundary_loops(mesh)
-            vox64 = spec.world_to_voxel(mesh.vertices) if loops.n_edges else None
+            # the fans over the loops (.caps), appended to the mesh the GPU reads;
+            # not with winding=true, where every voxel's field is computed anyway
+            capped = capped_mesh(mesh, loops) if loops.n_edges and not winding else None
+            vox64 = spec.world_to_voxel((capped.mesh if capped else mesh).vertices) if loops.n_edges else None
             tree = build_tree(loops, vox64) if loops.n_edges else None
+        bufs, vox = transform_vertices(ctx, capped.mesh if capped else mesh, spec, timer, pool)
         if tree is not None and tree.depth >= TREE_STACK:
             raise LimitError(f"gwn-solid walks its boundary tree with a stack of {TREE_STACK}; this mesh's tree "
                              f"({loops.n_edges} boundary edges) is {tree.depth} deep")
 
-        def prepare(planes: bool) -> _Run:
+        def prepare(planes: bool, caps: bool = True) -> _Run:
             run = _Run(ctx, spec, pool, bufs, vox, bits, tree, timer, float(threshold), float(accuracy),
                        bool(winding), planes, stream=None if stream is None else (max(nk for _, nk in stream),
                                                                                    read_slab))
@@ -193,12 +216,18 @@ class GwnSolid(Method):
                 free = strip_free_share(tree, vox64, rows)
                 run.bricks = free >= BRICKS_MIN_FREE and rows[1] * rows[3] * segs[1] * 4 * SEGV >= BRICKS_MIN_VOXELS
                 run.stats["strip_free"] = round(free, 3)
+            # the caps' crossings are counted in planes of their own: not with an int per voxel
+            if (planes and run.bricks and capped is not None and capped.n_caps <= CAP_MAX
+                    and cap_margin(threshold, WINDING_TIE) >= CAP_MIN_MARGIN):
+                run.use_caps(cap_records(capped, vox64), len(capped.loops), cap_margin(threshold, WINDING_TIE),
+                             (capped.first, capped.n_caps))
             return run
 
         run = prepare(planes=True)
         field = run.all_slabs(mesh.n_triangles)
         if run.overflowed():
-            # 2^PLANES or more crossings of one sign in one voxel: again with an int per voxel
+            # 2^PLANES or more crossings of one sign in one voxel (the mesh's or the
+            # caps'): again with an int per voxel
             clear_buffer(ctx, bits)
             run = prepare(planes=False)
             run.stats["event_overflow"] = True
@@ -216,6 +245,9 @@ class GwnSolid(Method):
         if run.bricks:
             run.stats["field_segments"] = left  # the segments the bricks left to the tree walk
             run.stats["split_blocks"] = split  # blocks of 4 voxels the -x split decided
+        if run.caps is not None:
+            # bricks decided by the caps' bound, counts alone
+            run.stats["cap_bricks"] = int(np.frombuffer(run.count.read(size=4, offset=28), dtype="<u4")[0])
         timer.stats.update(boundary_edges=loops.n_edges, loops=len(loops.loops), **run.stats)
         # the passes count in a uint32: not where a grid has 2^32 voxels or more
         return VoxelGrid(words=words, spec=spec, count=voxels if spec.n_voxels < 2**32 else None,
@@ -248,13 +280,16 @@ class _Run:
         # the crossing counts in bit planes (else an int per voxel)
         self.planes = planes
         # voxels, refine list, todo list (slab), todo total, blocks of the -x split,
-        # and the planes' overflow flag
-        self.count = pool.get("count", 24)
+        # the planes' overflow flag, 0, bricks the caps decided
+        self.count = pool.get("count", 32)
         # bricks need the voxels alone: the field asked for is the tree's everywhere
         self.bricks = tree is not None and not winding
         # the mirrored split's T (gwn/rows.comp, chain_winding) walks the whole tree
         # in one invocation: only within half the loop budget
         self.split = tree is not None and tree.n_nodes * 4 + len(tree.edges) <= LOOP_BUDGET // 2
+        # (the Caps buffer, loops, limit, (first fan triangle, fan triangles)) where
+        # the caps decide bricks (use_caps)
+        self.caps = None
         self.stats = {"slabs": 0, "tree_nodes": tree.n_nodes if tree else 0, "tree_chunks": 0,
                       "bricks": 0, "refined_segments": 0, "field_segments": 0}
         self.uniforms = grid_uniforms(spec, bufs.anchor)
@@ -266,9 +301,23 @@ class _Run:
                 ("edges", tree.edges), ("nodes", tree.nodes), ("links", tree.links), ("roots", roots))}
             self.stats["tree_chunks"] = len(self.chunks)
 
-    def _upload(self, name, arr):
+    def use_caps(self, records: np.ndarray, loops: int, limit: float, fans: tuple[int, int]) -> None:
+        """Count the fans' crossings (triangles ``fans[0]`` on, ``fans[1]`` of
+        them) apart, and let the bricks the caps' bound allows be decided from
+        the counts (:mod:`.caps`)."""
+        self.caps = (self._upload("caps", records, "the boundary loops' fans"), loops, limit, fans)
+        self.stats["caps"] = True
+
+    @property
+    def _cap_defines(self) -> dict:
+        return {"CAPS": int(self.caps is not None)}
+
+    def _cap_uniforms(self) -> dict:
+        return {} if self.caps is None else {"u_loops": self.caps[1], "u_cap_limit": self.caps[2]}
+
+    def _upload(self, name, arr, what: str | None = None):
         data = np.ascontiguousarray(arr).tobytes()
-        buf = self.pool.get(name, len(data), what=f"the boundary tree's {name}", clear=False)
+        buf = self.pool.get(name, len(data), what=what or f"the boundary tree's {name}", clear=False)
         buf.write(data)
         return buf
 
@@ -321,11 +370,16 @@ class _Run:
         common = {**self.uniforms, "u_slab": (s0, s1), "u_threshold": self.threshold,
                   "u_bits_k0": 0 if self.stream is None else s0}
         self._crossings(n, cells, events, common)
+        cap_events = None
+        if self.caps is not None:
+            cap_events = pool.get("cap_events", 2 * PLANES * plane_words * 4,
+                                  what=f"the caps' crossing counts of {s1 - s0} z slices")
+            self._crossings(self.caps[3][1], None, cap_events, common, first=self.caps[3][0])
         j0, k0, nj, nk = rows
         fbox, segs = self._field_part(s0, s1, rows) if self.tree is not None else (None, None)
         if self.bricks:
             box = fbox
-            bricks = self._bricks(common, s0, s1, fbox, segs)
+            bricks, cap_bits = self._bricks(common, s0, s1, fbox, segs)
         else:
             # rows outside the mesh's projection hold no crossing; all of them
             # only when C = 0 itself is inside
@@ -337,7 +391,8 @@ class _Run:
                                                           "WINDING": int(self.winding),
                                                           "BRICKS": int(self.bricks), "GWN_BRICK": BRICK,
                                                           "GWN_NODE_VEC4": NODE_VEC4, "GWN_SEGV": SEGV,
-                                                          "GWN_SPLIT": int(self.split), **self._plane_defines})
+                                                          "GWN_SPLIT": int(self.split), **self._plane_defines,
+                                                          **self._cap_defines})
             set_uniforms(prog, {**common, "u_rows": box})
             blocks = {"Bits": self.bits, "Count": self.count}
             if cells is not None:
@@ -345,10 +400,12 @@ class _Run:
             if events is not None:
                 blocks["Events"] = events
             if self.bricks:
-                set_uniforms(prog, {"u_segs": segs, "u_margin": WINDING_TIE})
+                set_uniforms(prog, {"u_segs": segs, "u_margin": WINDING_TIE, **self._cap_uniforms()})
                 t = self.gpu_tree
                 blocks.update(Bricks=bricks, Masks=self._masks(box, segs), VoxVerts=self.vox, Edges=t["edges"],
                               Nodes=t["nodes"], Links=t["links"])
+                if cap_events is not None:
+                    blocks.update(CapEvents=cap_events, CapBits=cap_bits)
             bind(prog, **blocks)
             if box[1] * box[3]:
                 dispatch_1d(ctx, prog, box[1] * box[3], _LOCAL)
@@ -367,19 +424,19 @@ class _Run:
     def _plane_defines(self) -> dict:
         return {"PLANES": int(self.planes)}
 
-    def _crossings(self, n, cells, events, common):
+    def _crossings(self, n, cells, events, common, first: int = 0):
         ctx, pool = self.ctx, self.pool
         big = pool.get("big", (n + 2) * 4, what="the triangles with several column chunks", clear=False)
         clear_buffer(ctx, big, 8)
         args = pool.get("args", 3 * 4, clear=False)
-        first, rest = (compute_program(ctx, "gwn/events.comp", {"GWN_CHUNK": COLUMN_CHUNK, "FIRST": f,
-                                                                 **self._plane_defines})
-                       for f in (1, 0))
-        for prog in (first, rest):
-            set_uniforms(prog, {**common, "u_triangles": n})
+        first_pass, rest = (compute_program(ctx, "gwn/events.comp", {"GWN_CHUNK": COLUMN_CHUNK, "FIRST": f,
+                                                                      **self._plane_defines})
+                            for f in (1, 0))
+        for prog in (first_pass, rest):
+            set_uniforms(prog, {**common, "u_triangles": n, "u_triangle0": first})
         counts = {"Events": events, "Count": self.count} if self.planes else {"Counts": cells}
         with self.timer.stage("crossings"):
-            chunked_passes(ctx, (first, rest), n, self.max_groups,
+            chunked_passes(ctx, (first_pass, rest), n, self.max_groups,
                            {"VoxVerts": self.vox, "Faces": self.bufs.faces, **counts}, big, args, _LOCAL)
 
     def field_part(self):
@@ -435,29 +492,33 @@ class _Run:
         nby = -(-ny // BRICK)
         nbz = -(-(s1 - s0) // BRICK)
         buf = self.pool.get("bricks", nbx * nby * nbz * 32, what="bricks", clear=False)
+        cap_bits = None
+        if self.caps is not None:
+            cap_bits = self.pool.get("cap_bits", -(-nbx * nby * nbz // 32) * 4, what="bricks the caps decide")
         j0, nj, k0, nk = box
         first = (segs[0] * per_seg, j0 // BRICK, (k0 - s0) // BRICK)
         last = ((segs[0] + segs[1]) * per_seg - 1, (j0 + nj - 1) // BRICK, (k0 + nk - 1 - s0) // BRICK)
         counts = tuple(max(0, b - a + 1) for a, b in zip(first, last))
         n = counts[0] * counts[1] * counts[2]
         if not (nj and nk and segs[1]):
-            return buf
+            return buf, cap_bits
         self.stats["bricks"] += n
         prog = compute_program(ctx, "gwn/bricks.comp", {"GWN_SEGV": SEGV, "GWN_BRICK": BRICK,
-                                                         "GWN_NODE_VEC4": NODE_VEC4})
+                                                         "GWN_NODE_VEC4": NODE_VEC4, **self._cap_defines})
         t = self.gpu_tree
         bind(prog, VoxVerts=self.vox, Bricks=buf, Edges=t["edges"], Nodes=t["nodes"], Links=t["links"],
-             Roots=t["roots"])
+             Roots=t["roots"], **({} if self.caps is None else {"Caps": self.caps[0], "Count": self.count,
+                                                                 "CapBits": cap_bits}))
         with self.timer.stage("bricks"):
             start = 0
             for i, chunk in enumerate(self.chunks):
                 set_uniforms(prog, {**common, "u_beta": self.beta, "u_roots": (start, start + len(chunk)),
                                     "u_first": i == 0, "u_last": i == len(self.chunks) - 1,
-                                    "u_brick0": first, "u_bricks": counts})
+                                    "u_brick0": first, "u_bricks": counts, **self._cap_uniforms()})
                 start += len(chunk)
                 dispatch_1d(ctx, prog, n, _LOCAL)
                 barrier(ctx)
-        return buf
+        return buf, cap_bits
 
     def _field(self, cells, common, s0, s1, box, segs):
         ctx, spec, pool = self.ctx, self.spec, self.pool

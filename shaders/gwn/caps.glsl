@@ -1,0 +1,104 @@
+// gwn-solid's caps (glvox/methods/gwn/caps.py): a fan K over every boundary
+// loop, appended to the mesh's triangles, so that the crossings count
+// C_{M+K}, the winding number of the closed M + K, and w_M = C_{M+K} - w_K.
+// Where |w_K| stays below u_cap_limit (the threshold's distance to the
+// nearest integer, less the tie tolerance) the integer C_{M+K} alone decides
+// every voxel.  The Caps buffer: per loop (apex, r) of a ball holding its fan
+// and (area, first triangle record, triangle count) (ints as float bits),
+// then per fan triangle its vertex indices (uint bits).
+layout(std430, binding = 11) readonly buffer Caps { vec4 caps[]; };
+uniform int u_loops;        // loops: their records come first
+uniform float u_cap_limit;  // turns
+
+const int GWN_CAP_VEC4 = 2;
+
+// The fan triangle of record t: its voxel-space vertices (vertex() of the includer).
+void cap_triangle(int t, out vec3 a, out vec3 b, out vec3 c) {
+    uvec4 f = floatBitsToUint(caps[t]);
+    a = vertex(f.x);
+    b = vertex(f.y);
+    c = vertex(f.z);
+}
+
+// Distance from p to the triangle (a, b, c): its closest point by the
+// triangle's Voronoi regions (Ericson, Real-Time Collision Detection, 5.1.5).
+float triangle_distance(vec3 p, vec3 a, vec3 b, vec3 c) {
+    vec3 ab = b - a, ac = c - a, ap = p - a;
+    float d1 = dot(ab, ap), d2 = dot(ac, ap);
+    if (d1 <= 0.0 && d2 <= 0.0) return length(ap);
+    vec3 bp = p - b;
+    float d3 = dot(ab, bp), d4 = dot(ac, bp);
+    if (d3 >= 0.0 && d4 <= d3) return length(bp);
+    float vc = d1 * d4 - d3 * d2;
+    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) return length(ap - (d1 / (d1 - d3)) * ab);
+    vec3 cp = p - c;
+    float d5 = dot(ab, cp), d6 = dot(ac, cp);
+    if (d6 >= 0.0 && d5 <= d6) return length(cp);
+    float vb = d5 * d2 - d1 * d6;
+    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) return length(ap - (d2 / (d2 - d6)) * ac);
+    float va = d3 * d6 - d5 * d4;
+    if (va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0)
+        return length(bp - ((d4 - d3) / ((d4 - d3) + (d5 - d6))) * (c - b));
+    float s = 1.0 / (va + vb + vc);
+    return length(ap - ab * (vb * s) - ac * (vc * s));
+}
+
+// The solid angle of the triangle (a, b, c) seen from p (Van Oosterom and
+// Strackee 1983), in (-2 pi, 2 pi]: continuous off the triangle.
+float triangle_solid_angle(vec3 p, vec3 a, vec3 b, vec3 c) {
+    vec3 u = a - p, v = b - p, w = c - p;
+    float lu = length(u), lv = length(v), lw = length(w);
+    return 2.0 * atan(dot(u, cross(v, w)), lu * lv * lw + dot(u, v) * lw + dot(u, w) * lv + dot(v, w) * lu);
+}
+
+// Distance from p to the segment (a, b).
+float segment_distance(vec3 p, vec3 a, vec3 b) {
+    vec3 ab = b - a;
+    float t = clamp(dot(p - a, ab) / max(dot(ab, ab), 1e-30), 0.0, 1.0);
+    return length(p - a - t * ab);
+}
+
+// Whether |w_K| stays below u_cap_limit at every point within hd of p0 (the
+// caps then decide them all).  Per fan, in steradians, the least of:
+// * its area over (|p0 - a| - r - hd)^2, the fan lying in the ball (a, r);
+// * the sum over its triangles of min(A / d^2, 2 pi), d the triangle's
+//   distance less hd (a triangle's solid angle is the integral of cos / r^2
+//   over it);
+// * where no triangle and no loop edge comes within hd: |Omega(p0)| plus hd
+//   times a bound of |grad Omega| over the ball, the Biot-Savart integral
+//   over the fan's boundary, its loop (the fan's inner edges cancel): at
+//   most the sum over loop edges of min(l / g^2, 4 / g), g the edge's
+//   distance less hd (as gwn/bricks.comp bounds the strips' gradient).
+// Distances are taken short and areas large for float32 rounding, and the
+// exact value gets 2e-3 sr for its own.
+bool caps_decide(vec3 p0, float hd) {
+    float limit = u_cap_limit * 4.0 * GWN_PI * 0.999, sum = 0.0;
+    for (int l = 0; l < u_loops && sum < limit; ++l) {
+        vec4 ball = caps[GWN_CAP_VEC4 * l];
+        vec4 fan = caps[GWN_CAP_VEC4 * l + 1];
+        float d = length(p0 - ball.xyz) - ball.w - hd;
+        if (d > 0.0 && sum + fan.x / (d * d) < limit) {
+            sum += fan.x / (d * d);
+            continue;
+        }
+        ivec4 range = floatBitsToInt(fan);
+        float crude = 0.0, omega = 0.0, grad = 0.0;
+        bool apart = true;  // no triangle or loop edge within hd of p0
+        for (int t = range.y; t < range.y + range.z; ++t) {
+            vec3 a, b, c;
+            cap_triangle(t, a, b, c);
+            float dt = triangle_distance(p0, a, b, c) * (1.0 - 1e-5) - hd - 1e-3;
+            float area = 0.5005 * length(cross(b - a, c - a));
+            crude += dt > 0.0 ? min(area / (dt * dt), 2.0 * GWN_PI) : 2.0 * GWN_PI;
+            // (a, b) is the loop's edge: fan triangles are (w_{i+1}, w_i, apex)
+            float g = segment_distance(p0, a, b) * (1.0 - 1e-5) - hd - 1e-3;
+            apart = apart && dt > 0.0 && g > 0.0;
+            if (apart) {
+                omega += triangle_solid_angle(p0, a, b, c);
+                grad += 1.001 * min(length(b - a) / (g * g), 4.0 / g);
+            }
+        }
+        sum += apart ? min(crude, abs(omega) + 2e-3 + grad * hd) : crude;
+    }
+    return sum < limit;
+}
