@@ -234,6 +234,11 @@ MUTANTS: list[Mutant] = [
     Mutant("gwn-caps-always", "gwn-solid's caps decide every brick, whatever their bound",
            "shaders/gwn/caps.glsl", (("    return sum < limit;\n}", "    return true;\n}"),),
            ("tests/test_gwn.py", "-k", "far_from_planar")),
+    Mutant("gwn-caps-inside-the-common-ball", "gwn-solid's caps: the common ball's area bound used from "
+           "inside the ball too", "shaders/gwn/caps.glsl",
+           (("    if (all > 0.0 && u_caps_area / (all * all) < limit) return true;",
+             "    if (u_caps_area / (all * all) < limit) return true;"),),
+           ("tests/test_gwn.py", "-k", "far_from_planar")),
     Mutant("gwn-caps-no-gradient", "gwn-solid's caps: the solid angle at the brick's center bounds the "
            "whole brick (its gradient bound left out)", "shaders/gwn/caps.glsl",
            (("min(crude, abs(omega) + 2e-3 + grad * hd)", "min(crude, abs(omega) + 2e-3)"),),

@@ -27,7 +27,7 @@ from glvox.mesh import load_mesh
 from glvox.methods import get_method, run_method
 from glvox.methods.gwn import field as gwn
 from glvox.methods.gwn import plan
-from glvox.methods.gwn.caps import CAP_VEC4, cap_records, capped_mesh
+from glvox.methods.gwn.caps import CAP_VEC4, cap_records, capped_mesh, caps_ball
 from glvox.methods.gwn.tree import boundary_loops, build_tree, fan_moments, far_bound, far_field, pack_moments
 from glvox.metrics import check_against_reference, tie_set
 from glvox.reference import point_triangle_distance, solid_ties
@@ -719,6 +719,11 @@ def test_caps_close_every_loop_and_add_up(shared_mesh):
         t = vox[fan]
         area = 0.5 * np.sqrt((np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]) ** 2).sum(axis=1)).sum()
         assert area <= rec[CAP_VEC4 * i + 1, 0] <= 1.01 * area + 1e-2
+    # the common ball holds every fan's ball, the total area every fan's
+    (cx, cy, cz, r), total = caps_ball(rec, n_loops)
+    balls = rec[:CAP_VEC4 * n_loops:CAP_VEC4]
+    assert (np.sqrt(((balls[:, :3] - (cx, cy, cz)) ** 2).sum(axis=1)) + balls[:, 3]).max() <= r
+    assert total >= rec[1:CAP_VEC4 * n_loops:CAP_VEC4, 0].sum()
 
 
 def test_caps_decide_most_bricks_with_the_same_voxels(gl_context, shared_mesh, monkeypatch):

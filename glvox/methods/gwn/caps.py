@@ -121,6 +121,17 @@ def cap_records(capped: CappedMesh, vox64: np.ndarray) -> np.ndarray:
     return rec
 
 
+def caps_ball(records: np.ndarray, n_loops: int) -> tuple[tuple[float, float, float, float], float]:
+    """A ball holding every fan (center, radius) and the fans' total area, from
+    :func:`cap_records` (rounded up as they are)."""
+    balls = records[:CAP_VEC4 * n_loops:CAP_VEC4].astype(np.float64)
+    lo, hi = (balls[:, :3] - balls[:, 3:]).min(axis=0), (balls[:, :3] + balls[:, 3:]).max(axis=0)
+    c = 0.5 * (lo + hi)
+    r = float((np.sqrt(((balls[:, :3] - c) ** 2).sum(axis=1)) + balls[:, 3]).max()) * 1.0001 + 1e-3
+    area = float(records[1:CAP_VEC4 * n_loops:CAP_VEC4, 0].astype(np.float64).sum()) * 1.0001
+    return (float(c[0]), float(c[1]), float(c[2]), r), area
+
+
 def cap_margin(threshold: float, tie: float) -> float:
     """The bound of ``|w_K|`` under which the counts decide a voxel: the distance
     from ``threshold`` to the nearest integer, less ``tie``; 0 or less when the

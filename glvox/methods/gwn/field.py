@@ -67,7 +67,7 @@ from ...results.voxels import VoxelGrid
 from ...tolerances import WINDING_TIE
 from ..base import Method, MethodInfo, Option, Requirements, register
 from .plan import BRICK, EDGE_COST, SEGV, plan_chunks, strip_free_share, x_range
-from .caps import cap_margin, cap_records, capped_mesh
+from .caps import cap_margin, cap_records, capped_mesh, caps_ball
 from .tree import NODE_VEC4, boundary_loops, build_tree
 from ..ss.chunks import chunked_passes
 from ..ss.solid import COMPUTE as SOLID_COMPUTE, COLUMN_CHUNK, mesh_rows
@@ -287,8 +287,8 @@ class _Run:
         # the mirrored split's T (gwn/rows.comp, chain_winding) walks the whole tree
         # in one invocation: only within half the loop budget
         self.split = tree is not None and tree.n_nodes * 4 + len(tree.edges) <= LOOP_BUDGET // 2
-        # (the Caps buffer, loops, limit, (first fan triangle, fan triangles)) where
-        # the caps decide bricks (use_caps)
+        # (the Caps buffer, loops, limit, (first fan triangle, fan triangles), (the
+        # fans' common ball, their area)) where the caps decide bricks (use_caps)
         self.caps = None
         self.stats = {"slabs": 0, "tree_nodes": tree.n_nodes if tree else 0, "tree_chunks": 0,
                       "bricks": 0, "refined_segments": 0, "field_segments": 0}
@@ -305,7 +305,8 @@ class _Run:
         """Count the fans' crossings (triangles ``fans[0]`` on, ``fans[1]`` of
         them) apart, and let the bricks the caps' bound allows be decided from
         the counts (:mod:`.caps`)."""
-        self.caps = (self._upload("caps", records, "the boundary loops' fans"), loops, limit, fans)
+        self.caps = (self._upload("caps", records, "the boundary loops' fans"), loops, limit, fans,
+                     caps_ball(records, loops))
         self.stats["caps"] = True
 
     @property
@@ -313,7 +314,10 @@ class _Run:
         return {"CAPS": int(self.caps is not None)}
 
     def _cap_uniforms(self) -> dict:
-        return {} if self.caps is None else {"u_loops": self.caps[1], "u_cap_limit": self.caps[2]}
+        if self.caps is None:
+            return {}
+        ball, area = self.caps[4]
+        return {"u_loops": self.caps[1], "u_cap_limit": self.caps[2], "u_caps_ball": ball, "u_caps_area": area}
 
     def _upload(self, name, arr, what: str | None = None):
         data = np.ascontiguousarray(arr).tobytes()
@@ -400,7 +404,7 @@ class _Run:
             if events is not None:
                 blocks["Events"] = events
             if self.bricks:
-                set_uniforms(prog, {"u_segs": segs, "u_margin": WINDING_TIE, **self._cap_uniforms()})
+                set_uniforms(prog, {"u_segs": segs, "u_margin": WINDING_TIE})
                 t = self.gpu_tree
                 blocks.update(Bricks=bricks, Masks=self._masks(box, segs), VoxVerts=self.vox, Edges=t["edges"],
                               Nodes=t["nodes"], Links=t["links"])
