@@ -40,8 +40,8 @@ from ...mesh import Mesh
 from .tree import RADIUS_MARGIN, BoundaryLoops
 
 #: vec4 records per loop in the Caps buffer: (apex, radius of the ball about
-#: the apex that holds the fan), (the fan's area, its first triangle, its
-#: triangle count, 0).  Voxel units.
+#: the apex that holds the fan), (the fan's area, the index of its first
+#: triangle record, its triangle count, 0), voxel units (:func:`cap_records`).
 CAP_VEC4 = 2
 
 

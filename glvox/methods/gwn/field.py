@@ -52,6 +52,7 @@ budget.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -66,8 +67,8 @@ from ...gpu.transform import transform_vertices
 from ...results.voxels import VoxelGrid
 from ...tolerances import WINDING_TIE
 from ..base import Method, MethodInfo, Option, Requirements, register
-from .plan import BRICK, EDGE_COST, SEGV, plan_chunks, strip_free_share, x_range
 from .caps import cap_margin, cap_records, capped_mesh, caps_ball
+from .plan import BRICK, EDGE_COST, SEGV, plan_chunks, strip_free_share, x_range
 from .tree import NODE_VEC4, boundary_loops, build_tree
 from ..ss.chunks import chunked_passes
 from ..ss.solid import COMPUTE as SOLID_COMPUTE, COLUMN_CHUNK, mesh_rows
@@ -219,8 +220,7 @@ class GwnSolid(Method):
             # the caps' crossings are counted in planes of their own: not with an int per voxel
             if (planes and run.bricks and capped is not None and capped.n_caps <= CAP_MAX
                     and cap_margin(threshold, WINDING_TIE) >= CAP_MIN_MARGIN):
-                run.use_caps(cap_records(capped, vox64), len(capped.loops), cap_margin(threshold, WINDING_TIE),
-                             (capped.first, capped.n_caps))
+                run.use_caps(capped, cap_records(capped, vox64), cap_margin(threshold, WINDING_TIE))
             return run
 
         run = prepare(planes=True)
@@ -268,6 +268,21 @@ class GwnSolid(Method):
         barrier(ctx)
 
 
+@dataclass(frozen=True)
+class _Caps:
+    """The caps of a run (:mod:`.caps`): their records on the GPU, the loops,
+    the bound's limit (turns), the fan triangles (first, count) in the capped
+    mesh, and a ball holding every fan with their total area."""
+
+    buf: object
+    loops: int
+    limit: float
+    first: int
+    count: int
+    ball: tuple
+    area: float
+
+
 class _Run:
     """One gwn-solid run: the slabs, their passes and their statistics."""
 
@@ -287,9 +302,8 @@ class _Run:
         # the mirrored split's T (gwn/rows.comp, chain_winding) walks the whole tree
         # in one invocation: only within half the loop budget
         self.split = tree is not None and tree.n_nodes * 4 + len(tree.edges) <= LOOP_BUDGET // 2
-        # (the Caps buffer, loops, limit, (first fan triangle, fan triangles), (the
-        # fans' common ball, their area)) where the caps decide bricks (use_caps)
-        self.caps = None
+        # where the caps decide bricks (use_caps)
+        self.caps: _Caps | None = None
         self.stats = {"slabs": 0, "tree_nodes": tree.n_nodes if tree else 0, "tree_chunks": 0,
                       "bricks": 0, "refined_segments": 0, "field_segments": 0}
         self.uniforms = grid_uniforms(spec, bufs.anchor)
@@ -301,12 +315,12 @@ class _Run:
                 ("edges", tree.edges), ("nodes", tree.nodes), ("links", tree.links), ("roots", roots))}
             self.stats["tree_chunks"] = len(self.chunks)
 
-    def use_caps(self, records: np.ndarray, loops: int, limit: float, fans: tuple[int, int]) -> None:
-        """Count the fans' crossings (triangles ``fans[0]`` on, ``fans[1]`` of
-        them) apart, and let the bricks the caps' bound allows be decided from
-        the counts (:mod:`.caps`)."""
-        self.caps = (self._upload("caps", records, "the boundary loops' fans"), loops, limit, fans,
-                     caps_ball(records, loops))
+    def use_caps(self, capped, records: np.ndarray, limit: float) -> None:
+        """Count the fans' crossings apart, and let the bricks the caps' bound
+        (below ``limit``, turns) allows be decided from the counts (:mod:`.caps`)."""
+        loops = len(capped.loops)
+        self.caps = _Caps(self._upload("caps", records, "the boundary loops' fans"), loops, limit,
+                          capped.first, capped.n_caps, *caps_ball(records, loops))
         self.stats["caps"] = True
 
     @property
@@ -314,10 +328,9 @@ class _Run:
         return {"CAPS": int(self.caps is not None)}
 
     def _cap_uniforms(self) -> dict:
-        if self.caps is None:
-            return {}
-        ball, area = self.caps[4]
-        return {"u_loops": self.caps[1], "u_cap_limit": self.caps[2], "u_caps_ball": ball, "u_caps_area": area}
+        c = self.caps
+        return {} if c is None else {"u_loops": c.loops, "u_cap_limit": c.limit, "u_caps_ball": c.ball,
+                                     "u_caps_area": c.area}
 
     def _upload(self, name, arr, what: str | None = None):
         data = np.ascontiguousarray(arr).tobytes()
@@ -378,7 +391,7 @@ class _Run:
         if self.caps is not None:
             cap_events = pool.get("cap_events", 2 * PLANES * plane_words * 4,
                                   what=f"the caps' crossing counts of {s1 - s0} z slices")
-            self._crossings(self.caps[3][1], None, cap_events, common, first=self.caps[3][0])
+            self._crossings(self.caps.count, None, cap_events, common, first=self.caps.first)
         j0, k0, nj, nk = rows
         fbox, segs = self._field_part(s0, s1, rows) if self.tree is not None else (None, None)
         if self.bricks:
@@ -511,7 +524,7 @@ class _Run:
                                                          "GWN_NODE_VEC4": NODE_VEC4, **self._cap_defines})
         t = self.gpu_tree
         bind(prog, VoxVerts=self.vox, Bricks=buf, Edges=t["edges"], Nodes=t["nodes"], Links=t["links"],
-             Roots=t["roots"], **({} if self.caps is None else {"Caps": self.caps[0], "Count": self.count,
+             Roots=t["roots"], **({} if self.caps is None else {"Caps": self.caps.buf, "Count": self.count,
                                                                  "CapBits": cap_bits}))
         with self.timer.stage("bricks"):
             start = 0
