@@ -232,7 +232,8 @@ MUTANTS: list[Mutant] = [
              "        dispatch_1d(ctx, prog, n // TODO_RUN, _LOCAL)"),),
            ("tests/test_gwn.py", "-k", "storage_limit_is_streamed")),
     Mutant("gwn-caps-always", "gwn-solid's caps decide every brick, whatever their bound",
-           "shaders/gwn/caps.glsl", (("    return sum < limit;\n}", "    return true;\n}"),),
+           "shaders/gwn/caps.glsl", (("    return min(each, signed_rest + abs(omega_all)) < limit;",
+                                      "    return true;"),),
            ("tests/test_gwn.py", "-k", "far_from_planar")),
     Mutant("gwn-caps-inside-the-common-ball", "gwn-solid's caps: the common ball's area bound used from "
            "inside the ball too", "shaders/gwn/caps.glsl",
@@ -241,8 +242,17 @@ MUTANTS: list[Mutant] = [
            ("tests/test_gwn.py", "-k", "far_from_planar")),
     Mutant("gwn-caps-no-gradient", "gwn-solid's caps: the solid angle at the brick's center bounds the "
            "whole brick (its gradient bound left out)", "shaders/gwn/caps.glsl",
-           (("min(crude, abs(omega) + 2e-3 + grad * hd)", "min(crude, abs(omega) + 2e-3)"),),
+           (("min(crude, abs(omega) + 2e-3 + grad * hd)", "min(crude, abs(omega) + 2e-3)"),
+            ("signed_rest += apart ? 2e-3 + grad * hd : crude;", "signed_rest += apart ? 2e-3 : crude;")),
            ("tests/test_gwn.py", "-k", "far_from_planar")),
+    Mutant("gwn-caps-fan-by-fan", "gwn-solid's caps: only the bound fan by fan, not the fans' signed sum "
+           "(fans of opposite sense no longer cancel)", "shaders/gwn/caps.glsl",
+           (("    return min(each, signed_rest + abs(omega_all)) < limit;", "    return each < limit;"),),
+           ("tests/test_gwn.py", "-k", "opposite")),
+    Mutant("gwn-caps-signed-without-the-rest", "gwn-solid's caps: the signed sum of the fans' solid "
+           "angles leaves out the fans that come into the brick", "shaders/gwn/caps.glsl",
+           (("signed_rest += apart ? 2e-3 + grad * hd : crude;", "signed_rest += apart ? 2e-3 + grad * hd : 0.0;"),),
+           ("tests/test_gwn.py", "-k", "far_from_planar or opposite")),
     Mutant("gwn-caps-through-the-fan", "gwn-solid's caps: the center's solid angle used for a brick the "
            "fan passes through", "shaders/gwn/caps.glsl",
            (("            apart = apart && dt > 0.0 && g > 0.0;", "            apart = true;"),),

@@ -72,19 +72,27 @@ float segment_distance(vec3 p, vec3 a, vec3 b) {
 //   over the fan's boundary, its loop (the fan's inner edges cancel): at
 //   most the sum over loop edges of min(l / g^2, 4 / g), g the edge's
 //   distance less hd (as gwn/bricks.comp bounds the strips' gradient).
+// Or, where that is less, the same with the solid angles at p0 of all the
+// fans that keep clear of the ball summed before their absolute value.
 // Distances are taken short and areas large for float32 rounding, and the
 // exact value gets 2e-3 sr for its own.
 bool caps_decide(vec3 p0, float hd) {
-    float limit = u_cap_limit * 4.0 * GWN_PI * 0.999, sum = 0.0;
+    float limit = u_cap_limit * 4.0 * GWN_PI * 0.999;
     // most bricks are far from every fan: one test for all of them
     float all = length(p0 - u_caps_ball.xyz) - u_caps_ball.w - hd;
     if (all > 0.0 && u_caps_area / (all * all) < limit) return true;
-    for (int l = 0; l < u_loops && sum < limit; ++l) {
+    // each = per fan the least of its bounds, summed; signed = the same but the
+    // solid angles of the fans clear of the ball summed with their signs (fans
+    // of opposite sense close together, as a lid's rim inside its pot's, cancel),
+    // their |sum| added at the end
+    float each = 0.0, signed_rest = 0.0, omega_all = 0.0;
+    for (int l = 0; l < u_loops && (each < limit || signed_rest < limit); ++l) {
         vec4 ball = caps[GWN_CAP_VEC4 * l];
         vec4 fan = caps[GWN_CAP_VEC4 * l + 1];
         float d = length(p0 - ball.xyz) - ball.w - hd;
-        if (d > 0.0 && sum + fan.x / (d * d) < limit) {
-            sum += fan.x / (d * d);
+        if (d > 0.0 && each + fan.x / (d * d) < limit) {
+            each += fan.x / (d * d);
+            signed_rest += fan.x / (d * d);
             continue;
         }
         ivec4 range = floatBitsToInt(fan);
@@ -104,7 +112,9 @@ bool caps_decide(vec3 p0, float hd) {
                 grad += 1.001 * min(length(b - a) / (g * g), 4.0 / g);
             }
         }
-        sum += apart ? min(crude, abs(omega) + 2e-3 + grad * hd) : crude;
+        each += apart ? min(crude, abs(omega) + 2e-3 + grad * hd) : crude;
+        signed_rest += apart ? 2e-3 + grad * hd : crude;
+        omega_all += apart ? omega : 0.0;
     }
-    return sum < limit;
+    return min(each, signed_rest + abs(omega_all)) < limit;
 }
