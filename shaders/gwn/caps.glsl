@@ -1,9 +1,9 @@
 // gwn-solid's caps (glvox/methods/gwn/caps.py): a fan K over every boundary
-// loop, appended to the mesh's triangles, so that the crossings count
-// C_{M+K}, the winding number of the closed M + K, and w_M = C_{M+K} - w_K.
-// Where |w_K| stays below u_cap_limit (the threshold's distance to the
-// nearest integer, less the tie tolerance) the integer C_{M+K} alone decides
-// every voxel.  The Caps buffer: per loop (apex, r) of a ball holding its fan
+// loop, appended to the mesh's triangles and its crossings counted apart
+// (gwn/events.comp, planes of their own), so that C + C_K is the winding
+// number of the closed M + K and w_M = C + C_K - w_K.  Where |w_K| stays
+// below u_cap_limit (the threshold's distance to the nearest integer, less
+// the tie tolerance) the integer C + C_K alone decides every voxel.  The Caps buffer: per loop (apex, r) of a ball holding its fan
 // and (area, first triangle record, triangle count) (ints as float bits),
 // then per fan triangle its vertex indices (uint bits).
 layout(std430, binding = 11) readonly buffer Caps { vec4 caps[]; };
@@ -81,10 +81,10 @@ bool caps_decide(vec3 p0, float hd) {
     // most bricks are far from every fan: one test for all of them
     float all = length(p0 - u_caps_ball.xyz) - u_caps_ball.w - hd;
     if (all > 0.0 && u_caps_area / (all * all) < limit) return true;
-    // each = per fan the least of its bounds, summed; signed = the same but the
-    // solid angles of the fans clear of the ball summed with their signs (fans
-    // of opposite sense close together, as a lid's rim inside its pot's, cancel),
-    // their |sum| added at the end
+    // each: per fan the least of its bounds, summed.  signed_rest + |omega_all|:
+    // the same but the solid angles of the fans clear of the ball summed with
+    // their signs (fans of opposite sense close together, as a lid's rim inside
+    // its pot's, cancel)
     float each = 0.0, signed_rest = 0.0, omega_all = 0.0;
     for (int l = 0; l < u_loops && (each < limit || signed_rest < limit); ++l) {
         vec4 ball = caps[GWN_CAP_VEC4 * l];
