@@ -14,35 +14,15 @@ uniform float u_caps_area;  // the fans' total area
 
 const int GWN_CAP_VEC4 = 2;
 
+// closest_distance_f: the distance from a point to a triangle (Ericson), precise
+#include "sdf/closest.glsl"
+
 // The fan triangle of record t: its voxel-space vertices (vertex() of the includer).
 void cap_triangle(int t, out vec3 a, out vec3 b, out vec3 c) {
     uvec4 f = floatBitsToUint(caps[t]);
     a = vertex(f.x);
     b = vertex(f.y);
     c = vertex(f.z);
-}
-
-// Distance from p to the triangle (a, b, c): its closest point by the
-// triangle's Voronoi regions (Ericson, Real-Time Collision Detection, 5.1.5).
-float triangle_distance(vec3 p, vec3 a, vec3 b, vec3 c) {
-    vec3 ab = b - a, ac = c - a, ap = p - a;
-    float d1 = dot(ab, ap), d2 = dot(ac, ap);
-    if (d1 <= 0.0 && d2 <= 0.0) return length(ap);
-    vec3 bp = p - b;
-    float d3 = dot(ab, bp), d4 = dot(ac, bp);
-    if (d3 >= 0.0 && d4 <= d3) return length(bp);
-    float vc = d1 * d4 - d3 * d2;
-    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) return length(ap - (d1 / (d1 - d3)) * ab);
-    vec3 cp = p - c;
-    float d5 = dot(ab, cp), d6 = dot(ac, cp);
-    if (d6 >= 0.0 && d5 <= d6) return length(cp);
-    float vb = d5 * d2 - d1 * d6;
-    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) return length(ap - (d2 / (d2 - d6)) * ac);
-    float va = d3 * d6 - d5 * d4;
-    if (va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0)
-        return length(bp - ((d4 - d3) / ((d4 - d3) + (d5 - d6))) * (c - b));
-    float s = 1.0 / (va + vb + vc);
-    return length(ap - ab * (vb * s) - ac * (vc * s));
 }
 
 // The solid angle of the triangle (a, b, c) seen from p (Van Oosterom and
@@ -101,7 +81,7 @@ bool caps_decide(vec3 p0, float hd) {
         for (int t = range.y; t < range.y + range.z; ++t) {
             vec3 a, b, c;
             cap_triangle(t, a, b, c);
-            float dt = triangle_distance(p0, a, b, c) * (1.0 - 1e-5) - hd - 1e-3;
+            float dt = closest_distance_f(p0 - a, b - a, c - a) * (1.0 - 1e-5) - hd - 1e-3;
             float area = 0.5005 * length(cross(b - a, c - a));
             crude += dt > 0.0 ? min(area / (dt * dt), 2.0 * GWN_PI) : 2.0 * GWN_PI;
             // (a, b) is the loop's edge: fan triangles are (w_{i+1}, w_i, apex)

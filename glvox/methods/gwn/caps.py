@@ -132,6 +132,32 @@ def caps_ball(records: np.ndarray, n_loops: int) -> tuple[tuple[float, float, fl
     return (float(c[0]), float(c[1]), float(c[2]), r), area
 
 
+@dataclass(frozen=True)
+class RunCaps:
+    """The caps of one ``gwn-solid`` run: their records on the GPU (``buf``,
+    :func:`cap_records`), the loops, the bound's limit (turns), the fan
+    triangles (``first``, ``count``) in the capped mesh, and a ball holding
+    every fan with the fans' total area (:func:`caps_ball`)."""
+
+    buf: object
+    loops: int
+    limit: float
+    first: int
+    count: int
+    ball: tuple
+    area: float
+
+    @classmethod
+    def of(cls, buf, capped: CappedMesh, records: np.ndarray, limit: float) -> "RunCaps":
+        loops = len(capped.loops)
+        return cls(buf, loops, limit, capped.first, capped.n_caps, *caps_ball(records, loops))
+
+    def uniforms(self) -> dict:
+        """The uniforms of ``shaders/gwn/caps.glsl``."""
+        return {"u_loops": self.loops, "u_cap_limit": self.limit, "u_caps_ball": self.ball,
+                "u_caps_area": self.area}
+
+
 def cap_margin(threshold: float, tie: float) -> float:
     """The bound of ``|w_K|`` under which the counts decide a voxel: the distance
     from ``threshold`` to the nearest integer, less ``tie``; 0 or less when the

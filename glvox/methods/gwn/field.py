@@ -52,7 +52,6 @@ budget.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -67,7 +66,7 @@ from ...gpu.transform import transform_vertices
 from ...results.voxels import VoxelGrid
 from ...tolerances import WINDING_TIE
 from ..base import Method, MethodInfo, Option, Requirements, register
-from .caps import cap_margin, cap_records, capped_mesh, caps_ball
+from .caps import RunCaps, cap_margin, cap_records, capped_mesh
 from .plan import BRICK, EDGE_COST, SEGV, plan_chunks, strip_free_share, x_range
 from .tree import NODE_VEC4, boundary_loops, build_tree
 from ..ss.chunks import chunked_passes
@@ -268,21 +267,6 @@ class GwnSolid(Method):
         barrier(ctx)
 
 
-@dataclass(frozen=True)
-class _Caps:
-    """The caps of a run (:mod:`.caps`): their records on the GPU, the loops,
-    the bound's limit (turns), the fan triangles (first, count) in the capped
-    mesh, and a ball holding every fan with their total area."""
-
-    buf: object
-    loops: int
-    limit: float
-    first: int
-    count: int
-    ball: tuple
-    area: float
-
-
 class _Run:
     """One gwn-solid run: the slabs, their passes and their statistics."""
 
@@ -303,7 +287,7 @@ class _Run:
         # in one invocation: only within half the loop budget
         self.split = tree is not None and tree.n_nodes * 4 + len(tree.edges) <= LOOP_BUDGET // 2
         # where the caps decide bricks (use_caps)
-        self.caps: _Caps | None = None
+        self.caps: RunCaps | None = None
         self.stats = {"slabs": 0, "tree_nodes": tree.n_nodes if tree else 0, "tree_chunks": 0,
                       "bricks": 0, "refined_segments": 0, "field_segments": 0}
         self.uniforms = grid_uniforms(spec, bufs.anchor)
@@ -318,9 +302,7 @@ class _Run:
     def use_caps(self, capped, records: np.ndarray, limit: float) -> None:
         """Count the fans' crossings apart, and let the bricks the caps' bound
         (below ``limit``, turns) allows be decided from the counts (:mod:`.caps`)."""
-        loops = len(capped.loops)
-        self.caps = _Caps(self._upload("caps", records, "the boundary loops' fans"), loops, limit,
-                          capped.first, capped.n_caps, *caps_ball(records, loops))
+        self.caps = RunCaps.of(self._upload("caps", records, "the boundary loops' fans"), capped, records, limit)
         self.stats["caps"] = True
 
     @property
@@ -328,9 +310,7 @@ class _Run:
         return {"CAPS": int(self.caps is not None)}
 
     def _cap_uniforms(self) -> dict:
-        c = self.caps
-        return {} if c is None else {"u_loops": c.loops, "u_cap_limit": c.limit, "u_caps_ball": c.ball,
-                                     "u_caps_area": c.area}
+        return {} if self.caps is None else self.caps.uniforms()
 
     def _upload(self, name, arr, what: str | None = None):
         data = np.ascontiguousarray(arr).tobytes()
