@@ -18,7 +18,8 @@ import trimesh
 from conftest import SHARED_MESHES
 
 import glvox
-from glvox.errors import CapabilityError, LimitError, MethodError, NotWatertightError, NotWatertightWarning
+from glvox.errors import (CapabilityError, LimitError, MethodError, NotWatertightError, NotWatertightWarning,
+                          SuspiciousResultWarning)
 from glvox.gl.timing import StageTimer
 from glvox.gpu.buffers import buffer_pool, object_cache
 from glvox.grid import GridSpec, snap_to_planes
@@ -27,6 +28,9 @@ from glvox.methods import run_method
 from glvox.methods.eisemann import passes as eisemann_passes
 from glvox.metrics import check_against_reference, tie_set
 from glvox.reference import TIE_EPS
+from glvox.study.selftest import TIE_HULL, TIE_HULL_DIMS
+from glvox.testing import harness, tie_probe
+from glvox.testing.leaks import live_gl_objects
 from glvox.testing.slices import eisemann_slices
 
 WATERTIGHT = ("cad_fandisk.off", "cad_featuretype.stl", "cad_rocker_arm.obj", "cad_wingnut.obj",
@@ -243,6 +247,104 @@ def test_generated_solids_large(gl_context, shape, n):
     check_solid(mesh, glvox.grid_for(mesh, n), axes=(0, 1, 2))
 
 
+def test_a_face_along_the_axis_through_column_centers(gl_context):
+    """A hull the slow fuzz found: face [1, 3, 2] is parallel to z, and at 33 x 59 x 22 its
+    projection, a segment, runs exactly through column centers, (14.5, 21.5) among them,
+    collinear with edges of three other faces.  The float32 upload makes that face a
+    sliver 1e-14 voxel wide.  With the edge functions in double, their rounding put
+    centers inside all three of its edges and outside its neighbours' (26 voxels far from
+    the surface flipped), and its crossing in double was 3 voxels below its section.  In
+    integers, with the crossing clamped to the section: reference-solid up to ties, along
+    every axis (along x and y the face is an ordinary steep one)."""
+    mesh = load_mesh(TIE_HULL, name="edge-on hull")
+    spec = glvox.grid_for(mesh, dims=TIE_HULL_DIMS)
+    assert np.ptp(TIE_HULL[0][TIE_HULL[1][4]][:, :2] @ [3, 2]) == 0  # along z: its xy on one line
+    (v1, v3, v2) = mesh.triangles_voxel(spec)[4][:, :2]
+    d = v2 - v3
+    on = [(x + 0.5, y + 0.5) for x in range(33) for y in range(59)
+          if abs(d[0] * (y + 0.5 - v3[1]) - d[1] * (x + 0.5 - v3[0])) < 1e-9]
+    assert (14.5, 21.5) in on and len(on) >= 5
+    check_solid(mesh, spec, axes=(0, 1, 2))
+
+
+def test_the_determinant_sign_is_exact(gl_context):
+    """eisemann/column.glsl's eis_det_sign, the sign of a b - c d from imulExtended's 64-bit
+    products, against Python's integers on operands up to 2^30 in magnitude: random ones,
+    and pairs of products equal or 1 apart, or straddling a multiple of 2^32 (equal high
+    words, low words on both sides of 2^31), where a comparison of the low words as signed
+    integers, or of the products in double, gets the sign wrong."""
+    rng = np.random.default_rng(7)
+    quads = [rng.integers(-(2 ** 30), 2 ** 30, 4) for _ in range(2000)]
+    for _ in range(2000):
+        a, b, c = (int(x) for x in rng.integers(2 ** 20, 2 ** 30, 3) * rng.choice([-1, 1], 3))
+        target = a * b + int(rng.choice([0, 1, -1, 2 ** 31, -(2 ** 31), 2 ** 31 - 1, 5 * 2 ** 32]))
+        d = target // c
+        quads += [np.array([a, b, c, d + k]) for k in (-1, 0, 1) if abs(d + k) < 2 ** 30]
+        quads.append(np.array([a, b // 2 * 2, b // 2, 2 * a]) if abs(a) < 2 ** 29 else np.array([a, b, b, a]))
+    q = np.array(quads, np.int64)
+    want = np.sign(np.array([int(x) * int(y) - int(z) * int(w) for x, y, z, w in q.tolist()]))
+    got = harness.run_compute(gl_context, "testing/det_sign.comp", -(-len(q) // 64), read=["DetOut"],
+                              buffers={"DetIn": q.astype(np.int32), "DetOut": (len(q), np.int32)},
+                              uniforms={"u_n": len(q)})["DetOut"]
+    straddle = [(x * y) >> 32 == (z * w) >> 32 and ((x * y) >> 31 & 1) != ((z * w) >> 31 & 1)
+                for x, y, z, w in q.tolist()]
+    assert sum(straddle) > 100 and (want == 0).sum() > 100
+    assert np.array_equal(got, want), np.flatnonzero(got != want)[:5]
+
+
+def test_the_crossing_of_a_sliver_stays_in_its_section(gl_context):
+    """A sliver in the fixed point (2^-20 voxel) as thin as it gets: its long edge A -> C
+    runs through the column center c, its midpoint, along w = (F40, F41) units (consecutive
+    Fibonacci numbers, coprime), and B - A = (F39, F40), so its projected area is 2^-40
+    voxel^2 (F39 F41 - F40^2 = 1).  The crossing formula in double is voxels off there (in
+    numpy 21.3, 53.1 or NaN by the vertex order, where the face holds c at 33.5); clamped
+    to the section, it lies between the crossing on A -> C (33.5) and on B -> C at c's
+    position along the edge, whose points all lie within 1e-11 voxel of the column: a tie."""
+    f39, f40, f41 = 63245986, 102334155, 165580141
+    bits = 20
+    c = np.array([300.5, 300.5])
+    w = np.array([f40, f41]) / 2.0 ** bits
+    a, cc = np.r_[c - w, 5.3], np.r_[c + w, 61.7]
+    b = np.r_[c - w + np.array([f39, f40]) / 2.0 ** bits, 37.1]
+    d = cc[:2] - a[:2]
+    t = float(np.dot(c - b[:2], d) / np.dot(cc[:2] - b[:2], d))  # c's position on B -> C
+    first = (int(np.floor((a[2] + cc[2]) / 2 + 0.5)), int(np.floor(b[2] + t * (cc[2] - b[2]) + 0.5)))
+    assert first == (34, 44)
+    for order in ((a, b, cc), (cc, b, a), (b, cc, a), (b, a, cc)):
+        tris = np.array([order])
+        for stage in ("compute", "fragment"):
+            words = tie_probe.run_probe(gl_context, "eis", stage, tris, c[None].astype(np.float32), bits)[0]
+            assert words[12] == 1 and first[0] <= np.int32(words[13]) <= first[1], (stage, words.tolist())
+
+
+def test_the_drawn_proxy_of_a_sliver_holds_it(gl_context):
+    """The setup pass (eisemann/setup.comp) draws each triangle grown by 1/16 pixel, so that
+    GL's rasterizer, whatever its snap (1/32 pixel at worst), makes a fragment over every
+    center the triangle covers: a column center on the triangle lies in the drawn one with
+    1/32 to spare.  A sliver of the fixed point (edges along consecutive Fibonacci vectors,
+    2^-20 voxel units) has tips so sharp that their edges' unit normals a, b sum to exactly
+    zero in double.  The miter's test of |a + b| against 1 + a.b, both zero, took such a tip
+    for a gentle corner and left it unmoved: the center at its tip A lay 0.11 outside the
+    drawn triangle.  Tested on 1 + a.b alone, the sliver falls back to a triangle around
+    its bounding box."""
+    f39, f40, f41 = 63245986, 102334155, 165580141
+    a = np.array([300.5, 300.5])
+    b = a + 2 * np.array([f39, f40]) / 2.0 ** 20
+    c = a + (2 * np.array([f40, f41]) + [f39, f40]) / 2.0 ** 20
+    tri = np.array([np.r_[a, 5.3], np.r_[b, 37.1], np.r_[c, 61.7]])
+    for order in ([0, 1, 2], [2, 1, 0]):
+        got = harness.run_compute(
+            gl_context, "eisemann/setup.comp", 1, read=["EisSetups"],
+            buffers={"EisVox": tri[order].reshape(-1), "EisFaces": np.arange(3, dtype=np.uint32),
+                     "EisSetups": (12, np.int32)},
+            uniforms={"u_triangles": 1, "u_dims": (1024, 1024, 64), "u_eis_fix_bits": 20},
+            defines={"EIS_AXIS": 2, "EIS_OP": 0, "EIS_COVERAGE": 0, "EIS_TRACE": 0})["EisSetups"]
+        corner = got[6:12].view(np.float32).reshape(3, 2).astype(np.float64)
+        edge, to_a = np.roll(corner, -1, axis=0) - corner, a - corner
+        inside = (edge[:, 0] * to_a[:, 1] - edge[:, 1] * to_a[:, 0]) / np.linalg.norm(edge, axis=1)
+        assert (inside * np.sign(inside.sum())).min() >= 1 / 32, (order, corner.tolist())
+
+
 def test_far_from_the_origin_and_non_cubic(gl_context, shared_mesh):
     """Vertices near 1e5 keep their precision (uploaded relative to the anchor);
     a non-cubic grid whose sides are not multiples of 32 exercises every pack path."""
@@ -408,6 +510,33 @@ def test_grid_over_the_ssbo_limit_is_refused(ssbo_limit):
     with pytest.raises(LimitError, match=r"bit grid needs a .* MiB shader storage buffer, over this "
                                          r"context's GL_MAX_SHADER_STORAGE_BLOCK_SIZE"):
         run_method("eisemann-solid", load_mesh("gen:box"), spec)
+
+
+def test_the_fixed_point_range(gl_context):
+    """Coverage in integers needs every coordinate across the axis within 2^29 units of
+    2^-F voxel.  F is the largest that allows (22 at 64 voxels, 18 at 1024); a mesh past
+    2^15 voxels from the grid's origin is voxelized with a warning (its rounding reaches a
+    third of TIE_EPS), one at 2^28 or more refused before any work, naming ss-solid, by
+    eisemann-solid and leung-wang-ldi alike."""
+    box = load_mesh("gen:box")
+    assert eisemann_passes.fixed_bits(box, glvox.grid_for(box, 64), 2) == 22
+    assert eisemann_passes.fixed_bits(box, glvox.grid_for(box, 1024), 2) == 18
+    v = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+    f = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    spec = GridSpec((8, 8, 8), (0.0, 0.0, 0.0), 1.0)
+    for reach, bits in ((2.0 ** 14, 14), (2.0 ** 16, 12)):
+        far = load_mesh((v * [reach, 8, 8], f), name="wide")
+        assert eisemann_passes.fixed_bits(far, spec, 2, warn=False) == bits
+        if bits < eisemann_passes.FIXED_BITS_WARN:
+            with pytest.warns(SuspiciousResultWarning, match=r"rounded to 2\^-12 voxel"):
+                run_method("eisemann-solid", far, spec)
+    tet = load_mesh((v * 8, f), name="tetrahedron")
+    far = GridSpec((8, 8, 8), (-(2.0 ** 28), 0.0, 0.0), 1.0)
+    for name in ("eisemann-solid", "leung-wang-ldi"):
+        before = live_gl_objects(gl_context)
+        with pytest.raises(LimitError, match=r"reaches 2.68e\+08 voxels .* 2\^28: use ss-solid"):
+            run_method(name, tet, far)
+        assert live_gl_objects(gl_context) == before
 
 
 def test_bad_arguments_are_refused(gl_context):

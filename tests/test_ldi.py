@@ -40,7 +40,8 @@ from glvox.metrics import check_against_reference, tie_set
 from glvox.reference.ldi import crossing_tolerance, crossings, ray_ties
 from glvox.results.ldi import LDI, close_odd
 from glvox.testing.leaks import live_gl_objects
-from glvox.tolerances import SNAP_EPS
+from glvox.study.selftest import TIE_HULL
+from glvox.tolerances import SNAP_EPS, TIE_EPS
 
 WATERTIGHT = ("cad_fandisk.off", "cad_featuretype.stl", "cad_rocker_arm.obj", "cad_wingnut.obj",
               "depth_reduced_diamond_lattice.stl", "stanford_armadillo_libigl_86k.obj")
@@ -261,6 +262,22 @@ def test_encloses_the_true_mesh_where_the_snap_moves_steep_faces(gl_context):
             f"ray {(int(p), int(q))}: exact {e.tolist()}, LDI {s.tolist()}"
         checked += 1
     assert checked >= 8
+
+
+def test_a_face_along_the_rays_adds_nothing_beyond_a_cell(gl_context):
+    """The hull whose face [1, 3, 2] is parallel to z and whose projection runs through
+    column centers (tests/test_eisemann.py): the float32 upload makes that face a steep
+    sliver, whose widened samples spanned its whole height (9 voxels) where its section
+    through the ray is a point of the face.  Bounded by the section as well, the LDI stays
+    conservative and adds no voxel center farther than a LOD-C cell outside."""
+    mesh = load_mesh(TIE_HULL, name="edge-on hull")
+    spec = glvox.grid_for(mesh, dims=(35, 59, 22))
+    ldi, _ = check_conservative_run(mesh, spec)
+    got = ldi.to_grid().dense()
+    ref = run_method("reference-solid", mesh, spec).dense()
+    near = tie_set("reference-solid", mesh, spec, eps=max(22 / 1024, TIE_EPS) + TIE_EPS)
+    assert not (ref & ~got).any()
+    assert not (got & ~ref & ~near).any(), np.argwhere(got & ~ref & ~near)[:5].tolist()
 
 
 def test_a_box_is_sampled_at_its_faces(gl_context):

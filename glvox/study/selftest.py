@@ -20,7 +20,8 @@ download) on 16^3 to 32^3 grids, checked the way the test suite checks them:
 
 Beside them, :func:`tie_cases`: closed meshes with vertices and edges exactly on
 voxel center planes, where a column center lies on a projected edge or vertex
-and only the top-left and half-open rules decide.  On an NVIDIA H100 (driver
+and only the top-left and half-open rules decide, and a hull with a face along
+the render axis whose projection runs through column centers.  On an NVIDIA H100 (driver
 580) every generated case passed while these failed in the test suite and a
 diagnostic run: ss-solid set a voxel half a voxel outside a box,
 eisemann-solid one outside a tetrahedron.
@@ -90,6 +91,14 @@ SHARED_CASE = ("cad_fandisk.off", 24)
 #: of its faces share on its silhouette.
 TIE_TETRAHEDRON = (np.array([[0.5, 0, 0], [-1, 1, 0], [0, 0, 0], [0, 0, 1]]),
                    np.array([[3, 0, 1], [1, 0, 2], [2, 3, 1], [0, 3, 2]]))
+#: The hull of :func:`tie_cases` (found by the slow fuzz): its face [1, 3, 2] is parallel to z
+#: and its projection, a segment, runs through column centers at :data:`TIE_HULL_DIMS`,
+#: collinear with edges of three other faces.  The float32 upload turns that face into a
+#: sliver; edge functions in double put centers inside it and outside its neighbours, and
+#: its crossing in double was voxels off (eisemann-solid: 26 voxels far from the surface).
+TIE_HULL = (np.array([[1.0, 0, 0], [-0.5, 0, -0.75], [-1, 0.75, 0], [0, -0.75, 0], [0, 1, 1]]),
+            np.array([[4, 0, 2], [2, 3, 4], [4, 3, 0], [2, 0, 1], [1, 3, 2], [0, 3, 1]]))
+TIE_HULL_DIMS = (33, 59, 22)
 #: Boxes of :func:`tie_cases`: (x, y, z) breakpoints in world units and a grid (an int: the
 #: fitted cube of that many voxels).  Faces on voxel center planes put column centers on the
 #: boxes' edges and corners.  The first two are Hypothesis's finds on the H100 with the voxel
@@ -140,6 +149,8 @@ def tie_cases() -> list[tuple[str, object, GridSpec]]:
         mesh = load_mesh((v, f), name=name)
         spec = grid_for(mesh, grid) if isinstance(grid, int) else grid
         out.append((f"{name}@{'x'.join(map(str, spec.dims))}", mesh, spec))
+    hull = load_mesh(TIE_HULL, name="hull with a face along z")
+    out.append((f"{hull.name}@{'x'.join(map(str, TIE_HULL_DIMS))}", hull, grid_for(hull, dims=TIE_HULL_DIMS)))
     return out
 
 

@@ -1,10 +1,12 @@
 """The exact tie functions of ss-solid and eisemann-solid on the GPU against their float64 model.
 
 Where a column center lies exactly on a projected edge or vertex, the solid
-methods decide it by the top-left rule on edge functions computed in double
-(``shaders/ss/solid.glsl``, ``shaders/eisemann/column.glsl``).  The CPU
-references make the same decisions, so on any GL that computes those
-doubles as IEEE 754 does, every method agrees with them there.  An NVIDIA H100
+methods decide it by the top-left rule on edge functions: ss-solid computes
+them in double (``shaders/ss/solid.glsl``), eisemann-solid takes their exact
+signs from integer products on fixed-point coordinates
+(``shaders/eisemann/column.glsl``).  The CPU references make the same
+decisions, so on any GL that computes those doubles as IEEE 754 does, and
+integers as GLSL demands, every method agrees with them there.  An NVIDIA H100
 (driver 580) did not: ss-solid set a voxel half a voxel outside a box whose
 faces lie on voxel center planes, eisemann-solid one outside a tetrahedron
 (``glvox selftest``'s tie cases).
@@ -44,8 +46,8 @@ from ..gl.timing import StageTimer
 from ..gpu.buffers import buffer_pool, clear_buffer
 from ..gpu.transform import gpu_vertices_voxel
 from ..grid import unpack_bits
-from ..methods.eisemann.passes import (SLICES_PER_TARGET, SliceRender, last_pass_targets, mask_table,
-                                       render_slice_masks, tile_limit)
+from ..methods.eisemann.passes import (SLICES_PER_TARGET, SliceRender, fixed_bits, last_pass_targets,
+                                       mask_table, render_slice_masks, tile_limit)
 from ..methods.ss.solid import parity_on_gpu
 from ..methods.ss.solid_tuning import ORDER_MIN_BYTES
 from .harness import run_compute, run_fragment
@@ -115,31 +117,84 @@ def _model_ss(t: np.ndarray, c: np.ndarray) -> list[int]:
     return out + [w for f in fs for w in _bits(f)] + tls + [int(covered), first]
 
 
+def _exact(x) -> int:
+    """A double with a power-of-two denominator up to 2^64 (the fixed-point coordinates,
+    the column centers) as an integer in units of 2^-64, exactly."""
+    num, den = float(x).as_integer_ratio()
+    return num << (64 - (den.bit_length() - 1))
+
+
+def _eis_sign(x) -> int:
+    return (x > 0) - (x < 0)
+
+
+#: ``EIS_STEEP`` of ``eisemann/column.glsl``.
+_EIS_STEEP = 2.0 ** -20
+
+
+def _eis_section(t: np.ndarray, c: np.ndarray, r: float = 0.0) -> tuple[float, float]:
+    """``eis_section`` of ``eisemann/column.glsl``, operation by operation."""
+    d = t[1, :2] - t[0, :2]
+    for i in (1, 2):
+        e = t[(i + 1) % 3, :2] - t[i, :2]
+        if float(e @ e) > float(d @ d):
+            d = e
+    d = d / math.sqrt(float(d @ d))
+    lo, hi = 1.0e300, -1.0e300
+    for i in range(3):
+        a, b = t[i], t[(i + 1) % 3]
+        sa = d[0] * (a[0] - c[0]) + d[1] * (a[1] - c[1])
+        sb = d[0] * (b[0] - c[0]) + d[1] * (b[1] - c[1])
+        t0, t1 = 0.0, 1.0
+        if sa == sb:
+            if abs(sa) > r:
+                continue
+        else:
+            ta, tb = (-r - sa) / (sb - sa), (r - sa) / (sb - sa)
+            t0, t1 = max(t0, min(ta, tb)), min(t1, max(ta, tb))
+            if t0 > t1:
+                continue
+        z0, z1 = a[2] + t0 * (b[2] - a[2]), a[2] + t1 * (b[2] - a[2])
+        lo, hi = min(lo, z0, z1), max(hi, z0, z1)
+    if lo > hi:
+        lo, hi = float(t[:, 2].min()), float(t[:, 2].max())
+    return lo, hi
+
+
 def _model_eis(t: np.ndarray, c: np.ndarray) -> list[int]:
-    """``eisemann/column.glsl`` (render axis z) on double vertices ``t`` (3, 3), center ``c`` = (x, y)."""
+    """``eisemann/column.glsl`` (render axis z) on double vertices ``t`` (3, 3) whose (x, y)
+    are already its fixed-point values (:func:`triangles`), center ``c`` = (x, y).  The
+    signs of the orientation and of the edge functions are exact (rationals here, 64-bit
+    integer products there); the crossing is the shader's double formula."""
     p0, p1, p2 = t[0], t[1], t[2]
     e0, e1 = p1 - p0, p2 - p0
     n = np.array([e0[1] * e1[2] - e0[2] * e1[1], e0[2] * e1[0] - e0[0] * e1[2], e0[0] * e1[1] - e0[1] * e1[0]])
-    out = [int(n[2] != 0.0), *_bits(n[2])]
-    sgn = 1.0 if n[2] > 0.0 else -1.0
-    q = [p0[:2], p1[:2], p2[:2]]
+    f = [(_exact(v[0]), _exact(v[1])) for v in t]
+    cf = (_exact(c[0]), _exact(c[1]))
+    sgn = _eis_sign((f[1][0] - f[0][0]) * (f[2][1] - f[0][1]) - (f[1][1] - f[0][1]) * (f[2][0] - f[0][0]))
+    out = [int(sgn != 0), *_bits(n[2])]
+    s_or = sgn if sgn != 0 else 1
     fs, tls = [], []
     for i in range(3):
-        s, b = q[i], q[(i + 1) % 3]
-        e = b - s
-        swap = s[0] > b[0] or (s[0] == b[0] and s[1] > b[1])
-        lo, hi = (b, s) if swap else (s, b)
-        f = (hi[0] - lo[0]) * (c[1] - lo[1]) - (hi[1] - lo[1]) * (c[0] - lo[0])
-        fs.append((-f if swap else f) * sgn)
-        nu, nv = -e[1] * sgn, e[0] * sgn
-        tls.append(int(nu > 0.0 or (nu == 0.0 and nv < 0.0)))
-    covered = n[2] != 0.0 and all(f > 0.0 or (f == 0.0 and tl) for f, tl in zip(fs, tls))
+        a, b = f[i], f[(i + 1) % 3]
+        fs.append(float(_eis_sign((b[0] - a[0]) * (cf[1] - a[1]) - (b[1] - a[1]) * (cf[0] - a[0])) * s_or))
+        nu, nv = -_eis_sign(b[1] - a[1]) * s_or, _eis_sign(b[0] - a[0]) * s_or
+        tls.append(int(nu > 0 or (nu == 0 and nv < 0)))
+    covered = sgn != 0 and all(v > 0.0 or (v == 0.0 and tl) for v, tl in zip(fs, tls))
     first = 0
     if covered:
-        z = p0[2] + (n[0] * (p0[0] - c[0]) + n[1] * (p0[1] - c[1])) / n[2]
-        z = min(max(z, t[:, 2].min()), t[:, 2].max())
+        lo, hi = float(t[:, 2].min()), float(t[:, 2].max())
+        if abs(n[2]) <= _EIS_STEEP * (abs(n[0]) + abs(n[1])):
+            s_lo, s_hi = _eis_section(t, c)
+            lo = max(lo, s_lo)
+            hi = max(lo, min(hi, s_hi))
+        if n[2] == 0.0:
+            z = lo
+        else:
+            z = p0[2] + (n[0] * (p0[0] - c[0]) + n[1] * (p0[1] - c[1])) / n[2]
+            z = min(max(z, lo), hi)
         first = _first(z, -2.0, 1073741824.0)
-    return out + [w for f in fs for w in _bits(f)] + tls + [int(covered), first]
+    return out + [w for v in fs for w in _bits(v)] + tls + [int(covered), first]
 
 
 def model(family: str, tris: np.ndarray, centers: np.ndarray) -> np.ndarray:
@@ -151,21 +206,28 @@ def model(family: str, tris: np.ndarray, centers: np.ndarray) -> np.ndarray:
 def triangles(mesh, spec, family: str) -> tuple[np.ndarray, np.ndarray]:
     """The voxel-space triangles each family sees, and the column centers of the grid:
     ss-solid's float32 vertices with centers in (y, z); eisemann's double vertices
-    (render axis z) with centers in (x, y)."""
+    (render axis z) with (x, y) rounded to its fixed point (:func:`fixed_bits`, as
+    ``eisemann/column.glsl`` rounds them) and centers in (x, y)."""
     ny, nz = spec.dims[1], spec.dims[2]
     if family == "ss":
         tris = gpu_vertices_voxel(mesh, spec)[mesh.faces]
         grid = np.stack(np.meshgrid(np.arange(ny), np.arange(nz), indexing="ij"), -1).reshape(-1, 2)
     else:
         tris = gpu_vertices_voxel(mesh, spec, double=True)[mesh.faces]
+        bits = fixed_bits(mesh, spec, 2)
+        tris[..., :2] = np.ldexp(np.round(np.ldexp(tris[..., :2], bits)), -bits)
         grid = np.stack(np.meshgrid(np.arange(spec.dims[0]), np.arange(ny), indexing="ij"), -1).reshape(-1, 2)
     return tris, grid.astype(np.float32) + np.float32(0.5)
 
 
-def run_probe(ctx, family: str, stage: str, tris: np.ndarray, centers: np.ndarray) -> np.ndarray:
-    """(pairs, WORDS) uint32 written by ``testing/tie_probe`` on this GL."""
+def run_probe(ctx, family: str, stage: str, tris: np.ndarray, centers: np.ndarray,
+              fix_bits: int = 0) -> np.ndarray:
+    """(pairs, WORDS) uint32 written by ``testing/tie_probe`` on this GL; eisemann's with
+    its (x, y) in multiples of 2^-``fix_bits`` (the tris must be multiples already)."""
     pairs = len(tris) * len(centers)
     uniforms = {"u_pairs": pairs, "u_centers": len(centers)}
+    if family == "eis":
+        uniforms["u_eis_fix_bits"] = fix_bits
     cen = np.ascontiguousarray(centers, np.float32)
     out = (pairs * WORDS, np.uint32)
     if family == "ss":
@@ -190,7 +252,7 @@ def probe(ctx, mesh, spec, model_fn=model) -> tuple[int, list[Difference]]:
     total, diffs = 0, []
     for kind, family, stage in KINDS:
         tris, centers = triangles(mesh, spec, family)
-        got = run_probe(ctx, family, stage, tris, centers)
+        got = run_probe(ctx, family, stage, tris, centers, fixed_bits(mesh, spec, 2))
         want = model_fn(family, tris, centers)
         total += len(got)
         for p in np.flatnonzero((got != want).any(axis=1)):

@@ -48,7 +48,7 @@ void main() {
     if (t >= u_triangles) return;
     dvec3 p0, p1, p2;
     eis_triangle(t, p0, p1, p2);
-    double n_a = eis_normal(p0, p1, p2).z;
+    int orient = eis_orientation(p0, p1, p2);  // exact; 0: parallel to the axis
     ivec2 n_uv = ivec2(u_dims[EIS_U], u_dims[EIS_V]);
     dvec2 lo = min(min(p0.xy, p1.xy), p2.xy) - double(EIS_COVERAGE);
     dvec2 hi = max(max(p0.xy, p1.xy), p2.xy) + double(EIS_COVERAGE);
@@ -64,13 +64,13 @@ void main() {
     EisSetup s;
     s.slices = slices;
     s.box_lo = c_lo;
-    s.box_hi = n_a == 0.0 ? c_lo - 1 : c_hi;
+    s.box_hi = orient == 0 ? c_lo - 1 : c_hi;
     dvec2 p[3] = dvec2[3](p0.xy, p1.xy, p2.xy);
 #if EIS_COVERAGE == 0
-    bool miter = n_a != 0.0 && all(lessThan(abs(lo), dvec2(EIS_FLOAT_SAFE)))
+    bool miter = orient != 0 && all(lessThan(abs(lo), dvec2(EIS_FLOAT_SAFE)))
                  && all(lessThan(abs(hi), dvec2(EIS_FLOAT_SAFE)));
     // outward unit normals of the edges p[i] -> p[i+1]
-    double sgn = eis_orientation(n_a);
+    double sgn = double(orient);
     dvec2 nrm[3];
     for (int i = 0; i < 3; ++i) {
         dvec2 e = p[(i + 1) % 3] - p[i];
@@ -81,8 +81,11 @@ void main() {
     for (int i = 0; i < 3; ++i) {
         dvec2 a = nrm[(i + 2) % 3];  // the edge ending at p[i]
         dvec2 b = nrm[i];            // the edge starting at p[i]
-        double c = 1.0 + dot(a, b);  // the miter is EIS_GROW * |a + b| / c long
-        miter = miter && EIS_GROW * length(a + b) <= EIS_MITER_MAX * c;
+        // the miter is EIS_GROW * |a + b| / c = EIS_GROW * sqrt(2 / c) long (|a + b|^2 = 2c);
+        // tested on c alone: at a sliver's tip a + b rounds to 0 with c, and the
+        // quotient's test would pass a corner that is not pushed out at all
+        double c = 1.0 + dot(a, b);
+        miter = miter && c * (EIS_MITER_MAX * EIS_MITER_MAX) >= 2.0 * (EIS_GROW * EIS_GROW);
         s.corner[i] = vec2(p[i] + EIS_GROW * (a + b) / max(c, 1e-300));
     }
     if (!miter) {

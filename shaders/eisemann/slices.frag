@@ -40,7 +40,7 @@ void main() {
     ivec2 column = ivec2(gl_FragCoord.xy) + u_tile_lo;
     dvec2 c = dvec2(column) + 0.5;
 #if EIS_COVERAGE == 0
-    bool covered = eis_covers(p0, p1, p2, n.z, c);
+    bool covered = eis_covers(p0, p1, p2, c);
 #else
     bool covered = true;
 #endif

@@ -18,8 +18,10 @@
 // Every true vertex lies in the box of that half-side around its drawn one, so the true
 // triangle lies in the drawn one plus that box, and the true crossing of a ray the drawn
 // triangle covers lies within  m_a + m (|n_u| + |n_v|) / |n_a|  of the drawn crossing
-// (m_a = m in cells along the ray; n of the drawn triangle in this frame), and within the
-// drawn triangle's extent along the ray grown by m_a.  The samples are moved outwards by
+// (m_a = m in cells along the ray; n of the drawn triangle in this frame), within the
+// drawn triangle's extent along the ray grown by m_a, and within m_a of the extent of
+// the drawn triangle's points whose projection lies within m of the center (on a steep
+// triangle, where the first bound exceeds a cell: eis_section).  The samples are moved outwards by
 // that much (entering earlier, leaving later), so the LDI encloses the true mesh's
 // intervals on every ray whose coverage the motion cannot change (Leung & Wang's claim is
 // per ray), not only the snapped mesh's; on a steep triangle a snap of 2^-11 voxel across
@@ -44,7 +46,7 @@ void main() {
     dvec3 n = eis_normal(p0, p1, p2);
     ivec2 pix = ivec2(gl_FragCoord.xy) + u_tile_lo;
     dvec2 c = dvec2(pix) + 0.5;
-    if (!eis_covers(p0, p1, p2, n.z, c)) discard;
+    if (!eis_covers(p0, p1, p2, c)) discard;
     double qc = ldi_cell_depth(eis_crossing(p0, p1, p2, n, c));
     int z = ldi_cell(qc);
     uint col = ldi_column(pix);
@@ -66,6 +68,15 @@ void main() {
     double widen = ma + m * (abs(n.x) + abs(n.y)) / abs(n.z) + 1.0 / 1073741824.0;
     double zlo = ldi_cell_depth(min(p0.z, min(p1.z, p2.z))) - ma;
     double zhi = ldi_cell_depth(max(p0.z, max(p1.z, p2.z))) + ma;
+    if (widen > 1.0) {
+        // a steep triangle: the true crossing is also within m_a of the drawn triangle's
+        // points whose projection lies within m of the center, in the slab of half-width
+        // m sqrt(2) across its longest edge (the box's reach along any direction)
+        dvec3 p[3] = dvec3[3](p0, p1, p2);
+        dvec2 s = eis_section(p, c, m * 1.4142135623730951 + 1.0 / 1073741824.0);
+        zlo = max(zlo, ldi_cell_depth(s.x) - ma - 1.0 / 1073741824.0);
+        zhi = min(zhi, ldi_cell_depth(s.y) + ma + 1.0 / 1073741824.0);
+    }
     double d_near = clamp(max(qc - widen, zlo) / double(u_cells), 0.0, 1.0);
     double d_far = clamp(min(qc + widen, zhi) / double(u_cells), 0.0, 1.0);
     float near_key = ldi_round_up(1.0 - d_near);  // entering: the MAX of 1 - d is the nearest

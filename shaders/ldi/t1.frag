@@ -19,7 +19,7 @@ void main() {
     eis_triangle(v_tri, p0, p1, p2);
     dvec3 n = eis_normal(p0, p1, p2);
     dvec2 c = dvec2(ivec2(gl_FragCoord.xy) + u_tile_lo) + 0.5;
-    if (!eis_covers(p0, p1, p2, n.z, c)) discard;
+    if (!eis_covers(p0, p1, p2, c)) discard;
     int z = ldi_cell(ldi_cell_depth(eis_crossing(p0, p1, p2, n, c)));
     int first = z - u_slice_lo;
     if (first >= EIS_SLICES) discard;  // XOR with zeros

@@ -17,7 +17,7 @@ void main() {
     dvec3 n = eis_normal(p0, p1, p2);
     ivec2 pix = ivec2(gl_FragCoord.xy) + u_tile_lo;
     dvec2 c = dvec2(pix) + 0.5;
-    if (!eis_covers(p0, p1, p2, n.z, c)) discard;
+    if (!eis_covers(p0, p1, p2, c)) discard;
     int z = ldi_cell(ldi_cell_depth(eis_crossing(p0, p1, p2, n, c)));
     int s = z - u_slice_lo;
     if (s < 0 || s >= EIS_SLICES) discard;

@@ -1,11 +1,12 @@
 // The verdict of one (triangle, column center) pair by the exact tie functions of
 // ss/solid.glsl (PROBE_EIS 0: float32 voxel-space vertices, columns along x, centers
-// in (y, z)) or eisemann/column.glsl (PROBE_EIS 1: double vertices, EIS_AXIS 2:
+// in (y, z)) or eisemann/column.glsl (PROBE_EIS 1: double vertices in its fixed point, EIS_AXIS 2:
 // columns along z, centers in (x, y)), with every intermediate the verdict rests on,
 // PROBE_WORDS uint32 words per pair:
 //   0      1 where the triangle takes part (the normal component along the ray != 0)
 //   1-2    that normal component, double bits (low, high)
 //   3-8    the three edge functions at the center, oriented inside-positive, double bits
+//          (eisemann: their exact signs, -1.0, 0.0 or 1.0)
 //   9-11   the three top-left flags
 //   12     1 where the center is covered
 //   13     the first voxel the crossing flips (covered pairs only)
@@ -20,27 +21,30 @@ uniform uint u_centers;
 
 #if PROBE_EIS
 // eisemann/column.glsl (with EIS_AXIS) is included by the caller: vertices from EisVox
-// (binding 0), faces from EisFaces (binding 1)
+// (binding 0), faces from EisFaces (binding 1).  Its coverage is integer: word 0 is 1
+// where the exact orientation is not 0, words 1-2 the double normal component the
+// crossing divides by, words 3-8 the signs of the edge functions as doubles.
 void probe_pair(uint p) {
     uint t = p / u_centers;
     dvec2 c = dvec2(probe_centers[p % u_centers]);
     dvec3 p0, p1, p2;
     eis_triangle(t, p0, p1, p2);
     dvec3 n = eis_normal(p0, p1, p2);
+    ivec2 f[3] = ivec2[3](eis_fixed(p0.xy), eis_fixed(p1.xy), eis_fixed(p2.xy));
+    int sgn = eis_orientation(f);
     uint o = p * uint(PROBE_WORDS);
     uvec2 nb = unpackDouble2x32(n.z);
-    probe_out[o] = n.z != 0.0 ? 1u : 0u;
+    probe_out[o] = sgn != 0 ? 1u : 0u;
     probe_out[o + 1u] = nb.x;
     probe_out[o + 2u] = nb.y;
-    double sgn = eis_orientation(n.z);
-    dvec2 q[3] = dvec2[3](p0.xy, p1.xy, p2.xy);
+    ivec2 cf = eis_fixed(c);
     for (int i = 0; i < 3; ++i) {
-        uvec2 fb = unpackDouble2x32(eis_edge_at(q, i, sgn, c));
+        uvec2 fb = unpackDouble2x32(double(eis_edge_at(f, i, sgn == 0 ? 1 : sgn, cf)));
         probe_out[o + 3u + 2u * uint(i)] = fb.x;
         probe_out[o + 4u + 2u * uint(i)] = fb.y;
-        probe_out[o + 9u + uint(i)] = eis_top_left(q, i, sgn) ? 1u : 0u;
+        probe_out[o + 9u + uint(i)] = eis_top_left(f, i, sgn == 0 ? 1 : sgn) ? 1u : 0u;
     }
-    bool covered = n.z != 0.0 && eis_covers(p0, p1, p2, n.z, c);
+    bool covered = eis_covers(p0, p1, p2, c);
     probe_out[o + 12u] = covered ? 1u : 0u;
     probe_out[o + 13u] = covered ? uint(eis_first_flipped(eis_crossing(p0, p1, p2, n, c))) : 0u;
 }

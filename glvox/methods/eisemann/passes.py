@@ -13,13 +13,14 @@ layout and :func:`tile_limit`.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
 import moderngl
 import numpy as np
 
-from ...errors import CapabilityError, LimitError, MethodError
+from ...errors import CapabilityError, LimitError, MethodError, SuspiciousResultWarning
 from ...gl.shaders import compute_program, render_program
 from ...gpu.buffers import buffer_pool, object_cache, release_object_cache
 from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
@@ -43,6 +44,52 @@ MASKS = ("bits", "texture")
 DEFAULT_MASKS = "bits"
 COVERAGES = ("exact", "raster")
 OPS = {"xor": 0, "or": 1}
+
+#: The most magnitude bits a fixed-point (u, v) coordinate of ``eisemann/column.glsl`` may
+#: take: every coordinate and column center below 2^29 units, so their differences stay
+#: below 2^30 and imulExtended's products below 2^60.
+FIXED_RANGE_BITS = 29
+
+
+#: Below this F the fixed point's rounding (2^-(F+1) voxel) reaches a third of TIE_EPS:
+#: :func:`fixed_bits` warns.
+FIXED_BITS_WARN = 14
+
+
+def fixed_bits(mesh, spec, axis: int, warn: bool = True) -> int:
+    """F: ``eisemann/column.glsl`` decides coverage on (u, v) rounded to multiples of 2^-F
+    voxel, in integers.  The largest F that keeps every vertex and column center within
+    2^:data:`FIXED_RANGE_BITS` units: 18 for a mesh in a 1024-voxel grid (rounding by at
+    most 2^-19 voxel), 22 at 64.  The vertices' reach is taken from the mesh's bounds in
+    voxel space plus one voxel (the GPU's float32 rounding and the plane snap move them
+    far less).
+
+    Raises
+    ------
+    LimitError
+        The mesh reaches 2^28 voxels or more from the grid's origin across the rays.
+
+    Warns
+    -----
+    SuspiciousResultWarning
+        With ``warn``, where F < :data:`FIXED_BITS_WARN` (the mesh reaches past 2^15
+        voxels): voxels that close to the surface may differ from the reference's.
+    """
+    u, v = (axis + 1) % 3, (axis + 2) % 3
+    vox = (np.asarray(mesh.bounds, np.float64) - np.asarray(spec.origin)) / float(spec.voxel_size)
+    reach = max(float(np.abs(vox[:, [u, v]]).max()) if np.isfinite(vox).all() else np.inf,
+                spec.dims[u], spec.dims[v]) + 1.0
+    if not reach < 2.0 ** (FIXED_RANGE_BITS - 1):
+        raise LimitError(f"the mesh reaches {reach:.3g} voxels from the grid's origin across the rays; "
+                         f"the raster methods' exact coverage takes at most 2^{FIXED_RANGE_BITS - 1}: "
+                         f"use ss-solid or a grid nearer the mesh")
+    bits = FIXED_RANGE_BITS - int(np.ceil(np.log2(reach)))
+    if warn and bits < FIXED_BITS_WARN:
+        warnings.warn(f"the mesh reaches {reach:.3g} voxels from the grid's origin: the raster methods decide "
+                      f"coverage on vertices rounded to 2^-{bits} voxel, so voxels within {2.0 ** -(bits + 1):.2g} "
+                      f"voxel of the surface may differ from the references'", SuspiciousResultWarning, stacklevel=3)
+    return bits
+
 
 # the pack pass: a fixed 32-iteration load, 80 swap steps and 4 x 32 stores
 assert 32 + 80 + 4 * 32 < LOOP_BUDGET
@@ -287,10 +334,13 @@ class _OnGrid:
     setup: Any
     n_triangles: int
     anchor: Any     # (3,) float64, the uploaded vertices' origin
+    fix_bits: int   # F of :func:`fixed_bits`
 
     def bind(self, prog) -> None:
-        """Bind the mesh's buffers to ``prog``'s blocks ``EisVox``, ``EisFaces``, ``EisSetups``."""
+        """Bind the mesh's buffers to ``prog``'s blocks ``EisVox``, ``EisFaces``, ``EisSetups``,
+        and set its fixed-point scale."""
         bind(prog, EisVox=self.vox, EisFaces=self.faces, EisSetups=self.setup)
+        set_uniforms(prog, {"u_eis_fix_bits": self.fix_bits})
 
 
 @dataclass(eq=False)
@@ -309,7 +359,7 @@ class _PassPrograms:
         self.clear_vao.release()
 
 
-def _prepare(ctx, mesh, spec, render: SliceRender, pool, timer) -> _OnGrid:
+def _prepare(ctx, mesh, spec, render: SliceRender, pool, timer, fix_bits: int) -> _OnGrid:
     """Stages ``transform`` and ``setup``: vertices to voxel space (double), then per
     triangle the column box, the slices it can reach and the corners to draw."""
     bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool, double=True)
@@ -317,7 +367,7 @@ def _prepare(ctx, mesh, spec, render: SliceRender, pool, timer) -> _OnGrid:
     per_tri = pool.get("setup", n_tri * 48, what="per-triangle setup", clear=False)
     prog = compute_program(ctx, "eisemann/setup.comp", {"EIS_AXIS": render.axis, **render.kind_defines})
     set_uniforms(prog, {"u_triangles": n_tri, "u_dims": tuple(spec.dims)})
-    on_grid = _OnGrid(vox, bufs.faces, per_tri, n_tri, bufs.anchor)
+    on_grid = _OnGrid(vox, bufs.faces, per_tri, n_tri, bufs.anchor, fix_bits)
     with timer.stage("setup"):
         on_grid.bind(prog)
         dispatch_1d(ctx, prog, n_tri, _LOCAL)
@@ -411,11 +461,12 @@ def render_slice_masks(ctx, mesh, spec, render: SliceRender, *, timer, owner: st
     slices = SLICES_PER_TARGET * render.targets
     tiles_u, tiles_v = tile_spans(n_u, side), tile_spans(n_v, side)
     passes = -(-n_a // slices)
+    fix_bits = fixed_bits(mesh, spec, axis)
     pool = buffer_pool(ctx, owner)
     # the grid first: a grid over the SSBO limit is refused before any other work
     grid = pool.get("grid", spec.n_words * 4, what=f"the {spec.dims} bit grid")
     count = pool.get("count", 4)
-    on_grid = _prepare(ctx, mesh, spec, render, pool, timer)
+    on_grid = _prepare(ctx, mesh, spec, render, pool, timer, fix_bits)
     per_pass = render.targets_per_pass(n_a)
     tg = _targets(ctx, max(per_pass), (tiles_u[0][1], tiles_v[0][1]))
     programs = {used: _pass_programs(ctx, render, spec, on_grid.anchor, tg, used) for used in set(per_pass)}
@@ -437,6 +488,6 @@ def render_slice_masks(ctx, mesh, spec, render: SliceRender, *, timer, owner: st
     timer.stats.update({
         "axis": axis, "coverage": render.coverage, "masks": render.masks, "render_targets": max(per_pass),
         "slices_per_pass": slices, "passes": passes, "tiles": [len(tiles_u), len(tiles_v)],
-        "draws": passes * len(tiles_u) * len(tiles_v), "tile_limit": side,
+        "draws": passes * len(tiles_u) * len(tiles_v), "tile_limit": side, "fixed_bits": fix_bits,
     })
     return grid, count

@@ -77,6 +77,7 @@ from ...grid import GridSpec, fit_grid
 from ...results.ldi import LDI
 from ...gpu.transform import SHADERS as TRANSFORM_SHADERS
 from ..base import Method, MethodInfo, Option, Requirements, register
+from ..eisemann.passes import fixed_bits
 from ..envelope import run_in_envelope
 from .common import AXIS_OPTION, warn_open
 from .leung_wang_passes import (TARGETS, Frame, OnGrid, check_fragment_storage, count_samples, phase2, prepare,
@@ -190,6 +191,7 @@ def conservative_ldi(ctx, mesh, spec, *, timer, axis: int = 2, lod_c: int = DEFA
     LDI
     """
     frame = _frame(ctx, spec, axis, lod_c, targets, tile)
+    fixed_bits(mesh, spec, frame.axis, warn=False)  # a mesh out of the coverage test's range: refused before any work
     pool = buffer_pool(ctx, owner)
     m = _buffers(frame, pool, ("t1", "t2"))
     stats = _new_stats()
@@ -227,6 +229,8 @@ def intersecting_ldi(ctx, mesh_a, mesh_b, spec, *, timer, axis: int = 2, lod_c: 
         units cubed), an upper bound of the overlap sampled on the rays.
     """
     frame = _frame(ctx, spec, axis, lod_c, targets, tile)
+    for mesh in (mesh_a, mesh_b):  # a mesh out of the coverage test's range: refused before any work
+        fixed_bits(mesh, spec, frame.axis, warn=False)
     pool = buffer_pool(ctx, owner)
     m = _buffers(frame, pool, ("t1", "t2", "t1_a", "t2_a", "t1_b", "t2_b"))
     stats = _new_stats()

@@ -188,13 +188,16 @@ class OnGrid:
     bufs: Any
     vox: Any
     setup: Any
-    motion: float = 0.0  # voxels, per coordinate: :func:`mesh_motion`
+    fix_bits: int        # F of :func:`glvox.methods.eisemann.passes.fixed_bits`
+    motion: float = 0.0  # voxels, per coordinate: :func:`mesh_motion` and the fixed-point rounding
     snap_motion: Any = None  # float32 per vertex: the snap's move (common/transform.comp)
 
     def bind(self, prog, motion: bool = False) -> None:
-        """Bind the mesh's buffers to ``prog``'s blocks ``EisVox``, ``EisFaces``, ``EisSetups``;
-        ``motion``: the snap's per-vertex motion to ``Motion`` too (Phase 2's depths widen by it)."""
+        """Bind the mesh's buffers to ``prog``'s blocks ``EisVox``, ``EisFaces``, ``EisSetups``
+        and set its fixed-point scale; ``motion``: the snap's per-vertex motion to ``Motion``
+        too (Phase 2's depths widen by it)."""
         bind(prog, EisVox=self.vox, EisFaces=self.bufs.faces, EisSetups=self.setup)
+        set_uniforms(prog, {"u_eis_fix_bits": self.fix_bits})
         if motion and self.snap_motion is not None:
             bind(prog, Motion=self.snap_motion)
 
@@ -232,11 +235,14 @@ def prepare(ctx, mesh, frame: Frame, pool, tag: str, timer, suffix: str = "") ->
     dims = list(spec.dims)
     dims[a] = frame.cells
     set_uniforms(prog, {"u_triangles": bufs.n_triangles, "u_dims": tuple(dims)})
+    # the fixed-point (u, v) of the coverage test move vertices by up to half a unit more
+    fix_bits = eisemann_passes.fixed_bits(mesh, spec, a)
+    on_grid = OnGrid(bufs, vox, setup, fix_bits, mesh_motion(mesh, spec) + 2.0 ** -(fix_bits + 1), snap_motion)
     with timer.stage(f"setup{suffix}"):
-        bind(prog, EisVox=vox, EisFaces=bufs.faces, EisSetups=setup)
+        on_grid.bind(prog)
         dispatch_1d(ctx, prog, bufs.n_triangles, _LOCAL)
         barrier(ctx)
-    return OnGrid(bufs, vox, setup, mesh_motion(mesh, spec), snap_motion)
+    return on_grid
 
 
 def _draw_defines(frame: Frame, n_targets: int, **extra) -> dict[str, Any]:
