@@ -136,9 +136,26 @@ MUTANTS: list[Mutant] = [
            (EXACT, "-k", "solid_methods and ss-solid")),
     Mutant("eisemann-top-left-non-strict", "eisemann column test: centers on every projected edge covered "
            "(the top-left rule's strict comparison made non-strict)", "shaders/eisemann/column.glsl",
-           (("        if (!(f > 0.0 || (f == 0.0 && eis_top_left(p, i, sgn)))) return false;",
-             "        if (!(f >= 0.0 || (f == 0.0 && eis_top_left(p, i, sgn)))) return false;"),),
+           (("        if (!(s > 0 || (s == 0 && eis_top_left(f, i, sgn)))) return false;",
+             "        if (!(s >= 0 || (s == 0 && eis_top_left(f, i, sgn)))) return false;"),),
            (EXACT, "-k", "solid_methods and eisemann-solid")),
+    Mutant("eisemann-det-low-words-signed", "eisemann column test: the low words of the 64-bit products "
+           "compared as signed integers", "shaders/eisemann/column.glsl",
+           (("    uint l = uint(ab_lo), r = uint(cd_lo);", "    int l = ab_lo, r = cd_lo;"),),
+           ("tests/test_eisemann.py", "-k", "determinant")),
+    Mutant("eisemann-crossing-unclamped", "eisemann: the crossing of a steep triangle not clamped to its "
+           "section through the column", "shaders/eisemann/column.glsl",
+           (("    if (abs(n.z) <= EIS_STEEP * (abs(n.x) + abs(n.y))) {", "    if (false) {"),),
+           ("tests/test_eisemann.py", "-k", "sliver_stays")),
+    Mutant("eisemann-miter-quotient", "eisemann setup: the miter's length tested as |a + b| against 1 + a.b, "
+           "which passes a sliver's tip where both round to zero", "shaders/eisemann/setup.comp",
+           (("        miter = miter && c * (EIS_MITER_MAX * EIS_MITER_MAX) >= 2.0 * (EIS_GROW * EIS_GROW);",
+             "        miter = miter && EIS_GROW * length(a + b) <= EIS_MITER_MAX * c;"),),
+           ("tests/test_eisemann.py", "-k", "proxy_of_a_sliver")),
+    Mutant("ldi-widen-without-section", "leung-wang-ldi: a steep triangle's samples widened over its whole "
+           "extent, not bounded by its points near the ray", "shaders/ldi/depths.frag",
+           (("    if (widen > 1.0) {", "    if (false) {"),),
+           ("tests/test_ldi.py", "-k", "face_along_the_rays")),
     Mutant("depth-top-left-swapped", "depth layers' rasterization: the top-left rule's tie break inverted "
            "(n_v > 0 owns horizontal edges)", "shaders/depth/raster.frag",
            (("    bool top_left = neu > 0.0 || (neu == 0.0 && nev < 0.0);",
