@@ -136,16 +136,19 @@ MUTANTS: list[Mutant] = [
            (EXACT, "-k", "solid_methods and ss-solid")),
     Mutant("eisemann-top-left-non-strict", "eisemann column test: centers on every projected edge covered "
            "(the top-left rule's strict comparison made non-strict)", "shaders/eisemann/column.glsl",
-           (("        if (!(s > 0 || (s == 0 && eis_top_left(f, i, sgn)))) return false;",
-             "        if (!(s >= 0 || (s == 0 && eis_top_left(f, i, sgn)))) return false;"),),
+           (("        if (!(s[i] > 0 || (s[i] == 0 && eis_top_left(f, i, sgn)))) return false;",
+             "        if (!(s[i] >= 0 || (s[i] == 0 && eis_top_left(f, i, sgn)))) return false;"),),
            (EXACT, "-k", "solid_methods and eisemann-solid")),
-    Mutant("eisemann-det-low-words-signed", "eisemann column test: the low words of the 64-bit products "
-           "compared as signed integers", "shaders/eisemann/column.glsl",
-           (("    uint l = uint(ab_lo), r = uint(cd_lo);", "    int l = ab_lo, r = cd_lo;"),),
+    Mutant("eisemann-det-borrow-lost", "eisemann column test: the 64-bit difference of the products "
+           "without the low words' borrow", "shaders/eisemann/column.glsl",
+           (("    int hi = ab_hi - cd_hi - int(borrow);", "    int hi = ab_hi - cd_hi;"),),
            ("tests/test_eisemann.py", "-k", "determinant")),
-    Mutant("eisemann-crossing-unclamped", "eisemann: the crossing of a steep triangle not clamped to its "
-           "section through the column", "shaders/eisemann/column.glsl",
-           (("    if (abs(n.z) <= EIS_STEEP * (abs(n.x) + abs(n.y))) {", "    if (false) {"),),
+    Mutant("eisemann-crossing-normal-denominator", "eisemann: the crossing divided by the double normal's "
+           "a component instead of the exact weights' sum (the same number but for rounding)",
+           "shaders/eisemann/column.glsl",
+           (("(w.x * (p2.z - p0.z) + w.z * (p1.z - p0.z)) / (w.x + w.y + w.z);",
+             "(w.x * (p2.z - p0.z) + w.z * (p1.z - p0.z)) / (eis_normal(p0, p1, p2).z "
+             "* double(1 << u_eis_fix_bits) * double(1 << u_eis_fix_bits));"),),
            ("tests/test_eisemann.py", "-k", "sliver_stays")),
     Mutant("eisemann-miter-quotient", "eisemann setup: the miter's length tested as |a + b| against 1 + a.b, "
            "which passes a sliver's tip where both round to zero", "shaders/eisemann/setup.comp",

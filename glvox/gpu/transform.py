@@ -31,7 +31,7 @@ SHADERS = (("common/transform.comp", {"VOX_DOUBLE": 0, **SNAP_DEFINES}),)
 
 def transform_vertices(ctx, mesh, spec, timer, pool, *, double: bool = False, stretch=(1.0, 1.0, 1.0),
                        shift=(0.0, 0.0, 0.0), name: str | None = None, stage: str = "transform", axes=(0, 1, 2),
-                       motion=None):
+                       motion=None, fixed: tuple[int, int] | None = None):
     """Stage ``transform`` (S&S Sec. 6): the mesh's vertices in voxel space,
     ``snap((v - origin) / h) * stretch - shift`` computed in double
     (``common/transform.comp``; ``snap`` is :func:`glvox.grid.snap_to_planes`).
@@ -43,7 +43,10 @@ def transform_vertices(ctx, mesh, spec, timer, pool, *, double: bool = False, st
     grid's y (``spec`` stays the unpermuted grid; snap, stretch and shift
     apply before the permutation).  ``motion``: a buffer of one float32 per
     vertex that receives how far the plane snap moved it (its largest
-    coordinate move, voxels, rounded up), or None.  Returns ``(bufs, vox)``: the mesh's
+    coordinate move, voxels, rounded up), or None.  ``fixed``: ``(axis, bits)``, with
+    ``double``: the output coordinates other than ``axis`` rounded to multiples of
+    ``2^-bits`` voxel (ties to even), the fixed point of ``eisemann/column.glsl``.
+    Returns ``(bufs, vox)``: the mesh's
     :class:`MeshBuffers` and a pooled buffer (``name``) of x, y, z per
     vertex, ready for the next stage.
     """
@@ -51,8 +54,13 @@ def transform_vertices(ctx, mesh, spec, timer, pool, *, double: bool = False, st
     size = 8 if double else 4
     vox = pool.get(name or ("vox_vertices_d" if double else "vox_vertices"), bufs.n_vertices * 3 * size,
                    what="voxel-space vertices" + (" (double)" if double else ""), clear=False)
+    if fixed is not None and not double:
+        raise ValueError("the fixed point rounds double coordinates: pass double=True")
     prog = compute_program(ctx, "common/transform.comp",
-                           {"VOX_DOUBLE": int(double), "VOX_MOTION": int(motion is not None), **SNAP_DEFINES})
+                           {"VOX_DOUBLE": int(double), "VOX_MOTION": int(motion is not None),
+                            "VOX_FIX_AXIS": -1 if fixed is None else int(fixed[0]), **SNAP_DEFINES})
+    if fixed is not None:
+        set_uniforms(prog, {"u_fix_bits": int(fixed[1])})
     set_uniforms(prog, {"u_origin_d": tuple(float(x) for x in spec.origin - bufs.anchor),
                         "u_inv_h_d": 1.0 / spec.voxel_size,
                         "u_stretch_d": tuple(float(x) for x in stretch), "u_shift_d": tuple(float(x) for x in shift),

@@ -128,73 +128,35 @@ def _eis_sign(x) -> int:
     return (x > 0) - (x < 0)
 
 
-#: ``EIS_STEEP`` of ``eisemann/column.glsl``.
-_EIS_STEEP = 2.0 ** -20
-
-
-def _eis_section(t: np.ndarray, c: np.ndarray, r: float = 0.0) -> tuple[float, float]:
-    """``eis_section`` of ``eisemann/column.glsl``, operation by operation."""
-    d = t[1, :2] - t[0, :2]
-    for i in (1, 2):
-        e = t[(i + 1) % 3, :2] - t[i, :2]
-        if float(e @ e) > float(d @ d):
-            d = e
-    d = d / math.sqrt(float(d @ d))
-    lo, hi = 1.0e300, -1.0e300
-    for i in range(3):
-        a, b = t[i], t[(i + 1) % 3]
-        sa = d[0] * (a[0] - c[0]) + d[1] * (a[1] - c[1])
-        sb = d[0] * (b[0] - c[0]) + d[1] * (b[1] - c[1])
-        t0, t1 = 0.0, 1.0
-        if sa == sb:
-            if abs(sa) > r:
-                continue
-        else:
-            ta, tb = (-r - sa) / (sb - sa), (r - sa) / (sb - sa)
-            t0, t1 = max(t0, min(ta, tb)), min(t1, max(ta, tb))
-            if t0 > t1:
-                continue
-        z0, z1 = a[2] + t0 * (b[2] - a[2]), a[2] + t1 * (b[2] - a[2])
-        lo, hi = min(lo, z0, z1), max(hi, z0, z1)
-    if lo > hi:
-        lo, hi = float(t[:, 2].min()), float(t[:, 2].max())
-    return lo, hi
-
-
 def _model_eis(t: np.ndarray, c: np.ndarray) -> list[int]:
     """``eisemann/column.glsl`` (render axis z) on double vertices ``t`` (3, 3) whose (x, y)
     are already its fixed-point values (:func:`triangles`), center ``c`` = (x, y).  The
-    signs of the orientation and of the edge functions are exact (rationals here, 64-bit
-    integer products there); the crossing is the shader's double formula."""
+    orientation and the edge functions are exact integers (here in units of 2^-64 voxel,
+    there of 2^-F: a power of two apart, so their roundings to double and the crossing
+    from them agree bit for bit), the crossing the shader's barycentric formula."""
     p0, p1, p2 = t[0], t[1], t[2]
     e0, e1 = p1 - p0, p2 - p0
-    n = np.array([e0[1] * e1[2] - e0[2] * e1[1], e0[2] * e1[0] - e0[0] * e1[2], e0[0] * e1[1] - e0[1] * e1[0]])
+    n2 = e0[0] * e1[1] - e0[1] * e1[0]
     f = [(_exact(v[0]), _exact(v[1])) for v in t]
     cf = (_exact(c[0]), _exact(c[1]))
     sgn = _eis_sign((f[1][0] - f[0][0]) * (f[2][1] - f[0][1]) - (f[1][1] - f[0][1]) * (f[2][0] - f[0][0]))
-    out = [int(sgn != 0), *_bits(n[2])]
+    out = [int(sgn != 0), *_bits(n2)]
     s_or = sgn if sgn != 0 else 1
-    fs, tls = [], []
+    exact, ws, tls = [], [], []
     for i in range(3):
         a, b = f[i], f[(i + 1) % 3]
-        fs.append(float(_eis_sign((b[0] - a[0]) * (cf[1] - a[1]) - (b[1] - a[1]) * (cf[0] - a[0])) * s_or))
+        d = (b[0] - a[0]) * (cf[1] - a[1]) - (b[1] - a[1]) * (cf[0] - a[0])
+        exact.append(d * s_or)
+        ws.append(float(d) * float(s_or))  # as the shader: a zero turned by -1 is -0.0
         nu, nv = -_eis_sign(b[1] - a[1]) * s_or, _eis_sign(b[0] - a[0]) * s_or
         tls.append(int(nu > 0 or (nu == 0 and nv < 0)))
-    covered = sgn != 0 and all(v > 0.0 or (v == 0.0 and tl) for v, tl in zip(fs, tls))
+    covered = sgn != 0 and all(d > 0 or (d == 0 and tl) for d, tl in zip(exact, tls))
     first = 0
     if covered:
-        lo, hi = float(t[:, 2].min()), float(t[:, 2].max())
-        if abs(n[2]) <= _EIS_STEEP * (abs(n[0]) + abs(n[1])):
-            s_lo, s_hi = _eis_section(t, c)
-            lo = max(lo, s_lo)
-            hi = max(lo, min(hi, s_hi))
-        if n[2] == 0.0:
-            z = lo
-        else:
-            z = p0[2] + (n[0] * (p0[0] - c[0]) + n[1] * (p0[1] - c[1])) / n[2]
-            z = min(max(z, lo), hi)
+        z = p0[2] + (ws[0] * (p2[2] - p0[2]) + ws[2] * (p1[2] - p0[2])) / (ws[0] + ws[1] + ws[2])
+        z = min(max(z, float(t[:, 2].min())), float(t[:, 2].max()))
         first = _first(z, -2.0, 1073741824.0)
-    return out + [w for v in fs for w in _bits(v)] + tls + [int(covered), first]
+    return out + [w for v in ws for w in _bits(math.ldexp(v, -128))] + tls + [int(covered), first]
 
 
 def model(family: str, tris: np.ndarray, centers: np.ndarray) -> np.ndarray:

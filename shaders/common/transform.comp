@@ -37,6 +37,15 @@ layout(std430, binding = 1) writeonly buffer VoxVerts { VOX_T vox[]; };
 // up to float32): the LDI widens its samples by what that can do (ldi/depths.frag)
 layout(std430, binding = 2) writeonly buffer Motion { float motion[]; };
 #endif
+#ifndef VOX_FIX_AXIS
+#define VOX_FIX_AXIS -1
+#endif
+#if VOX_FIX_AXIS >= 0
+// VOX_FIX_AXIS a (with VOX_DOUBLE): the output coordinates other than a rounded to
+// multiples of 2^-u_fix_bits voxel, the fixed point eisemann/column.glsl decides
+// coverage in (products with powers of two, exact; ties to even)
+uniform int u_fix_bits;
+#endif
 uniform uint u_vertices;
 // exact: bit for bit glvox.gpu.transform (p * stretch - shift must not fuse)
 void main() {
@@ -44,9 +53,18 @@ void main() {
     if (i >= u_vertices) return;
     vec3 w = vec3(verts[3u * i], verts[3u * i + 1u], verts[3u * i + 2u]);
     precise dvec3 p = vertex_to_voxel(w, u_origin_d, u_inv_h_d) * u_stretch_d - u_shift_d;
-    vox[3u * i] = VOX_T(p[u_axes.x]);
-    vox[3u * i + 1u] = VOX_T(p[u_axes.y]);
-    vox[3u * i + 2u] = VOX_T(p[u_axes.z]);
+    precise dvec3 o = dvec3(p[u_axes.x], p[u_axes.y], p[u_axes.z]);
+#if VOX_FIX_AXIS >= 0
+    for (int c = 0; c < 3; ++c) {
+        if (c == VOX_FIX_AXIS) continue;
+        precise double units = o[c] * double(1 << u_fix_bits);
+        precise double rounded = roundEven(units) * (1.0lf / double(1 << u_fix_bits));
+        o[c] = rounded;
+    }
+#endif
+    vox[3u * i] = VOX_T(o.x);
+    vox[3u * i + 1u] = VOX_T(o.y);
+    vox[3u * i + 2u] = VOX_T(o.z);
 #if VOX_MOTION
     precise dvec3 raw = (dvec3(w) - u_origin_d) * u_inv_h_d;  // vertex_to_voxel before the snap
     precise dvec3 moved = abs(vertex_to_voxel(w, u_origin_d, u_inv_h_d) - raw);

@@ -28,11 +28,12 @@
 // inside all three edges of a sliver and outside its neighbours, flipping whole
 // columns (tests/test_eisemann.py, the edge-on hull).
 //
-// The crossing is computed in double from the rounded vertices (the reference's
-// formula).  On a triangle nearly parallel to the axis it is ill-conditioned: its
-// rounding can move it by voxels.  There it is clamped to the triangle's section
-// through the column (eis_section), every point of which lies within the
-// section's width, far below TIE_EPS on such a triangle, of the column.
+// The crossing is the barycentric combination of the vertices' a with the edge
+// functions as weights (eis_crossing), each rounded once from its exact value, not the
+// plane's formula of the reference: on a triangle nearly parallel to the axis that
+// divides by almost nothing and landed voxels away (tests/test_eisemann.py, the
+// Fibonacci sliver), where the weights still give the exact crossing to double
+// precision.
 
 layout(std430, binding = 0) readonly buffer EisVox { double eis_vox[]; };  // voxel space, xyz per vertex
 layout(std430, binding = 1) readonly buffer EisFaces { uint eis_faces[]; };
@@ -42,8 +43,8 @@ const int EIS_V = (EIS_AXIS + 2) % 3;
 
 uniform int u_eis_fix_bits;  // F: (u, v) in multiples of 2^-F voxel (see above)
 
-// A (u, v) point (a vertex or a column center) in units of 2^-F voxel, rounded to
-// the nearest (ties to even): exact for a point that is already a multiple.
+// A (u, v) point (a vertex or a column center, multiples of 2^-F voxel) in units of
+// 2^-F voxel, exactly (rounded to the nearest, ties to even, were it not a multiple).
 // (Scaled by products with exact powers of two: llvmpipe's ldexp on doubles loses bits.)
 // exact: a product by a power of two, then one rounding
 ivec2 eis_fixed(dvec2 p) {
@@ -51,12 +52,11 @@ ivec2 eis_fixed(dvec2 p) {
     return ivec2(roundEven(x));
 }
 
-// Vertex vi as (u, v, a), (u, v) rounded to multiples of 2^-F voxel.
+// Vertex vi as (u, v, a), (u, v) already multiples of 2^-F voxel (common/transform.comp
+// with VOX_FIX_AXIS rounds them once per run).
 dvec3 eis_vertex(uint vi) {
     uint b = 3u * vi;
-    dvec2 uv = dvec2(eis_vox[b + uint(EIS_U)], eis_vox[b + uint(EIS_V)]);
-    precise dvec2 snapped = dvec2(eis_fixed(uv)) * (1.0lf / double(1 << u_eis_fix_bits));
-    return dvec3(snapped, eis_vox[b + uint(EIS_AXIS)]);
+    return dvec3(eis_vox[b + uint(EIS_U)], eis_vox[b + uint(EIS_V)], eis_vox[b + uint(EIS_AXIS)]);
 }
 
 void eis_triangle(uint t, out dvec3 p0, out dvec3 p1, out dvec3 p2) {
@@ -65,24 +65,36 @@ void eis_triangle(uint t, out dvec3 p0, out dvec3 p1, out dvec3 p2) {
     p2 = eis_vertex(eis_faces[3u * t + 2u]);
 }
 
-// The sign of a * b - c * d, exactly: the 64-bit products of imulExtended compared as
-// signed 64-bit integers (high words signed, then low words unsigned).
-// exact: integer arithmetic
-int eis_det_sign(int a, int b, int c, int d) {
+// a * b - c * d: its exact sign, and its value rounded once to a double, from the
+// 64-bit products of imulExtended (|a|..|d| < 2^30: the difference is below 2^61).
+// exact: integer arithmetic, then one rounding
+double eis_det(int a, int b, int c, int d, out int sgn) {
     int ab_hi, ab_lo, cd_hi, cd_lo;
     imulExtended(a, b, ab_hi, ab_lo);
     imulExtended(c, d, cd_hi, cd_lo);
-    if (ab_hi != cd_hi) return ab_hi > cd_hi ? 1 : -1;
-    uint l = uint(ab_lo), r = uint(cd_lo);
-    return l == r ? 0 : (l > r ? 1 : -1);
+    uint borrow;
+    uint lo = usubBorrow(uint(ab_lo), uint(cd_lo), borrow);
+    int hi = ab_hi - cd_hi - int(borrow);
+    sgn = hi < 0 ? -1 : (hi > 0 || lo != 0u ? 1 : 0);
+    precise double v = double(hi) * 4294967296.0lf + double(lo);
+    return v;
 }
 
-// The sign of the edge function of p -> q at c, (q - p) x (c - p), in units of 2^-F.
+// The sign of a * b - c * d, exactly.
+// exact: integer arithmetic
+int eis_det_sign(int a, int b, int c, int d) {
+    int sgn;
+    eis_det(a, b, c, d, sgn);
+    return sgn;
+}
+
+// The edge function of p -> q at c, (q - p) x (c - p), in units of 2^-2F voxel^2: its
+// exact sign, and its value rounded once.
 // exact: integer arithmetic; opposite for the two triangles of an edge
-int eis_edge_sign(ivec2 p, ivec2 q, ivec2 c) {
+double eis_edge(ivec2 p, ivec2 q, ivec2 c, out int sgn) {
     ivec2 e = q - p;
     ivec2 r = c - p;
-    return eis_det_sign(e.x, r.y, e.y, r.x);
+    return eis_det(e.x, r.y, e.y, r.x, sgn);
 }
 
 // The projected triangle's orientation: +1 counter-clockwise (the normal's a
@@ -106,13 +118,6 @@ dvec3 eis_normal(dvec3 p0, dvec3 p1, dvec3 p2) {
     return n;
 }
 
-// Edge i (f[i] -> f[i + 1]) of the projected triangle f at c, oriented by sgn so that
-// the inside is positive: -1, 0 or +1.
-// exact: eis_edge_sign times +-1
-int eis_edge_at(ivec2 f[3], int i, int sgn, ivec2 c) {
-    return eis_edge_sign(f[i], f[(i + 1) % 3], c) * sgn;
-}
-
 // Does edge i own the centers exactly on it?  Only a left edge (inward normal
 // n_u > 0) or a top edge (n_u == 0, n_v < 0) does.
 // exact: integer differences and signs
@@ -123,20 +128,61 @@ bool eis_top_left(ivec2 f[3], int i, int sgn) {
     return nu > 0 || (nu == 0 && nv < 0);
 }
 
-// Is the column center c inside the projected triangle?  A center on an edge
-// counts only for a top-left edge: each center on a shared edge counts exactly
-// once.  (testing/tie_probe.glsl reads the same edge signs and flags.)
-// exact: the reference's coverage test, in integers
-bool eis_covers(dvec3 p0, dvec3 p1, dvec3 p2, dvec2 c) {
+// The edge functions at the column center c, oriented so that the inside is positive
+// (edge i runs from vertex i to i + 1: its value weighs vertex i + 2), rounded once
+// from their exact values, with their exact signs s; sgn: the orientation (0: parallel
+// to the axis, and w and s are 0).
+// exact: integer edge functions, each rounded once
+void eis_weights(dvec3 p0, dvec3 p1, dvec3 p2, dvec2 c, out dvec3 w, out ivec3 s, out int sgn) {
     ivec2 f[3] = ivec2[3](eis_fixed(p0.xy), eis_fixed(p1.xy), eis_fixed(p2.xy));
-    int sgn = eis_orientation(f);
-    if (sgn == 0) return false;
+    sgn = eis_orientation(f);
+    w = dvec3(0.0);
+    s = ivec3(0);
+    if (sgn == 0) return;
     ivec2 cf = eis_fixed(c);
     for (int i = 0; i < 3; ++i) {
-        int s = eis_edge_at(f, i, sgn, cf);
-        if (!(s > 0 || (s == 0 && eis_top_left(f, i, sgn)))) return false;
+        int si;
+        w[i] = eis_edge(f[i], f[(i + 1) % 3], cf, si) * double(sgn);
+        s[i] = si * sgn;
+    }
+}
+
+// Is the column center c inside the projected triangle?  A center on an edge
+// counts only for a top-left edge: each center on a shared edge counts exactly
+// once.  w: eis_weights' edge functions, for eis_crossing.  (testing/tie_probe.glsl
+// reads the same values and flags.)
+// exact: the reference's coverage test, in integers
+bool eis_covers_at(dvec3 p0, dvec3 p1, dvec3 p2, dvec2 c, out dvec3 w) {
+    ivec3 s;
+    int sgn;
+    eis_weights(p0, p1, p2, c, w, s, sgn);
+    if (sgn == 0) return false;
+    ivec2 f[3] = ivec2[3](eis_fixed(p0.xy), eis_fixed(p1.xy), eis_fixed(p2.xy));
+    for (int i = 0; i < 3; ++i) {
+        if (!(s[i] > 0 || (s[i] == 0 && eis_top_left(f, i, sgn)))) return false;
     }
     return true;
+}
+
+bool eis_covers(dvec3 p0, dvec3 p1, dvec3 p2, dvec2 c) {
+    dvec3 w;
+    return eis_covers_at(p0, p1, p2, c, w);
+}
+
+// eis_section's step: widens range by the extent along a of the part of the edge a -> b
+// in the slab (sa, sb: the ends' positions across it, relative to c).
+void eis_section_edge(dvec3 a, dvec3 b, double sa, double sb, double r, inout dvec2 range) {
+    double t0 = 0.0, t1 = 1.0;
+    if (sa == sb) {
+        if (abs(sa) > r) return;
+    } else {
+        double ta = (-r - sa) / (sb - sa), tb = (r - sa) / (sb - sa);
+        t0 = max(t0, min(ta, tb));
+        t1 = min(t1, max(ta, tb));
+        if (t0 > t1) return;
+    }
+    double z0 = a.z + t0 * (b.z - a.z), z1 = a.z + t1 * (b.z - a.z);
+    range = dvec2(min(range.x, min(z0, z1)), max(range.y, max(z0, z1)));
 }
 
 // The extent along a of the triangle's points whose projection lies in the slab
@@ -145,68 +191,36 @@ bool eis_covers(dvec3 p0, dvec3 p1, dvec3 p2, dvec2 c) {
 // reach the line through c across d.  The crossing of c lies in that section, and on
 // a triangle nearly parallel to the axis (a sliver in projection) every point of it
 // lies within the sliver's width of the column.  Without an edge in the slab (rounding,
-// for a center on the triangle's outline), the whole extent.
-dvec2 eis_section(dvec3 p[3], dvec2 c, double r) {
-    dvec2 d = p[1].xy - p[0].xy;
-    for (int i = 1; i < 3; ++i) {
-        dvec2 e = p[(i + 1) % 3].xy - p[i].xy;
-        if (dot(e, e) > dot(d, d)) d = e;
-    }
+// for a center on the triangle's outline), the whole extent.  (ldi/depths.frag bounds
+// its widened samples with it.)
+dvec2 eis_section(dvec3 p0, dvec3 p1, dvec3 p2, dvec2 c, double r) {
+    dvec2 d0 = p1.xy - p0.xy, d1 = p2.xy - p1.xy, d2 = p0.xy - p2.xy;
+    double l0 = dot(d0, d0), l1 = dot(d1, d1), l2 = dot(d2, d2);
+    dvec2 d = l0 >= l1 && l0 >= l2 ? d0 : (l1 >= l2 ? d1 : d2);
     d = d / length(d);
-    double lo = 1.0e300, hi = -1.0e300;
-    for (int i = 0; i < 3; ++i) {
-        dvec3 a = p[i], b = p[(i + 1) % 3];
-        double sa = dot(d, a.xy - c), sb = dot(d, b.xy - c);
-        double t0 = 0.0, t1 = 1.0;  // the part of the edge in the slab
-        if (sa == sb) {
-            if (abs(sa) > r) continue;
-        } else {
-            double ta = (-r - sa) / (sb - sa), tb = (r - sa) / (sb - sa);
-            t0 = max(t0, min(ta, tb));
-            t1 = min(t1, max(ta, tb));
-            if (t0 > t1) continue;
-        }
-        double z0 = a.z + t0 * (b.z - a.z), z1 = a.z + t1 * (b.z - a.z);
-        lo = min(lo, min(z0, z1));
-        hi = max(hi, max(z0, z1));
+    double s0 = dot(d, p0.xy - c), s1 = dot(d, p1.xy - c), s2 = dot(d, p2.xy - c);
+    dvec2 range = dvec2(1.0e300, -1.0e300);
+    eis_section_edge(p0, p1, s0, s1, r, range);
+    eis_section_edge(p1, p2, s1, s2, r, range);
+    eis_section_edge(p2, p0, s2, s0, r, range);
+    if (range.x > range.y) {
+        range = dvec2(min(min(p0.z, p1.z), p2.z), max(max(p0.z, p1.z), p2.z));
     }
-    if (lo > hi) {
-        lo = min(min(p[0].z, p[1].z), p[2].z);
-        hi = max(max(p[0].z, p[1].z), p[2].z);
-    }
-    return dvec2(lo, hi);
+    return range;
 }
 
-//: A triangle is steep when its normal's a component is below 2^-20 of the others: its
-//: crossing's rounding may then exceed 1e-6 voxel, and eis_crossing clamps it.
-#define EIS_STEEP 9.5367431640625e-07
-
-// The range eis_crossing clamps to: the triangle's extent along a, as the reference
-// clamps, and on a steep triangle its section through c (eis_section): the reference
-// computes such a crossing exactly, the double formula can be voxels off.
-dvec2 eis_crossing_range(dvec3 p0, dvec3 p1, dvec3 p2, dvec3 n, dvec2 c) {
-    double lo = min(min(p0.z, p1.z), p2.z);
-    double hi = max(max(p0.z, p1.z), p2.z);
-    if (abs(n.z) <= EIS_STEEP * (abs(n.x) + abs(n.y))) {
-        dvec3 p[3] = dvec3[3](p0, p1, p2);
-        dvec2 s = eis_section(p, c, 0.0);
-        lo = max(lo, s.x);
-        hi = max(lo, min(hi, s.y));
-    }
-    return dvec2(lo, hi);
-}
-
-// Where the column through c crosses the triangle's plane, along a (voxel units),
-// clamped to eis_crossing_range.  A triangle whose double normal has no a component
-// (the exact one has, or c would not be covered) takes the range's low end.  The result
-// differs from the exact crossing only where the voxel centers between them lie within
-// TIE_EPS of the triangle.
-// exact: the reference's crossing formula, in its order; in the section on a steep triangle
-double eis_crossing(dvec3 p0, dvec3 p1, dvec3 p2, dvec3 n, dvec2 c) {
-    dvec2 range = eis_crossing_range(p0, p1, p2, n, c);
-    if (n.z == 0.0) return range.x;
-    precise double q = p0.z + (n.x * (p0.x - c.x) + n.y * (p0.y - c.y)) / n.z;
-    return clamp(q, range.x, range.y);
+// Where the column through a center the triangle covers crosses it, along a (voxel
+// units): the barycentric combination of its vertices with the edge functions w of
+// eis_weights, clamped to the triangle's extent along a (outside the triangle, with
+// raster coverage, the plane's value there).  The weights are exact up
+// to one rounding each, so even on a triangle nearly parallel to the axis, where the
+// plane's formula (the reference's) divides by almost nothing and lands voxels away,
+// the crossing is the exact one to double precision; a face parallel to the grid gets
+// its own a exactly (every z difference is 0).
+// exact: one formula on exact weights
+double eis_crossing(dvec3 p0, dvec3 p1, dvec3 p2, dvec3 w) {
+    precise double q = p0.z + (w.x * (p2.z - p0.z) + w.z * (p1.z - p0.z)) / (w.x + w.y + w.z);
+    return clamp(q, min(min(p0.z, p1.z), p2.z), max(max(p0.z, p1.z), p2.z));
 }
 
 // A double voxel coordinate as an int, clamped first so that far-away geometry

@@ -35,20 +35,23 @@ void eis_trace_fragment(ivec2 column, bool covered, int first) {
 void main() {
     dvec3 p0, p1, p2;
     eis_triangle(v_tri, p0, p1, p2);
-    dvec3 n = eis_normal(p0, p1, p2);
     // gl_FragCoord.xy is the pixel center, pixel + 0.5
     ivec2 column = ivec2(gl_FragCoord.xy) + u_tile_lo;
     dvec2 c = dvec2(column) + 0.5;
+    dvec3 w;
 #if EIS_COVERAGE == 0
-    bool covered = eis_covers(p0, p1, p2, c);
+    bool covered = eis_covers_at(p0, p1, p2, c, w);
 #else
+    ivec3 s_unused;
+    int sgn_unused;
+    eis_weights(p0, p1, p2, c, w, s_unused, sgn_unused);
     bool covered = true;
 #endif
 #if EIS_TRACE
-    eis_trace_fragment(column, covered, covered ? eis_first_flipped(eis_crossing(p0, p1, p2, n, c)) : 0);
+    eis_trace_fragment(column, covered, covered ? eis_first_flipped(eis_crossing(p0, p1, p2, w)) : 0);
 #endif
     if (!covered) discard;
-    double q = eis_crossing(p0, p1, p2, n, c);
+    double q = eis_crossing(p0, p1, p2, w);
 #if EIS_OP == 0
     int first = eis_first_flipped(q) - u_slice_lo;
     if (first >= EIS_SLICES) discard;  // XOR with zeros

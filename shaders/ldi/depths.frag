@@ -46,8 +46,9 @@ void main() {
     dvec3 n = eis_normal(p0, p1, p2);
     ivec2 pix = ivec2(gl_FragCoord.xy) + u_tile_lo;
     dvec2 c = dvec2(pix) + 0.5;
-    if (!eis_covers(p0, p1, p2, c)) discard;
-    double qc = ldi_cell_depth(eis_crossing(p0, p1, p2, n, c));
+    dvec3 w;
+    if (!eis_covers_at(p0, p1, p2, c, w)) discard;
+    double qc = ldi_cell_depth(eis_crossing(p0, p1, p2, w));
     int z = ldi_cell(qc);
     uint col = ldi_column(pix);
     bool here = ldi_t1_bit(col, z);
@@ -65,15 +66,17 @@ void main() {
                                      max(motion[eis_faces[3u * v_tri + 1u]], motion[eis_faces[3u * v_tri + 2u]])));
     double ma = m * u_cells_per_voxel;
     // 2^-30 cell: far above the double rounding of the crossing and of the bound itself
-    double widen = ma + m * (abs(n.x) + abs(n.y)) / abs(n.z) + 1.0 / 1073741824.0;
+    // |n_a| from the exact edge functions (in units of 2^-2F voxel^2): never 0 where covered
+    double unit = 1.0lf / double(1 << u_eis_fix_bits);
+    double n_a = (w.x + w.y + w.z) * unit * unit;
+    double widen = ma + m * (abs(n.x) + abs(n.y)) / n_a + 1.0 / 1073741824.0;
     double zlo = ldi_cell_depth(min(p0.z, min(p1.z, p2.z))) - ma;
     double zhi = ldi_cell_depth(max(p0.z, max(p1.z, p2.z))) + ma;
     if (widen > 1.0) {
         // a steep triangle: the true crossing is also within m_a of the drawn triangle's
         // points whose projection lies within m of the center, in the slab of half-width
         // m sqrt(2) across its longest edge (the box's reach along any direction)
-        dvec3 p[3] = dvec3[3](p0, p1, p2);
-        dvec2 s = eis_section(p, c, m * 1.4142135623730951 + 1.0 / 1073741824.0);
+        dvec2 s = eis_section(p0, p1, p2, c, m * 1.4142135623730951 + 1.0 / 1073741824.0);
         zlo = max(zlo, ldi_cell_depth(s.x) - ma - 1.0 / 1073741824.0);
         zhi = min(zhi, ldi_cell_depth(s.y) + ma + 1.0 / 1073741824.0);
     }

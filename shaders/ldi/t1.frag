@@ -17,10 +17,10 @@ flat in uint v_tri;
 void main() {
     dvec3 p0, p1, p2;
     eis_triangle(v_tri, p0, p1, p2);
-    dvec3 n = eis_normal(p0, p1, p2);
     dvec2 c = dvec2(ivec2(gl_FragCoord.xy) + u_tile_lo) + 0.5;
-    if (!eis_covers(p0, p1, p2, c)) discard;
-    int z = ldi_cell(ldi_cell_depth(eis_crossing(p0, p1, p2, n, c)));
+    dvec3 w;
+    if (!eis_covers_at(p0, p1, p2, c, w)) discard;
+    int z = ldi_cell(ldi_cell_depth(eis_crossing(p0, p1, p2, w)));
     int first = z - u_slice_lo;
     if (first >= EIS_SLICES) discard;  // XOR with zeros
     eis_write_suffix(first);

@@ -14,11 +14,11 @@ flat in uint v_tri;
 void main() {
     dvec3 p0, p1, p2;
     eis_triangle(v_tri, p0, p1, p2);
-    dvec3 n = eis_normal(p0, p1, p2);
     ivec2 pix = ivec2(gl_FragCoord.xy) + u_tile_lo;
     dvec2 c = dvec2(pix) + 0.5;
-    if (!eis_covers(p0, p1, p2, c)) discard;
-    int z = ldi_cell(ldi_cell_depth(eis_crossing(p0, p1, p2, n, c)));
+    dvec3 w;
+    if (!eis_covers_at(p0, p1, p2, c, w)) discard;
+    int z = ldi_cell(ldi_cell_depth(eis_crossing(p0, p1, p2, w)));
     int s = z - u_slice_lo;
     if (s < 0 || s >= EIS_SLICES) discard;
     uint col = ldi_column(pix);

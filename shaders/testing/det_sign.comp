@@ -1,17 +1,20 @@
 #version 450
-// eis_det_sign of eisemann/column.glsl, the exact sign of a * b - c * d from 64-bit
-// integer products, on a list of quadruples: tests/test_eisemann.py compares it with
-// exact integers.
+// eis_det of eisemann/column.glsl, a * b - c * d from 64-bit integer products (its
+// exact sign and its value rounded once to a double), on a list of quadruples:
+// tests/test_eisemann.py compares both with exact integers.
 #define EIS_AXIS 2
 #include "eisemann/column.glsl"
 layout(local_size_x = 64) in;
 layout(std430, binding = 2) readonly buffer DetIn { ivec4 det_in[]; };
 layout(std430, binding = 3) writeonly buffer DetOut { int det_out[]; };
+layout(std430, binding = 4) writeonly buffer DetValue { double det_value[]; };
 uniform uint u_n;
 
 void main() {
     uint i = gl_GlobalInvocationID.x;
     if (i >= u_n) return;
     ivec4 q = det_in[i];
-    det_out[i] = eis_det_sign(q.x, q.y, q.z, q.w);
+    int sgn;
+    det_value[i] = eis_det(q.x, q.y, q.z, q.w, sgn);
+    det_out[i] = sgn;
 }

@@ -6,7 +6,7 @@
 //   0      1 where the triangle takes part (the normal component along the ray != 0)
 //   1-2    that normal component, double bits (low, high)
 //   3-8    the three edge functions at the center, oriented inside-positive, double bits
-//          (eisemann: their exact signs, -1.0, 0.0 or 1.0)
+//          (eisemann: from exact 64-bit integers, rounded once)
 //   9-11   the three top-left flags
 //   12     1 where the center is covered
 //   13     the first voxel the crossing flips (covered pairs only)
@@ -22,8 +22,9 @@ uniform uint u_centers;
 #if PROBE_EIS
 // eisemann/column.glsl (with EIS_AXIS) is included by the caller: vertices from EisVox
 // (binding 0), faces from EisFaces (binding 1).  Its coverage is integer: word 0 is 1
-// where the exact orientation is not 0, words 1-2 the double normal component the
-// crossing divides by, words 3-8 the signs of the edge functions as doubles.
+// where the exact orientation is not 0, words 1-2 the double normal component, words
+// 3-8 the edge functions from their exact 64-bit values, rounded once to doubles, in
+// voxel^2 (so that they do not depend on F).
 void probe_pair(uint p) {
     uint t = p / u_centers;
     dvec2 c = dvec2(probe_centers[p % u_centers]);
@@ -39,14 +40,17 @@ void probe_pair(uint p) {
     probe_out[o + 2u] = nb.y;
     ivec2 cf = eis_fixed(c);
     for (int i = 0; i < 3; ++i) {
-        uvec2 fb = unpackDouble2x32(double(eis_edge_at(f, i, sgn == 0 ? 1 : sgn, cf)));
+        int s;
+        double unit = 1.0lf / double(1 << u_eis_fix_bits);  // voxel^2 per unit^2: exact
+        uvec2 fb = unpackDouble2x32(eis_edge(f[i], f[(i + 1) % 3], cf, s) * double(sgn == 0 ? 1 : sgn) * unit * unit);
         probe_out[o + 3u + 2u * uint(i)] = fb.x;
         probe_out[o + 4u + 2u * uint(i)] = fb.y;
         probe_out[o + 9u + uint(i)] = eis_top_left(f, i, sgn == 0 ? 1 : sgn) ? 1u : 0u;
     }
-    bool covered = eis_covers(p0, p1, p2, c);
+    dvec3 w;
+    bool covered = eis_covers_at(p0, p1, p2, c, w);
     probe_out[o + 12u] = covered ? 1u : 0u;
-    probe_out[o + 13u] = covered ? uint(eis_first_flipped(eis_crossing(p0, p1, p2, n, c))) : 0u;
+    probe_out[o + 13u] = covered ? uint(eis_first_flipped(eis_crossing(p0, p1, p2, w))) : 0u;
 }
 #else
 // ss/solid.glsl is included by the caller

@@ -362,7 +362,7 @@ class _PassPrograms:
 def _prepare(ctx, mesh, spec, render: SliceRender, pool, timer, fix_bits: int) -> _OnGrid:
     """Stages ``transform`` and ``setup``: vertices to voxel space (double), then per
     triangle the column box, the slices it can reach and the corners to draw."""
-    bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool, double=True)
+    bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool, double=True, fixed=(render.axis, fix_bits))
     n_tri = bufs.n_triangles
     per_tri = pool.get("setup", n_tri * 48, what="per-triangle setup", clear=False)
     prog = compute_program(ctx, "eisemann/setup.comp", {"EIS_AXIS": render.axis, **render.kind_defines})

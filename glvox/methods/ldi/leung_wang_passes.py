@@ -226,17 +226,18 @@ def prepare(ctx, mesh, frame: Frame, pool, tag: str, timer, suffix: str = "") ->
     stretch[a] = frame.cells / frame.n_a
     shift = [0.0] * 3
     shift[a] = 0.5
+    # the fixed point of the coverage test: (u, v) rounded by up to half a unit, in the motion below
+    fix_bits = eisemann_passes.fixed_bits(mesh, spec, a)
     snap_motion = pool.get(f"snap_motion_{tag}", max(mesh_buffers(ctx, mesh).n_vertices, 1) * 4,
                            what="the snap's move per vertex", clear=False)
     bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool, double=True, stretch=stretch, shift=shift,
-                                   name=f"vox_{tag}", stage=f"transform{suffix}", motion=snap_motion)
+                                   name=f"vox_{tag}", stage=f"transform{suffix}", motion=snap_motion,
+                                   fixed=(a, fix_bits))
     setup = pool.get(f"setup_{tag}", bufs.n_triangles * 48, what="per-triangle setup", clear=False)
     prog = compute_program(ctx, "eisemann/setup.comp", {"EIS_AXIS": a, "EIS_OP": 0, "EIS_COVERAGE": 0})
     dims = list(spec.dims)
     dims[a] = frame.cells
     set_uniforms(prog, {"u_triangles": bufs.n_triangles, "u_dims": tuple(dims)})
-    # the fixed-point (u, v) of the coverage test move vertices by up to half a unit more
-    fix_bits = eisemann_passes.fixed_bits(mesh, spec, a)
     on_grid = OnGrid(bufs, vox, setup, fix_bits, mesh_motion(mesh, spec) + 2.0 ** -(fix_bits + 1), snap_motion)
     with timer.stage(f"setup{suffix}"):
         on_grid.bind(prog)
