@@ -169,7 +169,7 @@ def triangles(mesh, spec, family: str) -> tuple[np.ndarray, np.ndarray]:
     """The voxel-space triangles each family sees, and the column centers of the grid:
     ss-solid's float32 vertices with centers in (y, z); eisemann's double vertices
     (render axis z) with (x, y) rounded to its fixed point (:func:`fixed_bits`, as
-    ``eisemann/column.glsl`` rounds them) and centers in (x, y)."""
+    ``common/transform.comp`` rounds them for it) and centers in (x, y)."""
     ny, nz = spec.dims[1], spec.dims[2]
     if family == "ss":
         tris = gpu_vertices_voxel(mesh, spec)[mesh.faces]

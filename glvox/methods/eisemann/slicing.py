@@ -22,8 +22,9 @@ Pixel grid: the plane ``(u, v) = ((axis + 1) % 3, (axis + 2) % 3)`` of voxel
 columns, viewport = the (tile of the) grid, orthographic projection mapping
 voxel coordinate ``u`` in ``[u0, u0 + width]`` to clip ``[-1, 1]``, so pixel
 centers are column centers ``(i + 0.5, j + 0.5)``.  Depth is not used: each
-fragment computes its crossing ``q`` along the axis in voxel units from the
-triangle's plane at the column center (double precision), and the first
+fragment computes its crossing ``q`` along the axis in voxel units, the
+barycentric combination of the vertices with the edge functions as weights
+(double precision), and the first
 flipped slice ``floor(q + 1/2)`` (voxel ``k`` flips iff ``k + 1/2 > q``, the
 convention of ``reference-solid``) or the crossing's slice ``floor(q)``.  No
 depth test, no culling, no blending.
@@ -38,8 +39,10 @@ misplaces whole column segments (40 non-tie voxels on cad_featuretype.stl at
 box where a sharp corner would push the miter beyond 2 pixels), so that it
 contains every column center the triangle covers whatever the snapping, and
 decides coverage in the fragment shader with the reference's edge functions
-and top-left fill rule in double precision (``shaders/eisemann/column.glsl``
-has the precision argument, ``setup.comp`` the growth bound).  ``"raster"``
+and top-left fill rule, in integers on (u, v) rounded to a fixed point of
+2^-F voxel (:func:`~glvox.methods.eisemann.passes.fixed_bits`;
+``shaders/eisemann/column.glsl`` has the precision argument, ``setup.comp``
+the growth bound).  ``"raster"``
 draws the triangle itself and lets GL's fill rule on the snapped vertices
 decide, as the paper does; it counts a center on an edge shared by two
 triangles exactly once too, but on the snapped mesh.
