@@ -253,9 +253,9 @@ def test_a_face_along_the_axis_through_column_centers(gl_context):
     collinear with edges of three other faces.  The float32 upload makes that face a
     sliver 1e-14 voxel wide.  With the edge functions in double, their rounding put
     centers inside all three of its edges and outside its neighbours' (26 voxels far from
-    the surface flipped), and its crossing in double was 3 voxels below its section.  In
-    integers, with the crossing clamped to the section: reference-solid up to ties, along
-    every axis (along x and y the face is an ordinary steep one)."""
+    the surface flipped), and the plane's crossing formula in double put it 3 voxels below
+    the face.  With coverage in integers and the barycentric crossing: reference-solid up to
+    ties, along every axis (along x and y the face is an ordinary steep one)."""
     mesh = load_mesh(TIE_HULL, name="edge-on hull")
     spec = glvox.grid_for(mesh, dims=TIE_HULL_DIMS)
     assert np.ptp(TIE_HULL[0][TIE_HULL[1][4]][:, :2] @ [3, 2]) == 0  # along z: its xy on one line

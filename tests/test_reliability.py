@@ -698,7 +698,7 @@ NVIDIA_TETRAHEDRON = (np.array([[0.5, 0, 0], [-1, 1, 0], [0, 0, 0], [0, 0, 1]]),
 #: along leung-wang-ldi's rays (its LOD-C cell is half a voxel), the sliver above, and the
 #: hull with a face along z through column centers (glvox.study.selftest.TIE_HULL): 26
 #: voxels of eisemann-solid and 12 of leung-wang-ldi far from the surface, before their
-#: coverage went to integers and their crossings to the face's section.
+#: coverage went to integers and their crossings to the barycentric formula.
 @FUZZ
 @given(solid=closed_solids(), dims=grid_dims())
 @example(solid=TETRAHEDRON, dims=(1, 1, 512))
