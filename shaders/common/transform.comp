@@ -58,7 +58,8 @@ void main() {
     for (int c = 0; c < 3; ++c) {
         if (c == VOX_FIX_AXIS) continue;
         precise double units = o[c] * double(1 << u_fix_bits);
-        precise double rounded = roundEven(units) * (1.0lf / double(1 << u_fix_bits));
+        // 2^-F from its bits (GLSL lets a division be 2.5 ulp off)
+        precise double rounded = roundEven(units) * packDouble2x32(uvec2(0u, uint(1023 - u_fix_bits) << 20));
         o[c] = rounded;
     }
 #endif

@@ -43,6 +43,9 @@ const int EIS_V = (EIS_AXIS + 2) % 3;
 
 uniform int u_eis_fix_bits;  // F: (u, v) in multiples of 2^-F voxel (see above)
 
+// 2^-F voxel, one unit of the fixed point, from its bits (GLSL lets a division be 2.5 ulp off).
+double eis_unit() { return packDouble2x32(uvec2(0u, uint(1023 - u_eis_fix_bits) << 20)); }
+
 // A (u, v) point (a vertex or a column center, multiples of 2^-F voxel) in units of
 // 2^-F voxel, exactly (rounded to the nearest, ties to even, were it not a multiple).
 // (Scaled by products with exact powers of two: llvmpipe's ldexp on doubles loses bits.)

@@ -67,7 +67,7 @@ void main() {
     double ma = m * u_cells_per_voxel;
     // 2^-30 cell: far above the double rounding of the crossing and of the bound itself
     // |n_a| from the exact edge functions (in units of 2^-2F voxel^2): never 0 where covered
-    double unit = 1.0lf / double(1 << u_eis_fix_bits);
+    double unit = eis_unit();
     double n_a = (w.x + w.y + w.z) * unit * unit;
     double widen = ma + m * (abs(n.x) + abs(n.y)) / n_a + 1.0 / 1073741824.0;
     double zlo = ldi_cell_depth(min(p0.z, min(p1.z, p2.z))) - ma;

@@ -41,7 +41,7 @@ void probe_pair(uint p) {
     ivec2 cf = eis_fixed(c);
     for (int i = 0; i < 3; ++i) {
         int s;
-        double unit = 1.0lf / double(1 << u_eis_fix_bits);  // voxel^2 per unit^2: exact
+        double unit = eis_unit();  // voxel^2 per unit^2: exact
         uvec2 fb = unpackDouble2x32(eis_edge(f[i], f[(i + 1) % 3], cf, s) * double(sgn == 0 ? 1 : sgn) * unit * unit);
         probe_out[o + 3u + 2u * uint(i)] = fb.x;
         probe_out[o + 4u + 2u * uint(i)] = fb.y;
