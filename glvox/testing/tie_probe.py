@@ -183,12 +183,15 @@ def triangles(mesh, spec, family: str) -> tuple[np.ndarray, np.ndarray]:
 
 
 def run_probe(ctx, family: str, stage: str, tris: np.ndarray, centers: np.ndarray,
-              fix_bits: int = 0) -> np.ndarray:
+              fix_bits: int | None = None) -> np.ndarray:
     """(pairs, WORDS) uint32 written by ``testing/tie_probe`` on this GL; eisemann's with
-    its (x, y) in multiples of 2^-``fix_bits`` (the tris must be multiples already)."""
+    its (x, y) in multiples of 2^-``fix_bits`` (required there; the tris must be
+    multiples already, as :func:`triangles` makes them)."""
     pairs = len(tris) * len(centers)
     uniforms = {"u_pairs": pairs, "u_centers": len(centers)}
     if family == "eis":
+        if fix_bits is None or not 1 <= fix_bits <= 28:
+            raise ValueError(f"eisemann's probe needs its fixed point's bits (1..28), got {fix_bits!r}")
         uniforms["u_eis_fix_bits"] = fix_bits
     cen = np.ascontiguousarray(centers, np.float32)
     out = (pairs * WORDS, np.uint32)
