@@ -134,10 +134,11 @@ bool eis_top_left(ivec2 f[3], int i, int sgn) {
 // The edge functions at the column center c, oriented so that the inside is positive
 // (edge i runs from vertex i to i + 1: its value weighs vertex i + 2), rounded once
 // from their exact values, with their exact signs s; sgn: the orientation (0: parallel
-// to the axis, and w and s are 0).
+// to the axis, and w and s are 0); f: the vertices' (u, v) in units of 2^-F.
 // exact: integer edge functions, each rounded once
-void eis_weights(dvec3 p0, dvec3 p1, dvec3 p2, dvec2 c, out dvec3 w, out ivec3 s, out int sgn) {
-    ivec2 f[3] = ivec2[3](eis_fixed(p0.xy), eis_fixed(p1.xy), eis_fixed(p2.xy));
+void eis_weights(dvec3 p0, dvec3 p1, dvec3 p2, dvec2 c, out dvec3 w, out ivec3 s, out int sgn,
+                 out ivec2 f[3]) {
+    f = ivec2[3](eis_fixed(p0.xy), eis_fixed(p1.xy), eis_fixed(p2.xy));
     sgn = eis_orientation(f);
     w = dvec3(0.0);
     s = ivec3(0);
@@ -158,18 +159,13 @@ void eis_weights(dvec3 p0, dvec3 p1, dvec3 p2, dvec2 c, out dvec3 w, out ivec3 s
 bool eis_covers_at(dvec3 p0, dvec3 p1, dvec3 p2, dvec2 c, out dvec3 w) {
     ivec3 s;
     int sgn;
-    eis_weights(p0, p1, p2, c, w, s, sgn);
+    ivec2 f[3];
+    eis_weights(p0, p1, p2, c, w, s, sgn, f);
     if (sgn == 0) return false;
-    ivec2 f[3] = ivec2[3](eis_fixed(p0.xy), eis_fixed(p1.xy), eis_fixed(p2.xy));
     for (int i = 0; i < 3; ++i) {
         if (!(s[i] > 0 || (s[i] == 0 && eis_top_left(f, i, sgn)))) return false;
     }
     return true;
-}
-
-bool eis_covers(dvec3 p0, dvec3 p1, dvec3 p2, dvec2 c) {
-    dvec3 w;
-    return eis_covers_at(p0, p1, p2, c, w);
 }
 
 // eis_section's step: widens range by the extent along a of the part of the edge a -> b

@@ -44,7 +44,8 @@ void main() {
 #else
     ivec3 s_unused;
     int sgn_unused;
-    eis_weights(p0, p1, p2, c, w, s_unused, sgn_unused);
+    ivec2 f_unused[3];
+    eis_weights(p0, p1, p2, c, w, s_unused, sgn_unused, f_unused);
     bool covered = true;
 #endif
 #if EIS_TRACE
