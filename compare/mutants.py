@@ -126,8 +126,18 @@ MUTANTS: list[Mutant] = [
            (EXACT, "-k", "libigl")),
     Mutant("fill-rule-non-strict", "S&S solid: the top-left rule's strict comparison made non-strict "
            "(centers on an edge count for both triangles)", "shaders/ss/solid.glsl",
-           (("if (!(f > 0.0lf || (f == 0.0lf && t.tl[i]))) return false;",
-             "if (!(f >= 0.0lf || (f == 0.0lf && t.tl[i]))) return false;"),),
+           (("if (!(s > 0 || (s == 0 && ((t.tl >> i) & 1) != 0))) return false;",
+             "if (!(s >= 0 || (s == 0 && ((t.tl >> i) & 1) != 0))) return false;"),),
+           (EXACT, "-k", "solid_methods and ss-solid")),
+    Mutant("ss-tile-test-strict", "S&S tiled solid: a box whose critical corner lies exactly on an edge "
+           "dropped (the exact tile test made strict)", "shaders/ss/solid.glsl",
+           (("        if (s < 0) return false;", "        if (s <= 0) return false;"),),
+           (EXACT, "-k", "solid_methods and (ss-solid-tiled or ss-octree)")),
+    Mutant("ss-vertex-rounded-per-triangle", "S&S solid: each triangle rounds its vertices to the fixed point "
+           "with its own offset, so the triangles of an edge see different edges", "shaders/ss/solid.glsl",
+           (("    t.f = ivec2[3](solid_fixed(p0.yz), solid_fixed(p1.yz), solid_fixed(p2.yz));",
+             "    t.f = ivec2[3](solid_fixed(p0.yz + p1.x * 1e-6), solid_fixed(p1.yz + p2.x * 1e-6), "
+             "solid_fixed(p2.yz + p0.x * 1e-6));"),),
            (EXACT, "-k", "solid_methods and ss-solid")),
     Mutant("half-open-rule-swapped", "S&S solid: a center exactly on the crossing flips (>= instead of >)",
            "shaders/ss/solid.glsl",
@@ -136,11 +146,11 @@ MUTANTS: list[Mutant] = [
            (EXACT, "-k", "solid_methods and ss-solid")),
     Mutant("eisemann-top-left-non-strict", "eisemann column test: centers on every projected edge covered "
            "(the top-left rule's strict comparison made non-strict)", "shaders/eisemann/column.glsl",
-           (("        if (!(s[i] > 0 || (s[i] == 0 && eis_top_left(f, i, sgn)))) return false;",
-             "        if (!(s[i] >= 0 || (s[i] == 0 && eis_top_left(f, i, sgn)))) return false;"),),
+           (("        if (!(s[i] > 0 || (s[i] == 0 && fixed_top_left(f, i, sgn)))) return false;",
+             "        if (!(s[i] >= 0 || (s[i] == 0 && fixed_top_left(f, i, sgn)))) return false;"),),
            (EXACT, "-k", "solid_methods and eisemann-solid")),
     Mutant("eisemann-det-borrow-lost", "eisemann column test: the 64-bit difference of the products "
-           "without the low words' borrow", "shaders/eisemann/column.glsl",
+           "without the low words' borrow", "shaders/common/fixed.glsl",
            (("    int hi = ab_hi - cd_hi - int(borrow);", "    int hi = ab_hi - cd_hi;"),),
            ("tests/test_eisemann.py", "-k", "determinant")),
     Mutant("eisemann-crossing-normal-denominator", "eisemann: the crossing divided by the double normal's "

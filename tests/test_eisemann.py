@@ -18,8 +18,7 @@ import trimesh
 from conftest import SHARED_MESHES
 
 import glvox
-from glvox.errors import (CapabilityError, LimitError, MethodError, NotWatertightError, NotWatertightWarning,
-                          SuspiciousResultWarning)
+from glvox.errors import CapabilityError, LimitError, MethodError, NotWatertightError, NotWatertightWarning
 from glvox.gl.timing import StageTimer
 from glvox.gpu.buffers import buffer_pool, object_cache
 from glvox.grid import GridSpec, snap_to_planes
@@ -30,7 +29,6 @@ from glvox.metrics import check_against_reference, tie_set
 from glvox.reference import TIE_EPS
 from glvox.study.selftest import TIE_HULL, TIE_HULL_DIMS
 from glvox.testing import harness, tie_probe
-from glvox.testing.leaks import live_gl_objects
 from glvox.testing.slices import eisemann_slices
 
 WATERTIGHT = ("cad_fandisk.off", "cad_featuretype.stl", "cad_rocker_arm.obj", "cad_wingnut.obj",
@@ -514,33 +512,6 @@ def test_grid_over_the_ssbo_limit_is_refused(ssbo_limit):
     with pytest.raises(LimitError, match=r"bit grid needs a .* MiB shader storage buffer, over this "
                                          r"context's GL_MAX_SHADER_STORAGE_BLOCK_SIZE"):
         run_method("eisemann-solid", load_mesh("gen:box"), spec)
-
-
-def test_the_fixed_point_range(gl_context):
-    """Coverage in integers needs every coordinate across the axis within 2^29 units of
-    2^-F voxel.  F is the largest that allows (22 at 64 voxels, 18 at 1024); a mesh past
-    2^15 voxels from the grid's origin is voxelized with a warning (its rounding reaches a
-    third of TIE_EPS), one at 2^28 or more refused before any work, naming ss-solid, by
-    eisemann-solid and leung-wang-ldi alike."""
-    box = load_mesh("gen:box")
-    assert eisemann_passes.fixed_bits(box, glvox.grid_for(box, 64), 2) == 22
-    assert eisemann_passes.fixed_bits(box, glvox.grid_for(box, 1024), 2) == 18
-    v = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
-    f = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
-    spec = GridSpec((8, 8, 8), (0.0, 0.0, 0.0), 1.0)
-    for reach, bits in ((2.0 ** 14, 14), (2.0 ** 16, 12)):
-        far = load_mesh((v * [reach, 8, 8], f), name="wide")
-        assert eisemann_passes.fixed_bits(far, spec, 2, warn=False) == bits
-        if bits < eisemann_passes.FIXED_BITS_WARN:
-            with pytest.warns(SuspiciousResultWarning, match=r"rounded to 2\^-12 voxel"):
-                run_method("eisemann-solid", far, spec)
-    tet = load_mesh((v * 8, f), name="tetrahedron")
-    far = GridSpec((8, 8, 8), (-(2.0 ** 28), 0.0, 0.0), 1.0)
-    for name in ("eisemann-solid", "leung-wang-ldi"):
-        before = live_gl_objects(gl_context)
-        with pytest.raises(LimitError, match=r"reaches 2.68e\+08 voxels .* 2\^28: use ss-solid"):
-            run_method(name, tet, far)
-        assert live_gl_objects(gl_context) == before
 
 
 def test_bad_arguments_are_refused(gl_context):

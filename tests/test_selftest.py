@@ -156,10 +156,10 @@ def test_the_tie_cases_catch_a_solid_that_drops_the_top_left_rule(tmp_path):
     not.  The unmodified shader passes them (the test above)."""
     rel = "ss/solid.glsl"
     text = (builtin_shader_dir() / rel).read_text()
-    rule = "if (!(f > 0.0lf || (f == 0.0lf && t.tl[i]))) return false;"
+    rule = "if (!(s > 0 || (s == 0 && ((t.tl >> i) & 1) != 0))) return false;"
     assert text.count(rule) == 1
     (tmp_path / "ss").mkdir()
-    (tmp_path / rel).write_text(text.replace(rule, "if (!(f >= 0.0lf)) return false;"))
+    (tmp_path / rel).write_text(text.replace(rule, "if (!(s >= 0)) return false;"))
     env = {**os.environ, "GLVOX_SHADER_PATH": str(tmp_path)}
     proc = subprocess.run([sys.executable, "-m", "glvox", "selftest", "--methods", "ss-solid", "--json"],
                           capture_output=True, text=True, env=env, timeout=300)

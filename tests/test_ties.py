@@ -55,7 +55,9 @@ from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 
 import glvox
+from glvox.errors import LimitError, SuspiciousResultWarning
 from glvox.gl.timing import StageTimer
+from glvox.gpu import fixed_point
 from glvox.gpu.buffers import buffer_pool
 from glvox.gpu.transform import gpu_vertices_voxel, transform_vertices
 from glvox.grid import GridSpec, snap_to_planes
@@ -65,6 +67,8 @@ from glvox.reference import conservative_surface, snap_ambiguous, solid_ties, su
 from glvox.testing.cells import (SHAPES, boundary_faces, cells_mesh, conservative_expected, occupancy,
                                  on_surface, solid_expected)
 from glvox.results.voxels import VoxelGrid
+from glvox.testing import tie_probe
+from glvox.testing.leaks import live_gl_objects
 from glvox.tolerances import SNAP_EPS, TIE_EPS
 
 def registered_runs(kinds) -> list[tuple[str, dict]]:
@@ -569,3 +573,59 @@ def test_the_tie_tolerance_is_sharp(gl_context, kind, reference, method, z0, wro
     assert not c.ok and c.unexplained.tolist() == [list(wrong)], c.describe()
     loose = tie_set(reference, mesh, spec, eps=10 * TIE_EPS)
     assert check_against_reference(bad, mesh, reference, ties=loose).ok  # sharp: 10x would excuse it
+
+
+#: The methods that decide coverage in common/fixed.glsl's integers.
+FIXED_POINT_METHODS = ("ss-solid", "ss-solid-tiled", "ss-octree", "vote-solid", "gwn-solid", "eisemann-solid",
+                       "eisemann-surface", "leung-wang-ldi")
+
+
+def test_the_fixed_point_range(gl_context):
+    """Coverage in integers needs every coordinate across the rays within 2^29 units of
+    2^-F voxel.  F is the largest that allows (22 at 64 voxels, 18 at 1024); a mesh past
+    2^15 voxels from the grid's origin is voxelized with a warning (its rounding reaches a
+    third of TIE_EPS), one at 2^28 or more refused before any work, by every method that
+    decides coverage so."""
+    box = glvox.load_mesh("gen:box")
+    assert fixed_point.fixed_bits(box, glvox.grid_for(box, 64), 2) == 22
+    assert fixed_point.fixed_bits(box, glvox.grid_for(box, 1024), 0) == 18
+    v = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+    f = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    spec = GridSpec((8, 8, 8), (0.0, 0.0, 0.0), 1.0)
+    for reach, bits in ((2.0 ** 14, 14), (2.0 ** 16, 12)):
+        far = glvox.load_mesh((v * [reach, reach, 8], f), name="wide")
+        assert [fixed_point.fixed_bits(far, spec, a, warn=False) for a in (0, 2)] == [bits, bits]
+    far = glvox.load_mesh((v * [2.0 ** 16, 2.0 ** 16, 8], f), name="wide")
+    tet = glvox.load_mesh((v * 8, f), name="tetrahedron")
+    beyond = GridSpec((8, 8, 8), (-(2.0 ** 28), -(2.0 ** 28), 0.0), 1.0)
+    for name in FIXED_POINT_METHODS:
+        with pytest.warns(SuspiciousResultWarning, match=r"rounded to 2\^-12 voxel"):
+            run_method(name, far, spec, allow_open=True)
+        before = live_gl_objects(gl_context)
+        with pytest.raises(LimitError, match=r"reaches 2.68e\+08 voxels .* 2\^28: use a grid nearer the mesh, "
+                                             r"or reference-solid \(CPU\)"):
+            run_method(name, tet, beyond)
+        assert live_gl_objects(gl_context) == before, name
+
+
+def test_ss_solid_crossing_of_a_float32_sliver(gl_context):
+    """ss/solid.glsl's crossing on a sliver of float32 vertices as thin as 2^-22 voxel
+    coordinates make it: its long edge A -> C runs along w = (F30, F31) units through the
+    column center c = (0.5, 0.5), its midpoint, and B - A = (F29, F30) (consecutive
+    Fibonacci numbers: projected area 2^-45 voxel^2).  A.x and C.x lie 1000.25 voxels on
+    either side of 33.5, so the exact crossing at c is 33.5, a voxel center: by the
+    half-open rule voxel 33 stays, the first voxel flipped is 34.  c lies on A -> C, a left
+    edge (the inward normal, towards B, has a positive y component), so the triangle
+    covers c in every vertex order.  The plane's formula in double (the code before the
+    barycentric crossing) gave 33 in two of the four orders."""
+    f29, f30, f31 = 514229, 832040, 1346269
+    bits = 22
+    c = np.array([0.5, 0.5])
+    w = np.array([f30, f31]) / 2.0 ** bits
+    a, cc = np.r_[33.5 - 1000.25, c - w], np.r_[33.5 + 1000.25, c + w]
+    b = np.r_[500.1, c - w + np.array([f29, f30]) / 2.0 ** bits]
+    for order in ((a, b, cc), (cc, b, a), (b, cc, a), (b, a, cc)):
+        tris = np.array([order], np.float32)
+        assert np.array_equal(tris[0, :, 1:], np.array(order)[:, 1:])  # (y, z) exact in float32
+        words = tie_probe.run_probe(gl_context, "ss", "compute", tris, c[None].astype(np.float32), bits)[0]
+        assert words[12] == 1 and np.int32(words[13]) == 34, words.tolist()

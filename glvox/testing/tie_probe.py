@@ -46,8 +46,9 @@ from ..gl.timing import StageTimer
 from ..gpu.buffers import buffer_pool, clear_buffer
 from ..gpu.transform import gpu_vertices_voxel
 from ..grid import unpack_bits
-from ..methods.eisemann.passes import (SLICES_PER_TARGET, SliceRender, fixed_bits, last_pass_targets,
-                                       mask_table, render_slice_masks, tile_limit)
+from ..gpu.fixed_point import fixed_bits
+from ..methods.eisemann.passes import (SLICES_PER_TARGET, SliceRender, last_pass_targets, mask_table,
+                                       render_slice_masks, tile_limit)
 from ..methods.ss.solid import parity_on_gpu
 from ..methods.ss.solid_tuning import ORDER_MIN_BYTES
 from .harness import run_compute, run_fragment
@@ -88,35 +89,6 @@ def _first(x: float, lo: float, hi: float) -> int:
     return int(min(max(math.floor(x + 0.5), lo), hi)) & 0xFFFFFFFF
 
 
-def _model_ss(t: np.ndarray, c: np.ndarray) -> list[int]:
-    """``ss/solid.glsl`` on float32 vertices ``t`` (3, 3), center ``c`` = (y, z)."""
-    q0, q1, q2 = (t[k].astype(np.float64) for k in range(3))
-    ea, eb = q1 - q0, q2 - q1
-    n = np.array([ea[1] * eb[2] - ea[2] * eb[1], ea[2] * eb[0] - ea[0] * eb[2], ea[0] * eb[1] - ea[1] * eb[0]])
-    out = [int(n[0] != 0.0), *_bits(n[0])]
-    if n[0] == 0.0:
-        return out + [0] * (WORDS - 3)
-    sgn = 1.0 if n[0] > 0.0 else -1.0
-    v = [q0[1:], q1[1:], q2[1:]]
-    fs, tls = [], []
-    for i in range(3):
-        p, q = v[i], v[(i + 1) % 3]
-        e = q - p
-        nu, nv = -e[1] * sgn, e[0] * sgn
-        swap = p[0] > q[0] or (p[0] == q[0] and p[1] > q[1])
-        a, d, s = (q, p - q, -sgn) if swap else (p, q - p, sgn)
-        r = c - a
-        fs.append((d[0] * r[1] - d[1] * r[0]) * s)
-        tls.append(int(nu > 0.0 or (nu == 0.0 and nv < 0.0)))
-    covered = all(f > 0.0 or (f == 0.0 and tl) for f, tl in zip(fs, tls))
-    first = 0
-    if covered:
-        x = q0[0] + (n[1] * (q0[1] - c[0]) + n[2] * (q0[2] - c[1])) / n[0]
-        x = min(max(x, float(t[:, 0].min())), float(t[:, 0].max()))
-        first = _first(x, -1.0, 1073741824.0)
-    return out + [w for f in fs for w in _bits(f)] + tls + [int(covered), first]
-
-
 def _exact(x) -> int:
     """A double with a power-of-two denominator up to 2^64 (the fixed-point coordinates,
     the column centers) as an integer in units of 2^-64, exactly."""
@@ -128,12 +100,13 @@ def _eis_sign(x) -> int:
     return (x > 0) - (x < 0)
 
 
-def _model_eis(t: np.ndarray, c: np.ndarray) -> list[int]:
-    """``eisemann/column.glsl`` (render axis z) on double vertices ``t`` (3, 3) whose (x, y)
-    are already its fixed-point values (:func:`triangles`), center ``c`` = (x, y).  The
-    orientation and the edge functions are exact integers (here in units of 2^-64 voxel,
-    there of 2^-F: a power of two apart, so their roundings to double and the crossing
-    from them agree bit for bit), the crossing the shader's barycentric formula."""
+def _model_fixed(t: np.ndarray, c: np.ndarray, lowest: float) -> list[int]:
+    """``common/fixed.glsl``'s decisions on vertices ``t`` (3, 3) as (u, v, along the ray),
+    (u, v) already in the fixed point (:func:`triangles`), at the center ``c`` = (u, v).
+    The orientation and the edge functions are exact integers (here in units of 2^-64
+    voxel, there of 2^-F: a power of two apart, so their roundings to double and the
+    crossing from them agree bit for bit), the crossing the shaders' barycentric formula,
+    its first voxel clamped below at ``lowest``."""
     p0, p1, p2 = t[0], t[1], t[2]
     e0, e1 = p1 - p0, p2 - p0
     n2 = e0[0] * e1[1] - e0[1] * e1[0]
@@ -155,8 +128,20 @@ def _model_eis(t: np.ndarray, c: np.ndarray) -> list[int]:
     if covered:
         z = p0[2] + (ws[0] * (p2[2] - p0[2]) + ws[2] * (p1[2] - p0[2])) / (ws[0] + ws[1] + ws[2])
         z = min(max(z, float(t[:, 2].min())), float(t[:, 2].max()))
-        first = _first(z, -2.0, 1073741824.0)
+        first = _first(z, lowest, 1073741824.0)
     return out + [w for v in ws for w in _bits(math.ldexp(v, -128))] + tls + [int(covered), first]
+
+
+def _model_ss(t: np.ndarray, c: np.ndarray) -> list[int]:
+    """``ss/solid.glsl`` on float32 vertices ``t`` (3, 3) whose (y, z) are already its
+    fixed-point values (:func:`triangles`), center ``c`` = (y, z)."""
+    return _model_fixed(t.astype(np.float64)[:, [1, 2, 0]], c, -1.0)
+
+
+def _model_eis(t: np.ndarray, c: np.ndarray) -> list[int]:
+    """``eisemann/column.glsl`` (render axis z) on double vertices ``t`` (3, 3) whose (x, y)
+    are already its fixed-point values (:func:`triangles`), center ``c`` = (x, y)."""
+    return _model_fixed(t, c, -2.0)
 
 
 def model(family: str, tris: np.ndarray, centers: np.ndarray) -> np.ndarray:
@@ -165,34 +150,48 @@ def model(family: str, tris: np.ndarray, centers: np.ndarray) -> np.ndarray:
     return np.array([fn(t, c) for t in tris for c in centers], dtype=np.uint64).astype(np.uint32)
 
 
+def _fixed(x: np.ndarray, bits: int) -> np.ndarray:
+    """``x`` rounded to multiples of 2^-``bits`` (ties to even), as the shaders round a
+    vertex: a product by a power of two, exact, then one rounding."""
+    return np.ldexp(np.round(np.ldexp(x, bits)), -bits).astype(x.dtype)
+
+
+def fixed_bits_of(mesh, spec, family: str) -> int:
+    """F of the family's fixed point on ``mesh`` and ``spec``: ss-solid's rays run along x,
+    the probed eisemann render's along z."""
+    return fixed_bits(mesh, spec, 0 if family == "ss" else 2)
+
+
 def triangles(mesh, spec, family: str) -> tuple[np.ndarray, np.ndarray]:
-    """The voxel-space triangles each family sees, and the column centers of the grid:
-    ss-solid's float32 vertices with centers in (y, z); eisemann's double vertices
-    (render axis z) with (x, y) rounded to its fixed point (:func:`fixed_bits`, as
-    ``common/transform.comp`` rounds them for it) and centers in (x, y)."""
+    """The voxel-space triangles each family decides coverage on, and the column centers
+    of the grid: ss-solid's float32 vertices with (y, z) rounded to its fixed point (as
+    ``ss/solid.glsl`` rounds them: a float32 rounded to a coarser step stays a float32)
+    and centers in (y, z); eisemann's double vertices (render axis z) with (x, y) rounded
+    to its fixed point (as ``common/transform.comp`` rounds them for it) and centers in
+    (x, y).  F: :func:`fixed_bits_of`."""
     ny, nz = spec.dims[1], spec.dims[2]
+    bits = fixed_bits_of(mesh, spec, family)
     if family == "ss":
         tris = gpu_vertices_voxel(mesh, spec)[mesh.faces]
+        tris[..., 1:] = _fixed(tris[..., 1:].astype(np.float64), bits).astype(np.float32)
         grid = np.stack(np.meshgrid(np.arange(ny), np.arange(nz), indexing="ij"), -1).reshape(-1, 2)
     else:
         tris = gpu_vertices_voxel(mesh, spec, double=True)[mesh.faces]
-        bits = fixed_bits(mesh, spec, 2)
-        tris[..., :2] = np.ldexp(np.round(np.ldexp(tris[..., :2], bits)), -bits)
+        tris[..., :2] = _fixed(tris[..., :2], bits)
         grid = np.stack(np.meshgrid(np.arange(spec.dims[0]), np.arange(ny), indexing="ij"), -1).reshape(-1, 2)
     return tris, grid.astype(np.float32) + np.float32(0.5)
 
 
 def run_probe(ctx, family: str, stage: str, tris: np.ndarray, centers: np.ndarray,
               fix_bits: int | None = None) -> np.ndarray:
-    """(pairs, WORDS) uint32 written by ``testing/tie_probe`` on this GL; eisemann's with
-    its (x, y) in multiples of 2^-``fix_bits`` (required there; the tris must be
-    multiples already, as :func:`triangles` makes them)."""
+    """(pairs, WORDS) uint32 written by ``testing/tie_probe`` on this GL, its coverage
+    decided in multiples of 2^-``fix_bits`` voxel (required: the tris must be multiples
+    already, as :func:`triangles` makes them)."""
     pairs = len(tris) * len(centers)
-    uniforms = {"u_pairs": pairs, "u_centers": len(centers)}
-    if family == "eis":
-        if fix_bits is None or not 1 <= fix_bits <= 28:
-            raise ValueError(f"eisemann's probe needs its fixed point's bits (1..28), got {fix_bits!r}")
-        uniforms["u_eis_fix_bits"] = fix_bits
+    if fix_bits is None or not 1 <= fix_bits <= 28:
+        raise ValueError(f"the probe needs its fixed point's bits (1..28), got {fix_bits!r}")
+    uniforms = {"u_pairs": pairs, "u_centers": len(centers),
+                "u_eis_fix_bits" if family == "eis" else "u_solid_fix_bits": fix_bits}
     cen = np.ascontiguousarray(centers, np.float32)
     out = (pairs * WORDS, np.uint32)
     if family == "ss":
@@ -217,7 +216,7 @@ def probe(ctx, mesh, spec, model_fn=model) -> tuple[int, list[Difference]]:
     total, diffs = 0, []
     for kind, family, stage in KINDS:
         tris, centers = triangles(mesh, spec, family)
-        got = run_probe(ctx, family, stage, tris, centers, fixed_bits(mesh, spec, 2))
+        got = run_probe(ctx, family, stage, tris, centers, fixed_bits_of(mesh, spec, family))
         want = model_fn(family, tris, centers)
         total += len(got)
         for p in np.flatnonzero((got != want).any(axis=1)):

@@ -38,13 +38,15 @@
 layout(std430, binding = 0) readonly buffer EisVox { double eis_vox[]; };  // voxel space, xyz per vertex
 layout(std430, binding = 1) readonly buffer EisFaces { uint eis_faces[]; };
 
+#include "common/fixed.glsl"
+
 const int EIS_U = (EIS_AXIS + 1) % 3;
 const int EIS_V = (EIS_AXIS + 2) % 3;
 
 uniform int u_eis_fix_bits;  // F: (u, v) in multiples of 2^-F voxel (see above)
 
 // 2^-F voxel, one unit of the fixed point, from its bits (GLSL lets a division be 2.5 ulp off).
-double eis_unit() { return packDouble2x32(uvec2(0u, uint(1023 - u_eis_fix_bits) << 20)); }
+double eis_unit() { return fixed_unit(u_eis_fix_bits); }
 
 // A (u, v) point (a vertex or a column center, multiples of 2^-F voxel) in units of
 // 2^-F voxel, exactly (rounded to the nearest, ties to even, were it not a multiple).
@@ -68,48 +70,9 @@ void eis_triangle(uint t, out dvec3 p0, out dvec3 p1, out dvec3 p2) {
     p2 = eis_vertex(eis_faces[3u * t + 2u]);
 }
 
-// a * b - c * d: its exact sign, and its value rounded once to a double, from the
-// 64-bit products of imulExtended (|a|..|d| < 2^30: the difference is below 2^61).
-// exact: integer arithmetic, then one rounding
-double eis_det(int a, int b, int c, int d, out int sgn) {
-    int ab_hi, ab_lo, cd_hi, cd_lo;
-    imulExtended(a, b, ab_hi, ab_lo);
-    imulExtended(c, d, cd_hi, cd_lo);
-    uint borrow;
-    uint lo = usubBorrow(uint(ab_lo), uint(cd_lo), borrow);
-    int hi = ab_hi - cd_hi - int(borrow);
-    sgn = hi < 0 ? -1 : (hi > 0 || lo != 0u ? 1 : 0);
-    precise double v = double(hi) * 4294967296.0lf + double(lo);
-    return v;
-}
-
-// The sign of a * b - c * d, exactly.
-// exact: integer arithmetic
-int eis_det_sign(int a, int b, int c, int d) {
-    int sgn;
-    eis_det(a, b, c, d, sgn);
-    return sgn;
-}
-
-// The edge function of p -> q at c, (q - p) x (c - p), in units of 2^-2F voxel^2: its
-// exact sign, and its value rounded once.
-// exact: integer arithmetic; opposite for the two triangles of an edge
-double eis_edge(ivec2 p, ivec2 q, ivec2 c, out int sgn) {
-    ivec2 e = q - p;
-    ivec2 r = c - p;
-    return eis_det(e.x, r.y, e.y, r.x, sgn);
-}
-
-// The projected triangle's orientation: +1 counter-clockwise (the normal's a
-// component positive), -1 clockwise, 0 parallel to the axis (no crossing).
-// exact: integer arithmetic
-int eis_orientation(ivec2 f[3]) {
-    return eis_det_sign(f[1].x - f[0].x, f[2].y - f[0].y, f[1].y - f[0].y, f[2].x - f[0].x);
-}
-
 int eis_orientation(dvec3 p0, dvec3 p1, dvec3 p2) {
     ivec2 f[3] = ivec2[3](eis_fixed(p0.xy), eis_fixed(p1.xy), eis_fixed(p2.xy));
-    return eis_orientation(f);
+    return fixed_orientation(f);
 }
 
 // The triangle's normal (cross(p1 - p0, p2 - p0)) in (u, v, a) order.
@@ -121,16 +84,6 @@ dvec3 eis_normal(dvec3 p0, dvec3 p1, dvec3 p2) {
     return n;
 }
 
-// Does edge i own the centers exactly on it?  Only a left edge (inward normal
-// n_u > 0) or a top edge (n_u == 0, n_v < 0) does.
-// exact: integer differences and signs
-bool eis_top_left(ivec2 f[3], int i, int sgn) {
-    ivec2 e = f[(i + 1) % 3] - f[i];
-    int nu = -sign(e.y) * sgn;
-    int nv = sign(e.x) * sgn;
-    return nu > 0 || (nu == 0 && nv < 0);
-}
-
 // The edge functions at the column center c, oriented so that the inside is positive
 // (edge i runs from vertex i to i + 1: its value weighs vertex i + 2), rounded once
 // from their exact values, with their exact signs s; sgn: the orientation (0: parallel
@@ -139,14 +92,14 @@ bool eis_top_left(ivec2 f[3], int i, int sgn) {
 void eis_weights(dvec3 p0, dvec3 p1, dvec3 p2, dvec2 c, out dvec3 w, out ivec3 s, out int sgn,
                  out ivec2 f[3]) {
     f = ivec2[3](eis_fixed(p0.xy), eis_fixed(p1.xy), eis_fixed(p2.xy));
-    sgn = eis_orientation(f);
+    sgn = fixed_orientation(f);
     w = dvec3(0.0);
     s = ivec3(0);
     if (sgn == 0) return;
     ivec2 cf = eis_fixed(c);
     for (int i = 0; i < 3; ++i) {
         int si;
-        w[i] = eis_edge(f[i], f[(i + 1) % 3], cf, si) * double(sgn);
+        w[i] = fixed_edge(f[i], f[(i + 1) % 3], cf, si) * double(sgn);
         s[i] = si * sgn;
     }
 }
@@ -163,7 +116,7 @@ bool eis_covers_at(dvec3 p0, dvec3 p1, dvec3 p2, dvec2 c, out dvec3 w) {
     eis_weights(p0, p1, p2, c, w, s, sgn, f);
     if (sgn == 0) return false;
     for (int i = 0; i < 3; ++i) {
-        if (!(s[i] > 0 || (s[i] == 0 && eis_top_left(f, i, sgn)))) return false;
+        if (!(s[i] > 0 || (s[i] == 0 && fixed_top_left(f, i, sgn)))) return false;
     }
     return true;
 }

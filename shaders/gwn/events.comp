@@ -88,14 +88,15 @@ void main() {
         atomicMax(big_max_chunks, chunks - 1u);
     }
 #endif
-    // a crossing counts -1 through a face facing +x (n_x > 0), +1 otherwise
-    int step = T.n.x > 0.0lf ? -1 : 1;
+    // a crossing counts -1 through a face facing +x (n_x > 0: orientation +1), +1 otherwise
+    int step = T.sgn > 0 ? -1 : 1;
     uint q0 = chunk * uint(GWN_CHUNK), q1 = min(n, q0 + uint(GWN_CHUNK));
     int j = c.x + int(q0 % nj), k = c.y + int(q0 / nj);
     for (uint q = q0; q < q1; ++q) {
         vec2 center = vec2(j, k) + 0.5;
-        if (solid_covers(T, center)) {
-            int first = solid_first_flip(T, center);
+        dvec3 w;
+        if (solid_covers(T, center, w)) {
+            int first = solid_first_flip(T, w);
 #if PLANES
             if (first < u_dims.x) add_event(max(first, 0), j, k, step);
 #else

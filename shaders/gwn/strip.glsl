@@ -12,18 +12,16 @@ vec4 seg_bnd[GWN_SEGV];  // the expansions' error bounds, turns
 
 const float GWN_PI = 3.14159265358979;
 
-// The (y, z) edge function of u -> v at the row center c, with the double
-// arithmetic that decides triangle crossings (ss/solid.glsl): evaluated from
-// the lexicographically smaller end point, negated when the edge runs the
-// other way.  A strip of this edge jumps exactly where its sign changes, and
-// the owning triangle's crossing of the row starts or stops there too.
+// The (y, z) edge function of u -> v at the row center c, in voxel^2, from the
+// integers that decide triangle crossings (ss/solid.glsl: the vertices' (y, z)
+// in its fixed point): its sign exact, its value rounded once.  A strip of this
+// edge jumps exactly where its sign changes, and the owning triangle's crossing
+// of the row starts or stops there too.
 // exact: ss/solid.glsl's edge function
-double gwn_edge(vec2 u, vec2 v, vec2 c) {
-    dvec2 p = dvec2(u), q = dvec2(v);
-    bool swap = p.x > q.x || (p.x == q.x && p.y > q.y);
-    precise dvec2 pq = p - q, qp = q - p;
-    double f = solid_edge_raw(swap ? q : p, swap ? pq : qp, dvec2(c));
-    return swap ? -f : f;
+double gwn_edge(ivec2 u, ivec2 v, ivec2 c) {
+    int s;
+    precise double f = fixed_edge(u, v, c, s) * solid_unit2();
+    return f;
 }
 
 // |a| + a_x, without cancellation where a_x < 0 (r2 = a_y^2 + a_z^2).
@@ -49,16 +47,20 @@ struct Strip {
     float va, vb;         // the limits through an end point (vertex_angle)
 };
 
-bool strip_empty(vec3 u, vec3 v) { return u.yz == v.yz; }
+// Whether the edge u -> v is parallel to x in the fixed point the crossings see.
+bool strip_empty(vec3 u, vec3 v) { return solid_fixed(u.yz) == solid_fixed(v.yz); }
 
 Strip strip_setup(vec3 u, vec3 v, vec2 c) {
     Strip s;
-    vec2 e = v.yz - u.yz;
-    vec2 a = u.yz - c, b = v.yz - c;
+    // the edge and the end points at the center as the crossings see them: in the
+    // fixed point, so that the strip's special cases fall where theirs do
+    ivec2 uf = solid_fixed(u.yz), vf = solid_fixed(v.yz), cf = solid_fixed(c);
+    vec2 e = vec2(vf - uf);
+    vec2 a = uf == cf ? vec2(0.0) : u.yz - c, b = vf == cf ? vec2(0.0) : v.yz - c;
     s.ra2 = dot(a, a);
     s.rb2 = dot(b, b);
     s.ab = dot(a, b);
-    s.num = float(gwn_edge(u.yz, v.yz, c));
+    s.num = float(gwn_edge(uf, vf, cf));
     // where the edge function is 0, its sign at the center nudged as the
     // top-left rule nudges it (+y, then -z)
     s.nudge = e.y != 0.0 ? -sign(e.y) : -sign(e.x);

@@ -1,14 +1,15 @@
 // The 2D winding numbers of gwn-solid's boundary chain (gwn/field.comp,
 // gwn/bricks.comp): crossings of a half-line in the (y, z) plane, decided by
-// the exact double edge function of the crossings (gwn/strip.glsl's
-// gwn_edge).  Include after the Edges block and vertex() (and, for
-// chain_winding, the Nodes and Links blocks).
+// the exact edge function of the crossings (gwn/strip.glsl's gwn_edge) on
+// their fixed-point (y, z).  Include after the Edges block and vertex() (and,
+// for chain_winding, the Nodes and Links blocks).
 
 // One edge's part of the winding number of a closed polygon's (y, z)
 // projection around c (counterclockwise positive, y right, z up: crossings of
 // the half-line from c towards +y, half-open in z), by the exact edge
 // function of the crossings; `tie` when c lies on the projected edge.
-int edge_winding(vec2 a, vec2 b, vec2 c, inout bool tie) {
+int edge_winding(vec2 a_, vec2 b_, vec2 c_, inout bool tie) {
+    ivec2 a = solid_fixed(a_), b = solid_fixed(b_), c = solid_fixed(c_);
     if ((a.y <= c.y) != (b.y <= c.y)) {
         double f = gwn_edge(a, b, c);
         if (f == 0.0lf) tie = true;

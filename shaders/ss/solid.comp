@@ -74,8 +74,9 @@ void voxelize_chunk(SolidTri T, ivec4 c, uint n, uint chunk) {
     int j = c.x + int(q0 % nj), k = c.y + int(q0 / nj);
     for (uint q = q0; q < q1; ++q) {
         vec2 center = vec2(j, k) + 0.5;
-        if (solid_covers(T, center)) {
-            int first = solid_first_flip(T, center);
+        dvec3 w;
+        if (solid_covers(T, center, w)) {
+            int first = solid_first_flip(T, w);
 #if SOLID_TRACE
             trace_crossing(j, k, first);
 #endif

@@ -72,8 +72,9 @@ void main() {
     uvec4 flips = uvec4(0u);
     for (uint p = first; p < last; ++p) {
         SolidTri T;
-        if (!load_solid_triangle(values[p], T) || !solid_covers(T, center)) continue;
-        int f = solid_first_flip(T, center);
+        dvec3 w;
+        if (!load_solid_triangle(values[p], T) || !solid_covers(T, center, w)) continue;
+        int f = solid_first_flip(T, w);
         if (f >= u_dims.x) continue;
         uint b = uint(max(f, 0));
         if (int(b >> 5) != seg) {

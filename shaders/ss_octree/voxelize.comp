@@ -70,8 +70,9 @@ void main() {
             for (int k = c0.y; k <= c1.y; ++k) {
                 for (int j = c0.x; j <= c1.x; ++j) {
                     vec2 center = vec2(j, k) + 0.5;
-                    if (!solid_covers(T, center)) continue;
-                    int first = solid_first_flip(T, center);
+                    dvec3 w;
+                    if (!solid_covers(T, center, w)) continue;
+                    int first = solid_first_flip(T, w);
                     if (first >= u_dims.x) continue;
                     uint x = uint(max(first, 0));
                     uint key = x >> 2;  // the tile fixes the node's y and z

@@ -1,5 +1,8 @@
 #version 450
 // One invocation per (triangle, center) pair: testing/tie_probe.glsl in a compute shader.
+// (Both families include common/fixed.glsl; an include is expanded once, whatever #if
+// surrounds it, so it comes first, outside the branches.)
+#include "common/fixed.glsl"
 #if PROBE_EIS
 #define EIS_AXIS 2
 #include "eisemann/column.glsl"

@@ -13,17 +13,17 @@ layout and :func:`tile_limit`.
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 from typing import Any
 
 import moderngl
 import numpy as np
 
-from ...errors import CapabilityError, LimitError, MethodError, SuspiciousResultWarning
+from ...errors import CapabilityError, LimitError, MethodError
 from ...gl.shaders import compute_program, render_program
 from ...gpu.buffers import buffer_pool, object_cache, release_object_cache
 from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
+from ...gpu.fixed_point import fixed_bits
 from ...gpu.transform import transform_vertices
 
 #: Render targets per pass (RGBA32UI, 128 slices each): 8 x 128 = 1024 slices.
@@ -44,52 +44,6 @@ MASKS = ("bits", "texture")
 DEFAULT_MASKS = "bits"
 COVERAGES = ("exact", "raster")
 OPS = {"xor": 0, "or": 1}
-
-#: The most magnitude bits a fixed-point (u, v) coordinate of ``eisemann/column.glsl`` may
-#: take: every coordinate and column center below 2^29 units, so their differences stay
-#: below 2^30 and imulExtended's products below 2^60.
-FIXED_RANGE_BITS = 29
-
-
-#: Below this F the fixed point's rounding (2^-(F+1) voxel) reaches a third of TIE_EPS:
-#: :func:`fixed_bits` warns.
-FIXED_BITS_WARN = 14
-
-
-def fixed_bits(mesh, spec, axis: int, warn: bool = True) -> int:
-    """F: ``eisemann/column.glsl`` decides coverage on (u, v) rounded to multiples of 2^-F
-    voxel, in integers.  The largest F that keeps every vertex and column center within
-    2^:data:`FIXED_RANGE_BITS` units: 18 for a mesh in a 1024-voxel grid (rounding by at
-    most 2^-19 voxel), 22 at 64.  The vertices' reach is taken from the mesh's bounds in
-    voxel space plus one voxel (the GPU's float32 rounding and the plane snap move them
-    far less).
-
-    Raises
-    ------
-    LimitError
-        The mesh reaches 2^28 voxels or more from the grid's origin across the rays.
-
-    Warns
-    -----
-    SuspiciousResultWarning
-        With ``warn``, where F < :data:`FIXED_BITS_WARN` (the mesh reaches past 2^15
-        voxels): voxels that close to the surface may differ from the reference's.
-    """
-    u, v = (axis + 1) % 3, (axis + 2) % 3
-    vox = (np.asarray(mesh.bounds, np.float64) - np.asarray(spec.origin)) / float(spec.voxel_size)
-    reach = max(float(np.abs(vox[:, [u, v]]).max()) if np.isfinite(vox).all() else np.inf,
-                spec.dims[u], spec.dims[v]) + 1.0
-    if not reach < 2.0 ** (FIXED_RANGE_BITS - 1):
-        raise LimitError(f"the mesh reaches {reach:.3g} voxels from the grid's origin across the rays; "
-                         f"the raster methods' exact coverage takes at most 2^{FIXED_RANGE_BITS - 1}: "
-                         f"use ss-solid or a grid nearer the mesh")
-    bits = FIXED_RANGE_BITS - int(np.ceil(np.log2(reach)))
-    if warn and bits < FIXED_BITS_WARN:
-        warnings.warn(f"the mesh reaches {reach:.3g} voxels from the grid's origin: the raster methods decide "
-                      f"coverage on vertices rounded to 2^-{bits} voxel, so voxels within {2.0 ** -(bits + 1):.2g} "
-                      f"voxel of the surface may differ from the references'", SuspiciousResultWarning, stacklevel=3)
-    return bits
-
 
 # the pack pass: a fixed 32-iteration load, 80 swap steps and 4 x 32 stores
 assert 32 + 80 + 4 * 32 < LOOP_BUDGET

@@ -62,6 +62,7 @@ from ...grid import MAX_VOXELS
 from ...gpu.buffers import (MAX_SLAB_VOXELS, buffer_pool, clear_buffer, mesh_buffers, read_grid_words, slab_reader,
                              z_slabs)
 from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
+from ...gpu.fixed_point import fixed_bits
 from ...gpu.transform import transform_vertices
 from ...results.voxels import VoxelGrid
 from ...tolerances import WINDING_TIE
@@ -175,6 +176,7 @@ class GwnSolid(Method):
             raise MethodError(f"option accuracy (beta) must be a finite number > 1, got {accuracy!r}")
         if not math.isfinite(threshold):
             raise MethodError(f"option threshold must be a finite number, got {threshold!r}")
+        fix_bits = fixed_bits(mesh, spec, 0)  # refuses a mesh out of the crossings' range before any work
         pool = buffer_pool(ctx, self.info.name)
         if winding and spec.n_voxels > MAX_VOXELS:
             raise LimitError(f"winding=true returns a dense float32 field, and {spec.dims} has {spec.n_voxels} "
@@ -209,7 +211,7 @@ class GwnSolid(Method):
 
         def prepare(planes: bool, caps: bool = True) -> _Run:
             run = _Run(ctx, spec, pool, bufs, vox, bits, tree, timer, float(threshold), float(accuracy),
-                       bool(winding), planes, stream=None if stream is None else (max(nk for _, nk in stream),
+                       bool(winding), fix_bits, planes, stream=None if stream is None else (max(nk for _, nk in stream),
                                                                                    read_slab))
             if run.bricks:
                 rows, segs = run.field_part()
@@ -270,8 +272,8 @@ class GwnSolid(Method):
 class _Run:
     """One gwn-solid run: the slabs, their passes and their statistics."""
 
-    def __init__(self, ctx, spec, pool, bufs, vox, bits, tree, timer, threshold, beta, winding, planes=True,
-                 stream=None):
+    def __init__(self, ctx, spec, pool, bufs, vox, bits, tree, timer, threshold, beta, winding, fix_bits,
+                 planes=True, stream=None):
         self.ctx, self.spec, self.pool, self.bufs, self.vox, self.bits = ctx, spec, pool, bufs, vox, bits
         # (slices the bits buffer holds, read_slab) where the grid is streamed slab by slab
         self.stream = stream
@@ -290,7 +292,8 @@ class _Run:
         self.caps: RunCaps | None = None
         self.stats = {"slabs": 0, "tree_nodes": tree.n_nodes if tree else 0, "tree_chunks": 0,
                       "bricks": 0, "refined_segments": 0, "field_segments": 0}
-        self.uniforms = grid_uniforms(spec, bufs.anchor)
+        # F of ss/solid.glsl's fixed point (glvox.gpu.fixed_point.fixed_bits), for every pass
+        self.uniforms = {**grid_uniforms(spec, bufs.anchor), "u_solid_fix_bits": fix_bits}
         self.max_groups = int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])
         if tree is not None:
             self.chunks = plan_chunks(tree)

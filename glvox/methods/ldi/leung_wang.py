@@ -72,12 +72,12 @@ import numpy as np
 from ...errors import GridError, MethodError
 from ...gl.shaders import compute_program
 from ...gpu.buffers import buffer_pool
+from ...gpu.fixed_point import fixed_bits
 from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, set_uniforms
 from ...grid import GridSpec, fit_grid
 from ...results.ldi import LDI
 from ...gpu.transform import SHADERS as TRANSFORM_SHADERS
 from ..base import Method, MethodInfo, Option, Requirements, register
-from ..eisemann.passes import fixed_bits
 from ..envelope import run_in_envelope
 from .common import AXIS_OPTION, warn_open
 from .leung_wang_passes import (TARGETS, Frame, OnGrid, check_fragment_storage, count_samples, phase2, prepare,

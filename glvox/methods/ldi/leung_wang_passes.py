@@ -27,6 +27,7 @@ from ...gl import raw as rawgl
 from ...gl.shaders import compute_program, render_program
 from ...gpu.buffers import check_buffer_size, mesh_buffers, object_cache, release_object_cache
 from ...gpu.dispatch import barrier, bind, dispatch_1d, set_uniforms
+from ...gpu.fixed_point import fixed_bits
 from ...gpu.transform import transform_vertices
 from ..eisemann import passes as eisemann_passes
 from .common import Rays, read_chunks
@@ -188,7 +189,7 @@ class OnGrid:
     bufs: Any
     vox: Any
     setup: Any
-    fix_bits: int        # F of :func:`glvox.methods.eisemann.passes.fixed_bits`
+    fix_bits: int        # F of :func:`glvox.gpu.fixed_point.fixed_bits`
     motion: float = 0.0  # voxels, per coordinate: :func:`mesh_motion` and the fixed-point rounding
     snap_motion: Any = None  # float32 per vertex: the snap's move (common/transform.comp)
 
@@ -227,7 +228,7 @@ def prepare(ctx, mesh, frame: Frame, pool, tag: str, timer, suffix: str = "") ->
     shift = [0.0] * 3
     shift[a] = 0.5
     # the fixed point of the coverage test: (u, v) rounded by up to half a unit, in the motion below
-    fix_bits = eisemann_passes.fixed_bits(mesh, spec, a)
+    fix_bits = fixed_bits(mesh, spec, a)
     snap_motion = pool.get(f"snap_motion_{tag}", max(mesh_buffers(ctx, mesh).n_vertices, 1) * 4,
                            what="the snap's move per vertex", clear=False)
     bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool, double=True, stretch=stretch, shift=shift,

@@ -59,6 +59,7 @@ from ...gl.shaders import compute_program
 from ...gpu.buffers import MAX_SLAB_VOXELS, buffer_pool, clear_buffer, read_grid_words, slab_reader, z_slabs
 from ...gpu.sort import SHADERS as SORT_SHADERS, exclusive_scan, sort_pairs
 from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
+from ...gpu.fixed_point import fixed_bits
 from ...gpu.transform import SHADERS as TRANSFORM_SHADERS, transform_vertices
 from ...grid import GridSpec
 from ...results.voxels import VoxelGrid
@@ -155,13 +156,14 @@ def _check_triangles(ctx, n, name):
     return max_groups
 
 
-def _classify(ctx, spec, timer, bufs, vox, pool, unit, chunk):
-    """Stage ``classify``: chunks per triangle (tri_chunks) and their maximum (stats[3])."""
+def _classify(ctx, timer, bufs, vox, pool, unit, chunk, uniforms):
+    """Stage ``classify``: chunks per triangle (tri_chunks) and their maximum (stats[3]);
+    ``uniforms``: the grid's and ``u_solid_fix_bits``."""
     n = bufs.n_triangles
     stats = pool.get("stats", 8 * 4)
     tri_chunks = pool.get("tri_chunks", n * 4, what="per-triangle chunk counts", clear=False)
     prog = compute_program(ctx, "ss/solid_classify.comp", {"SOLID_UNIT": unit, "SOLID_CHUNK": chunk})
-    set_uniforms(prog, {**grid_uniforms(spec, bufs.anchor), "u_triangles": n})
+    set_uniforms(prog, {**uniforms, "u_triangles": n})
     with timer.stage("classify"):
         bind(prog, VoxVerts=vox, Faces=bufs.faces, Stats=stats, TriChunks=tri_chunks)
         dispatch_1d(ctx, prog, n, _LOCAL)
@@ -298,6 +300,7 @@ def parity_on_gpu(ctx, mesh, spec, timer, pool, *, axis: int = 0, tag: str = "",
     """
     n = mesh.n_triangles
     max_groups = _check_triangles(ctx, n, "ss-solid")
+    fix_bits = fixed_bits(mesh, spec, axis)
     rspec = rotated_spec(spec, axis)
     if slabs is not None and axis != 0:
         raise ValueError("slabs are z slabs of x rows: axis 0 only")
@@ -310,7 +313,7 @@ def parity_on_gpu(ctx, mesh, spec, timer, pool, *, axis: int = 0, tag: str = "",
                                    stage="transform" + tag)
     big = pool.get("big" + tag, (n + 2) * 4, what="the triangles with several column chunks", clear=False)
     clear_buffer(ctx, big, 8)
-    uniforms = grid_uniforms(rspec, bufs.anchor[list(rotation(axis))])
+    uniforms = {**grid_uniforms(rspec, bufs.anchor[list(rotation(axis))]), "u_solid_fix_bits": fix_bits}
     slab = {} if slabs is None else {"VOX_SLAB": 1}
     traced = {} if trace is None else {"SOLID_TRACE": 1}
     first, rest = (compute_program(ctx, "ss/solid.comp", {"SOLID_CHUNK": COLUMN_CHUNK, "FIRST": f,
@@ -421,14 +424,15 @@ class SSSolidTiled(Method):
                 f"{32 * MAX_SEGMENTS} voxels; this grid has nx = {nx}: use ss-solid, or ss-octree"
             )
         max_groups = _check_triangles(ctx, n, "ss-solid-tiled")
+        fix_bits = fixed_bits(mesh, spec, 0)
         pool = buffer_pool(ctx, self.info.name)
         grid = pool.get("grid", spec.n_words * 4, what=f"the {spec.dims} bit grid")
         count = pool.get("count", 4)
         bufs, vox = transform_vertices(ctx, mesh, spec, timer, pool)
         tiles_y, tiles_z = -(-ny // TILE), -(-nz // TILE)
         key_bits = max(1, (tiles_y * tiles_z - 1).bit_length())
-        common = {**grid_uniforms(spec, bufs.anchor), "u_triangles": n}
-        stats, tri_chunks = _classify(ctx, spec, timer, bufs, vox, pool, TILE, TILE_CHUNK)
+        common = {**grid_uniforms(spec, bufs.anchor), "u_solid_fix_bits": fix_bits, "u_triangles": n}
+        stats, tri_chunks = _classify(ctx, timer, bufs, vox, pool, TILE, TILE_CHUNK, common)
         with timer.stage("pairs"):
             keys, values, n_pairs = _tile_pairs(ctx, pool, bufs, vox, tri_chunks, stats, common, max_groups)
         with timer.stage("sort"):

@@ -60,6 +60,7 @@ from ...gl.shaders import compute_program, program_source
 from ...gpu.buffers import buffer_pool
 from ...gpu.sort import SHADERS as SORT_SHADERS, exclusive_scan
 from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
+from ...gpu.fixed_point import fixed_bits
 from ...gpu.transform import SHADERS as TRANSFORM_SHADERS, transform_vertices
 from ...results.octree import MAX_OCTREE_DIM, NONE, OctreeLevel, SparseOctree, top_level
 from ..base import Method, MethodInfo, Option, Requirements, register
@@ -144,6 +145,7 @@ class _Build:
     def __init__(self, ctx, mesh, spec, walls: bool, owner: str, timer) -> None:
         self.ctx, self.spec = ctx, spec
         self.top = top_level(spec.dims)  # LimitError past MAX_OCTREE_DIM
+        self.fix_bits = fixed_bits(mesh, spec, 0)  # ss/solid.glsl's fixed point; LimitError out of its range
         self.pool = buffer_pool(ctx, owner)
         self.max_groups = int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])
         self.n_tris = mesh.n_triangles
@@ -159,7 +161,7 @@ class _Build:
             self.walls.write(edges.tobytes())
         self.stats = self.alloc("stats", 16)
         self.dummy = self.alloc("dummy", 16)
-        self.grid_u = grid_uniforms(spec, self.bufs.anchor)
+        self.grid_u = {**grid_uniforms(spec, self.bufs.anchor), "u_solid_fix_bits": self.fix_bits}
         self.nbase = np.zeros(MAX_LEVELS, np.uint32)
         self.ubase = np.zeros(MAX_LEVELS, np.uint32)
 
