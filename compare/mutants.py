@@ -131,7 +131,7 @@ MUTANTS: list[Mutant] = [
            (EXACT, "-k", "solid_methods and ss-solid")),
     Mutant("ss-tile-test-strict", "S&S tiled solid: a box whose critical corner lies exactly on an edge "
            "dropped (the exact tile test made strict)", "shaders/ss/solid.glsl",
-           (("        if (s < 0) return false;", "        if (s <= 0) return false;"),),
+           (("        if (hi < 0) return false;", "        if (fixed_sign(hi, lo) <= 0) return false;"),),
            (EXACT, "-k", "solid_methods and (ss-solid-tiled or ss-octree)")),
     Mutant("ss-vertex-rounded-per-triangle", "S&S solid: each triangle rounds its vertices to the fixed point "
            "with its own offset, so the triangles of an edge see different edges", "shaders/ss/solid.glsl",
@@ -149,9 +149,9 @@ MUTANTS: list[Mutant] = [
            (("        if (!(s[i] > 0 || (s[i] == 0 && fixed_top_left(f, i, sgn)))) return false;",
              "        if (!(s[i] >= 0 || (s[i] == 0 && fixed_top_left(f, i, sgn)))) return false;"),),
            (EXACT, "-k", "solid_methods and eisemann-solid")),
-    Mutant("eisemann-det-borrow-lost", "eisemann column test: the 64-bit difference of the products "
+    Mutant("eisemann-det-borrow-lost", "fixed-point coverage: the 64-bit difference of the products "
            "without the low words' borrow", "shaders/common/fixed.glsl",
-           (("    int hi = ab_hi - cd_hi - int(borrow);", "    int hi = ab_hi - cd_hi;"),),
+           (("    hi = ab_hi - cd_hi - int(borrow);", "    hi = ab_hi - cd_hi;"),),
            ("tests/test_eisemann.py", "-k", "determinant")),
     Mutant("eisemann-crossing-normal-denominator", "eisemann: the crossing divided by the double normal's "
            "a component instead of the exact weights' sum (the same number but for rounding)",

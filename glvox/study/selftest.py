@@ -35,11 +35,12 @@ result is ``precise``, as GLSL 4.50 Sec. 4.9 demands and every exact shader
 relies on; a fused probe is a mismatch.  Its detail lines say what GLSL leaves
 free: whether plain expressions are fused, the error of ``a / b``, denormals.
 
-The second, ``ties``, checks the double arithmetic the exact solids decide
-ties with (:mod:`glvox.testing.tie_probe`): on every (triangle, column center)
-pair of the tie cases, ss-solid's and eisemann's edge functions, top-left
-flags, verdicts and crossings on the GPU, in a compute and a fragment
-shader, must equal their float64 model word for word; a detail line names
+The second, ``ties``, checks the arithmetic the exact solids decide ties with
+(:mod:`glvox.testing.tie_probe`: coverage in integers, crossings in double): on
+every (triangle, column center) pair of the tie cases, ss-solid's and
+eisemann's edge functions, top-left flags, verdicts and crossings on the GPU,
+in a compute and a fragment shader, must equal their model word for word
+(Python's integers and numpy float64); a detail line names
 each pair that differs and the quantity (the first few).  Then the methods'
 own passes, traced: every crossing ss-solid's voxelize pass flips and every
 fragment eisemann-solid's render draws must be a pair the model covers, from

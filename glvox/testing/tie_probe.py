@@ -1,22 +1,24 @@
-"""The exact tie functions of ss-solid and eisemann-solid on the GPU against their float64 model.
+"""The exact tie functions of ss-solid and eisemann-solid on the GPU against their model.
 
 Where a column center lies exactly on a projected edge or vertex, the solid
-methods decide it by the top-left rule on edge functions: ss-solid computes
-them in double (``shaders/ss/solid.glsl``), eisemann-solid takes their exact
-signs from integer products on fixed-point coordinates
-(``shaders/eisemann/column.glsl``).  The CPU references make the same
-decisions, so on any GL that computes those doubles as IEEE 754 does, and
-integers as GLSL demands, every method agrees with them there.  An NVIDIA H100
-(driver 580) did not: ss-solid set a voxel half a voxel outside a box whose
-faces lie on voxel center planes, eisemann-solid one outside a tetrahedron
-(``glvox selftest``'s tie cases).
+methods decide it by the top-left rule on edge functions.  Both take their
+exact signs from integer products on fixed-point coordinates
+(``shaders/common/fixed.glsl``, through ``shaders/ss/solid.glsl`` and
+``shaders/eisemann/column.glsl``), and their crossings from those edge
+functions in double.  The model makes the same decisions in Python's integers
+and numpy float64, so on any GL that computes integers as GLSL demands and
+those doubles as IEEE 754 does, every method agrees with it there.  An NVIDIA
+H100 (driver 580) did not, when both decided in double: ss-solid set a voxel
+half a voxel outside a box whose faces lie on voxel center planes,
+eisemann-solid one outside a tetrahedron (``glvox selftest``'s tie cases).
 
 :func:`probe` evaluates those functions on the GPU for every (triangle,
-column center) pair of a mesh (``shaders/testing/tie_probe.glsl``: the normal
-component along the ray, the three oriented edge functions, the three
-top-left flags, the verdict and the first voxel flipped), in a compute shader
-and, for eisemann, in a fragment shader as the method runs them, and compares
-every word with :func:`model`, the same formulas in numpy float64.  A
+column center) pair of a mesh (``shaders/testing/tie_probe.glsl``: the
+orientation, the normal component along the ray, the three oriented edge
+functions, the three top-left flags, the verdict and the first voxel
+flipped), in a compute shader and, for eisemann, in a fragment shader as the
+method runs them, and compares every word with :func:`model`, the same
+decisions in Python's integers and numpy float64.  A
 difference names the pair and the quantity, so a GPU that decides a tie
 otherwise is pinned to the operation that differs (``compare/probe_ties.py``
 prints them).
@@ -100,19 +102,21 @@ def _eis_sign(x) -> int:
     return (x > 0) - (x < 0)
 
 
-def _model_fixed(t: np.ndarray, c: np.ndarray, lowest: float) -> list[int]:
+def _model_fixed(t: np.ndarray, c: np.ndarray, lowest: float, by_area: bool) -> list[int]:
     """``common/fixed.glsl``'s decisions on vertices ``t`` (3, 3) as (u, v, along the ray),
     (u, v) already in the fixed point (:func:`triangles`), at the center ``c`` = (u, v).
     The orientation and the edge functions are exact integers (here in units of 2^-64
     voxel, there of 2^-F: a power of two apart, so their roundings to double and the
-    crossing from them agree bit for bit), the crossing the shaders' barycentric formula,
-    its first voxel clamped below at ``lowest``."""
+    crossing from them agree bit for bit), the crossing the shaders' barycentric formula
+    (times the reciprocal of twice the projected area, rounded once, with ``by_area``,
+    else divided by the weights' sum), its first voxel clamped below at ``lowest``."""
     p0, p1, p2 = t[0], t[1], t[2]
     e0, e1 = p1 - p0, p2 - p0
     n2 = e0[0] * e1[1] - e0[1] * e1[0]
     f = [(_exact(v[0]), _exact(v[1])) for v in t]
     cf = (_exact(c[0]), _exact(c[1]))
-    sgn = _eis_sign((f[1][0] - f[0][0]) * (f[2][1] - f[0][1]) - (f[1][1] - f[0][1]) * (f[2][0] - f[0][0]))
+    area2 = (f[1][0] - f[0][0]) * (f[2][1] - f[0][1]) - (f[1][1] - f[0][1]) * (f[2][0] - f[0][0])
+    sgn = _eis_sign(area2)
     out = [int(sgn != 0), *_bits(n2)]
     s_or = sgn if sgn != 0 else 1
     exact, ws, tls = [], [], []
@@ -126,7 +130,8 @@ def _model_fixed(t: np.ndarray, c: np.ndarray, lowest: float) -> list[int]:
     covered = sgn != 0 and all(d > 0 or (d == 0 and tl) for d, tl in zip(exact, tls))
     first = 0
     if covered:
-        z = p0[2] + (ws[0] * (p2[2] - p0[2]) + ws[2] * (p1[2] - p0[2])) / (ws[0] + ws[1] + ws[2])
+        num = ws[0] * (p2[2] - p0[2]) + ws[2] * (p1[2] - p0[2])
+        z = p0[2] + (num * (1.0 / float(abs(area2))) if by_area else num / (ws[0] + ws[1] + ws[2]))
         z = min(max(z, float(t[:, 2].min())), float(t[:, 2].max()))
         first = _first(z, lowest, 1073741824.0)
     return out + [w for v in ws for w in _bits(math.ldexp(v, -128))] + tls + [int(covered), first]
@@ -135,13 +140,13 @@ def _model_fixed(t: np.ndarray, c: np.ndarray, lowest: float) -> list[int]:
 def _model_ss(t: np.ndarray, c: np.ndarray) -> list[int]:
     """``ss/solid.glsl`` on float32 vertices ``t`` (3, 3) whose (y, z) are already its
     fixed-point values (:func:`triangles`), center ``c`` = (y, z)."""
-    return _model_fixed(t.astype(np.float64)[:, [1, 2, 0]], c, -1.0)
+    return _model_fixed(t.astype(np.float64)[:, [1, 2, 0]], c, -1.0, True)
 
 
 def _model_eis(t: np.ndarray, c: np.ndarray) -> list[int]:
     """``eisemann/column.glsl`` (render axis z) on double vertices ``t`` (3, 3) whose (x, y)
     are already its fixed-point values (:func:`triangles`), center ``c`` = (x, y)."""
-    return _model_fixed(t, c, -2.0)
+    return _model_fixed(t, c, -2.0, False)
 
 
 def model(family: str, tris: np.ndarray, centers: np.ndarray) -> np.ndarray:

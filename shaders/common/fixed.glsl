@@ -16,19 +16,36 @@
 // 2^-bits (bits 0..1022), from its bits: GLSL lets a division be 2.5 ulp off.
 double fixed_unit(int bits) { return packDouble2x32(uvec2(0u, uint(1023 - bits) << 20)); }
 
-// a * b - c * d: its exact sign, and its value rounded once to a double, from the
-// 64-bit products of imulExtended (|a|..|d| < 2^30: the difference is below 2^61).
-// exact: integer arithmetic, then one rounding
-double fixed_det(int a, int b, int c, int d, out int sgn) {
+// a * b - c * d exactly, as the two's-complement 64-bit integer hi * 2^32 + lo, from
+// the 64-bit products of imulExtended (|a|..|d| < 2^30: the difference is below 2^61).
+// exact: integer arithmetic
+void fixed_det_words(int a, int b, int c, int d, out int hi, out uint lo) {
     int ab_hi, ab_lo, cd_hi, cd_lo;
     imulExtended(a, b, ab_hi, ab_lo);
     imulExtended(c, d, cd_hi, cd_lo);
     uint borrow;
-    uint lo = usubBorrow(uint(ab_lo), uint(cd_lo), borrow);
-    int hi = ab_hi - cd_hi - int(borrow);
-    sgn = hi < 0 ? -1 : (hi > 0 || lo != 0u ? 1 : 0);
+    lo = usubBorrow(uint(ab_lo), uint(cd_lo), borrow);
+    hi = ab_hi - cd_hi - int(borrow);
+}
+
+// The sign of the 64-bit integer hi * 2^32 + lo.
+int fixed_sign(int hi, uint lo) { return hi < 0 ? -1 : (hi > 0 || lo != 0u ? 1 : 0); }
+
+// The 64-bit integer hi * 2^32 + lo (below 2^61 in magnitude) rounded once to a double.
+// exact: one rounding
+double fixed_value(int hi, uint lo) {
     precise double v = double(hi) * 4294967296.0lf + double(lo);
     return v;
+}
+
+// a * b - c * d: its exact sign, and its value rounded once to a double.
+// exact: integer arithmetic, then one rounding
+double fixed_det(int a, int b, int c, int d, out int sgn) {
+    int hi;
+    uint lo;
+    fixed_det_words(a, b, c, d, hi, lo);
+    sgn = fixed_sign(hi, lo);
+    return fixed_value(hi, lo);
 }
 
 // The sign of a * b - c * d, exactly.

@@ -12,12 +12,12 @@
 // computed from the float32 upload relative to the mesh's anchor: the mesh the
 // GPU sees is the true one moved by at most 2^-24 * N/2 voxel (3e-5 voxel at
 // N = 1024), below TIE_EPS (1e-4).  Their (u, v) coordinates are then rounded to
-// multiples of 2^-F voxel (F = u_eis_fix_bits, glvox.methods.eisemann.passes.fixed_bits:
+// multiples of 2^-F voxel (F = u_eis_fix_bits, glvox.gpu.fixed_point.fixed_bits:
 // 2^-18 at 1024 voxels), so that every coordinate and column center is an integer
 // below 2^29 in units of 2^-F, and every difference below 2^30.  Coverage is decided in
-// those integers: each edge function and the orientation are a difference of two
-// products, whose sign imulExtended's exact 64-bit products give whatever the
-// compiler does with floating point.  Each vertex is rounded once, the same way for
+// those integers (common/fixed.glsl, shared with ss/solid.glsl): each edge function and
+// the orientation are a difference of two products, whose sign imulExtended's exact
+// 64-bit products give whatever the compiler does with floating point.  Each vertex is rounded once, the same way for
 // every triangle that has it, so the rounded mesh is closed where the true one is,
 // and the top-left rule counts a center on a shared edge or vertex exactly once:
 // the GPU computes the exact parity solid of a mesh moved by less than TIE_EPS, and

@@ -93,9 +93,8 @@ void main() {
     uint q0 = chunk * uint(GWN_CHUNK), q1 = min(n, q0 + uint(GWN_CHUNK));
     int j = c.x + int(q0 % nj), k = c.y + int(q0 / nj);
     for (uint q = q0; q < q1; ++q) {
-        vec2 center = vec2(j, k) + 0.5;
         dvec3 w;
-        if (solid_covers(T, center, w)) {
+        if (solid_covers(T, solid_center(ivec2(j, k)), w)) {
             int first = solid_first_flip(T, w);
 #if PLANES
             if (first < u_dims.x) add_event(max(first, 0), j, k, step);

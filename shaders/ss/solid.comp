@@ -73,9 +73,8 @@ void voxelize_chunk(SolidTri T, ivec4 c, uint n, uint chunk) {
     uint q0 = chunk * uint(SOLID_CHUNK), q1 = min(n, q0 + uint(SOLID_CHUNK));
     int j = c.x + int(q0 % nj), k = c.y + int(q0 / nj);
     for (uint q = q0; q < q1; ++q) {
-        vec2 center = vec2(j, k) + 0.5;
         dvec3 w;
-        if (solid_covers(T, center, w)) {
+        if (solid_covers(T, solid_center(ivec2(j, k)), w)) {
             int first = solid_first_flip(T, w);
 #if SOLID_TRACE
             trace_crossing(j, k, first);

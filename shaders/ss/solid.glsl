@@ -37,7 +37,9 @@ uniform int u_solid_fix_bits;  // F (see above), 1..28
 struct SolidTri {
     vec3 x;          // the vertices' x, for the crossing
     ivec2 f[3];      // the vertices' (y, z) in units of 2^-F voxel
+    ivec2 e[3];      // edge i, f[i + 1] - f[i], times sgn: its edge function is inside-positive
     int sgn;         // the projection's orientation: +1 (normal's x > 0), -1; 0: parallel to x
+    double inv_area2;  // 1 / twice its projected area (units^2, rounded once: the edge functions' sum)
     int tl;          // bit i: edge i (vertex i -> i + 1) owns the centers exactly on it
     ivec4 box;       // (y, z) bounding box of f: (lo, hi), units
     float xlo, xhi;  // x extent, to clamp q against rounding on edge-on triangles
@@ -67,13 +69,16 @@ bool solid_setup(vec3 p0, vec3 p1, vec3 p2, out SolidTri t) {
     t.box = ivec4(min(min(t.f[0], t.f[1]), t.f[2]), max(max(t.f[0], t.f[1]), t.f[2]));
     t.xlo = min(min(p0.x, p1.x), p2.x);
     t.xhi = max(max(p0.x, p1.x), p2.x);
-    t.sgn = fixed_orientation(t.f);
+    double area2 = abs(fixed_det(t.f[1].x - t.f[0].x, t.f[2].y - t.f[0].y, t.f[1].y - t.f[0].y,
+                                 t.f[2].x - t.f[0].x, t.sgn));
+    t.inv_area2 = 1.0lf / area2;  // once per triangle, not a division per column
     t.tl = 0;
-    if (t.sgn == 0) return false;
     for (int i = 0; i < 3; ++i) {
-        if (fixed_top_left(t.f, i, t.sgn)) t.tl |= 1 << i;
+        ivec2 d = t.f[(i + 1) % 3] - t.f[i];
+        t.e[i] = t.sgn < 0 ? -d : d;
+        if (t.sgn != 0 && fixed_top_left(t.f, i, t.sgn)) t.tl |= 1 << i;
     }
-    return true;
+    return t.sgn != 0;
 }
 
 // Columns (j0, k0, j1, k1), inclusive, whose centers lie in t's (y, z)
@@ -87,27 +92,37 @@ ivec4 solid_columns(SolidTri t, ivec3 dims) {
 }
 
 // Edge i's function at the center cf (units), oriented so that the inside is
-// positive: its exact sign s, and its value rounded once.
+// positive, as a 64-bit integer (hi, lo).
 // exact: integer arithmetic
-double solid_edge(SolidTri t, int i, ivec2 cf, out int s) {
-    precise double w = fixed_edge(t.f[i], t.f[(i + 1) % 3], cf, s) * double(t.sgn);
-    s *= t.sgn;
-    return w;
+void solid_edge(SolidTri t, int i, ivec2 cf, out int hi, out uint lo) {
+    ivec2 r = cf - t.f[i];
+    fixed_det_words(t.e[i].x, r.y, t.e[i].y, r.x, hi, lo);
 }
 
-// Does the column center c = (y, z) lie in t's projection (top-left rule)?
-// w: the oriented edge functions there (edge i weighs vertex i + 2), for
-// solid_first_flip.
+// The center of column (j, k) in units: (2 j + 1, 2 k + 1) 2^(F-1).
+ivec2 solid_center(ivec2 jk) { return (2 * jk + 1) << (u_solid_fix_bits - 1); }
+
+// Does the column center cf (units) lie in t's projection (top-left rule)?
+// w: the oriented edge functions there (edge i weighs vertex i + 2), each rounded
+// once, for solid_first_flip (set where covered).
 // exact: integer edge functions and flags
-bool solid_covers(SolidTri t, vec2 c, out dvec3 w) {
-    ivec2 cf = solid_fixed(c);
-    w = dvec3(0.0);
+bool solid_covers(SolidTri t, ivec2 cf, out dvec3 w) {
+    ivec3 hi;
+    uvec3 lo;
     for (int i = 0; i < 3; ++i) {
-        int s;
-        w[i] = solid_edge(t, i, cf, s);
+        solid_edge(t, i, cf, hi[i], lo[i]);
+        int s = fixed_sign(hi[i], lo[i]);
         if (!(s > 0 || (s == 0 && ((t.tl >> i) & 1) != 0))) return false;
     }
+    // (solid_first_flip does not read w.y)
+    w = dvec3(fixed_value(hi.x, lo.x), 0.0lf, fixed_value(hi.z, lo.z));
     return true;
+}
+
+// The same at the column center c = (y, z), voxels.
+// exact: integer edge functions and flags
+bool solid_covers(SolidTri t, vec2 c, out dvec3 w) {
+    return solid_covers(t, solid_fixed(c), w);
 }
 
 // Could any center of the box [c0, c1] of column centers lie in t's
@@ -118,23 +133,25 @@ bool solid_covers(SolidTri t, vec2 c, out dvec3 w) {
 bool solid_may_cover(SolidTri t, vec2 c0, vec2 c1) {
     ivec2 a = solid_fixed(c0), b = solid_fixed(c1);
     for (int i = 0; i < 3; ++i) {
-        ivec2 e = t.f[(i + 1) % 3] - t.f[i];
-        ivec2 n = ivec2(-e.y, e.x) * t.sgn;  // inward normal
+        ivec2 n = ivec2(-t.e[i].y, t.e[i].x);  // inward normal
         ivec2 p = ivec2(n.x > 0 ? b.x : a.x, n.y > 0 ? b.y : a.y);
-        int s;
-        solid_edge(t, i, p, s);
-        if (s < 0) return false;
+        int hi;
+        uint lo;
+        solid_edge(t, i, p, hi, lo);
+        if (hi < 0) return false;
     }
     return true;
 }
 
 // The first voxel along x that the crossing at a covered center flips, from
 // solid_covers' weights w: floor(q + 1/2); below 0 flips the whole column, at
-// or past dims.x nothing.
+// or past dims.x nothing.  The weights' sum is twice the triangle's area, exact up
+// to its one rounding: its reciprocal is taken once per triangle (a division per
+// column cost a third of ss-solid's voxelize pass on llvmpipe); w.y is not needed.
 // exact: one formula on exact weights
 int solid_first_flip(SolidTri t, dvec3 w) {
     dvec3 x = dvec3(t.x);
-    precise double q = x.x + (w.x * (x.z - x.x) + w.z * (x.y - x.x)) / (w.x + w.y + w.z);
+    precise double q = x.x + (w.x * (x.z - x.x) + w.z * (x.y - x.x)) * t.inv_area2;
     // within the triangle's x extent but for rounding on nearly edge-on triangles
     q = clamp(q, double(t.xlo), double(t.xhi));
     // far-away triangles (explicit bounds) must not overflow the int

@@ -61,7 +61,7 @@ void main() {
     int j = int(key % tiles_y) * TILE + int(gl_LocalInvocationID.x);
     int k = int(key / tiles_y) * TILE + int(gl_LocalInvocationID.y);
     if (j >= u_dims.y || k >= u_dims.z) return;
-    vec2 center = vec2(j, k) + 0.5;
+    ivec2 center = solid_center(ivec2(j, k));
     uint wpr = words_per_row();
     uint row = (uint(k) * uint(u_dims.y) + uint(j)) * wpr;
 

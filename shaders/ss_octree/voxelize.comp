@@ -69,9 +69,8 @@ void main() {
         if (solid_may_cover(T, vec2(c0) + 0.5, vec2(c1) + 0.5)) {
             for (int k = c0.y; k <= c1.y; ++k) {
                 for (int j = c0.x; j <= c1.x; ++j) {
-                    vec2 center = vec2(j, k) + 0.5;
                     dvec3 w;
-                    if (!solid_covers(T, center, w)) continue;
+                    if (!solid_covers(T, solid_center(ivec2(j, k)), w)) continue;
                     int first = solid_first_flip(T, w);
                     if (first >= u_dims.x) continue;
                     uint x = uint(max(first, 0));

@@ -40,7 +40,7 @@ box where a sharp corner would push the miter beyond 2 pixels), so that it
 contains every column center the triangle covers whatever the snapping, and
 decides coverage in the fragment shader with the reference's edge functions
 and top-left fill rule, in integers on (u, v) rounded to a fixed point of
-2^-F voxel (:func:`~glvox.methods.eisemann.passes.fixed_bits`;
+2^-F voxel (:func:`~glvox.gpu.fixed_point.fixed_bits`;
 ``shaders/eisemann/column.glsl`` has the precision argument, ``setup.comp``
 the growth bound).  ``"raster"``
 draws the triangle itself and lets GL's fill rule on the snapped vertices
