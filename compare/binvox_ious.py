@@ -36,7 +36,7 @@ from glvox.gl.context import get_context
 from glvox.grid import binvox_grid
 from glvox.mesh import binvox_bounds, load_mesh
 from glvox.methods import run_method
-from glvox.methods.binvox.solid import BINVOX_DEFAULTS, OPTIONS, gpu_triangles
+from glvox.methods.binvox.solid import BINVOX_DEFAULTS, OPTIONS, gpu_cover_triangles, gpu_triangles
 from glvox.metrics import tie_set
 from glvox.reference.binvox import binvox_solid
 
@@ -82,7 +82,8 @@ def twin_rows(folder: Path):
             gpu = run_method("binvox-solid", mesh, spec).dense()
             twin = run_method("reference-binvox", mesh, spec).dense()
         ties = tie_set("reference-binvox", mesh, spec)
-        mirror = binvox_solid(gpu_triangles(mesh, spec, defaults["down"]), spec.dims, **defaults)
+        mirror = binvox_solid(gpu_triangles(mesh, spec, defaults["down"]), spec.dims, **defaults,
+                              cover=gpu_cover_triangles(mesh, spec, defaults["down"]))
         diff = gpu ^ twin
         yield name, int(diff.sum()), int((diff & ~ties).sum()), float(ties.mean()), int((gpu ^ mirror).sum())
 

@@ -169,10 +169,10 @@ MUTANTS: list[Mutant] = [
            "extent, not bounded by its points near the ray", "shaders/ldi/depths.frag",
            (("    if (widen > 1.0) {", "    if (false) {"),),
            ("tests/test_ldi.py", "-k", "face_along_the_rays")),
-    Mutant("depth-top-left-swapped", "depth layers' rasterization: the top-left rule's tie break inverted "
-           "(n_v > 0 owns horizontal edges)", "shaders/depth/raster.frag",
-           (("    bool top_left = neu > 0.0 || (neu == 0.0 && nev < 0.0);",
-             "    bool top_left = neu > 0.0 || (neu == 0.0 && nev > 0.0);"),),
+    Mutant("depth-top-left-swapped", "depth layers' rasterization: the top-left rule inverted (the other "
+           "edges own the centers on them)", "shaders/depth/raster.frag",
+           (("        if (!(s > 0 || (s == 0 && fixed_top_left(f, i, sgn)))) return false;",
+             "        if (!(s > 0 || (s == 0 && !fixed_top_left(f, i, sgn)))) return false;"),),
            (EXACT, "-k", "solid_methods and passalis-peel")),
     Mutant("prefix-fill-one-late", "ss-solid: the prefix XOR along a row starts one voxel late",
            "shaders/ss/solid_fill.comp",

@@ -21,7 +21,7 @@ from glvox.mesh import binvox_bounds, load_mesh
 from glvox.meshfiles import obj_vertex_bounds
 from glvox.methods import get_method, run_method
 from glvox.errors import SuspiciousResultWarning
-from glvox.methods.binvox.solid import BINVOX_DEFAULTS, gpu_triangles
+from glvox.methods.binvox.solid import BINVOX_DEFAULTS, gpu_cover_triangles, gpu_triangles
 from glvox.metrics import tie_set
 from glvox.reference import binvox_ties
 from glvox.reference.binvox_ties import binvox_axis_ties
@@ -312,9 +312,11 @@ def lattice_hull(name):
 
 def float32_twin(mesh, spec, **options):
     """reference-binvox's rules on the vertices the GPU sees (float32, snapped on the grid
-    it draws: with -down the finer one)."""
+    it draws: with -down the finer one; its coverage test's on them rounded to its fixed
+    point per view)."""
     o = {**{k: opt.default for k, opt in get_method("binvox-solid").info.options.items() if k != "tile"}, **options}
-    return binvox_solid(gpu_triangles(mesh, spec, o["down"]), spec.dims, **o)
+    return binvox_solid(gpu_triangles(mesh, spec, o["down"]), spec.dims, **o,
+                        cover=gpu_cover_triangles(mesh, spec, o["down"]))
 
 
 @pytest.mark.parametrize("options", OPTION_SETS.values(), ids=OPTION_SETS.keys())

@@ -39,6 +39,7 @@ from glvox.methods.ldi.leung_wang_passes import mesh_motion
 from glvox.metrics import check_against_reference, tie_set
 from glvox.reference.ldi import crossing_tolerance, crossings, ray_ties
 from glvox.results.ldi import LDI, close_odd
+from glvox.testing import slivers
 from glvox.testing.leaks import live_gl_objects
 from glvox.study.selftest import TIE_HULL
 from glvox.tolerances import SNAP_EPS, TIE_EPS
@@ -926,3 +927,19 @@ def test_stages_and_stats(gl_context):
     assert st["n_max"] == ldi.n_max == 8 and st["samples"] == ldi.samples
     assert st["draws"] == 2 * 2 + 1 and st["lod_c"] == 2048
     assert all(s.gpu_s is not None for s in ldi.run.timings.stages if s.name != "readback")
+
+
+def test_peel_ldi_crossing_of_a_float32_sliver(gl_context):
+    """peel-ldi's sample where a column meets glvox.testing.slivers' float32 sliver: the
+    exact crossing, 33.5 voxels along the rays (1033.5 on this grid), in every vertex
+    order.  depth/raster.frag decides the coverage and peel_record.comp the depth, both on
+    the fixed point's exact edge functions; the plane's formula in double (the code
+    before) recorded 1033.5375 in two of the four orders."""
+    tri = slivers.float32_sliver()
+    spec = GridSpec((2048, 1, 1), (-1000.0, 0.0, 0.0), 1.0)
+    for order in slivers.ORDERS:
+        mesh = load_mesh((tri, np.array([order])), name="sliver")
+        with pytest.warns(NotWatertightWarning):
+            ldi = run_method("peel-ldi", mesh, spec, axis=0, allow_open=True)
+        assert ldi.counts.ravel()[0] >= 1 and ldi.depths.ravel()[0] == 1000.0 + slivers.CROSSING, \
+            (order, ldi.depths.ravel()[:2])

@@ -29,7 +29,7 @@ from glvox.gl.context import create_context
 from glvox.grid import MAX_VOXELS
 from glvox.mesh import load_mesh
 from glvox.methods import FAMILIES, get_method, method_infos, method_names, run_method
-from glvox.methods.binvox.solid import gpu_triangles
+from glvox.methods.binvox.solid import gpu_cover_triangles, gpu_triangles
 from glvox.methods.scanline.voxelize import gpu_voxel_coords
 from glvox.metrics import check_against_reference, tie_set
 from glvox.reference import (TIE_EPS, binvox_ties, conservative_surface, orientation_ambiguous,
@@ -445,7 +445,7 @@ def check_approximate(name, grid, mesh, spec) -> None:
         # ... and the same rules on the GPU's own float32 vertices, up to double rounding
         o = {k: opt.default for k, opt in get_method("reference-binvox").info.options.items()}
         t32 = gpu_triangles(mesh, spec, o["down"])
-        mirror = binvox_solid(t32, spec.dims, **o)
+        mirror = binvox_solid(t32, spec.dims, **o, cover=gpu_cover_triangles(mesh, spec, o["down"]))
         ties = binvox_ties(t32, spec.dims, wire=o["wire"], surface=o["surface"], down=o["down"],
                            dilated=o["dilated"], eps=BINVOX_DOUBLE_EPS)
         bad = (words ^ mirror) & ~ties

@@ -67,7 +67,7 @@ from glvox.reference import conservative_surface, snap_ambiguous, solid_ties, su
 from glvox.testing.cells import (SHAPES, boundary_faces, cells_mesh, conservative_expected, occupancy,
                                  on_surface, solid_expected)
 from glvox.results.voxels import VoxelGrid
-from glvox.testing import tie_probe
+from glvox.testing import slivers, tie_probe
 from glvox.testing.leaks import live_gl_objects
 from glvox.tolerances import SNAP_EPS, TIE_EPS
 
@@ -609,23 +609,15 @@ def test_the_fixed_point_range(gl_context):
 
 
 def test_ss_solid_crossing_of_a_float32_sliver(gl_context):
-    """ss/solid.glsl's crossing on a sliver of float32 vertices as thin as 2^-22 voxel
-    coordinates make it: its long edge A -> C runs along w = (F30, F31) units through the
-    column center c = (0.5, 0.5), its midpoint, and B - A = (F29, F30) (consecutive
-    Fibonacci numbers: projected area 2^-45 voxel^2).  A.x and C.x lie 1000.25 voxels on
-    either side of 33.5, so the exact crossing at c is 33.5, a voxel center: by the
-    half-open rule voxel 33 stays, the first voxel flipped is 34.  c lies on A -> C, a left
-    edge (the inward normal, towards B, has a positive y component), so the triangle
-    covers c in every vertex order.  The plane's formula in double (the code before the
-    barycentric crossing) gave 33 in two of the four orders."""
-    f29, f30, f31 = 514229, 832040, 1346269
-    bits = 22
-    c = np.array([0.5, 0.5])
-    w = np.array([f30, f31]) / 2.0 ** bits
-    a, cc = np.r_[33.5 - 1000.25, c - w], np.r_[33.5 + 1000.25, c + w]
-    b = np.r_[500.1, c - w + np.array([f29, f30]) / 2.0 ** bits]
-    for order in ((a, b, cc), (cc, b, a), (b, cc, a), (b, a, cc)):
-        tris = np.array([order], np.float32)
-        assert np.array_equal(tris[0, :, 1:], np.array(order)[:, 1:])  # (y, z) exact in float32
-        words = tie_probe.run_probe(gl_context, "ss", "compute", tris, c[None].astype(np.float32), bits)[0]
-        assert words[12] == 1 and np.int32(words[13]) == 34, words.tolist()
+    """ss/solid.glsl's crossing on glvox.testing.slivers' float32 sliver: the exact crossing
+    at its column is 33.5, a voxel center, so by the half-open rule voxel 33 stays and the
+    first voxel flipped is 34.  The column center lies on the long edge A -> C, a left edge
+    (the inward normal, towards B, has a positive y component), so the triangle covers it
+    in every vertex order.  The plane's formula in double (the code before the barycentric
+    crossing) gave 33 in two of the four orders."""
+    tri = slivers.float32_sliver()
+    c = np.array([slivers.CENTER], np.float32)
+    for order in slivers.ORDERS:
+        words = tie_probe.run_probe(gl_context, "ss", "compute", tri[None, list(order)].astype(np.float32), c,
+                                    slivers.BITS)[0]
+        assert words[12] == 1 and np.int32(words[13]) == 34, (order, words.tolist())

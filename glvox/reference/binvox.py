@@ -97,7 +97,8 @@ def wire_hits(tris: np.ndarray, dims: tuple[int, int, int], axis: int):
     return tuple(np.concatenate([o[k] for o in out]) for k in range(3))
 
 
-def binvox_parts(tris: np.ndarray, dims: Sequence[int], dilated: bool = False, wire: bool = False):
+def binvox_parts(tris: np.ndarray, dims: Sequence[int], dilated: bool = False, wire: bool = False,
+                 cover: Sequence[np.ndarray] | None = None):
     """The parts of binvox's solid: (carve, votes, surface).
 
     Parameters
@@ -109,6 +110,11 @@ def binvox_parts(tris: np.ndarray, dims: Sequence[int], dilated: bool = False, w
         binvox ``-dc``.
     wire : bool
         binvox ``-aw``: the wireframe (:func:`wire_hits`) also stops the carving.
+    cover : three (T, 3, 3) float64, optional
+        Per ray axis, the triangles whose crossings count, where they differ from
+        ``tris`` (binvox-solid's, whose coverage test rounds the coordinates across
+        each view's rays to its fixed point: :func:`glvox.methods.binvox.solid.gpu_cover_triangles`);
+        the wireframe is drawn from ``tris``.
 
     Returns
     -------
@@ -124,7 +130,8 @@ def binvox_parts(tris: np.ndarray, dims: Sequence[int], dilated: bool = False, w
     votes = np.zeros(dims, dtype=np.int8)
     surface = np.zeros(dims, dtype=bool)
     for axis in range(3):
-        keep, vote, held = axis_parts(tris, dims, axis, dilated, wire)
+        keep, vote, held = axis_parts(tris, dims, axis, dilated, wire,
+                                      None if cover is None else check_tris(cover[axis]))
         carve &= view_to_grid(keep, axis)
         votes += view_to_grid(vote, axis).astype(np.int8)
         surface |= view_to_grid(held, axis)
@@ -132,13 +139,14 @@ def binvox_parts(tris: np.ndarray, dims: Sequence[int], dilated: bool = False, w
 
 
 def axis_parts(tris: np.ndarray, dims: tuple[int, int, int], axis: int, dilated: bool = False,
-               wire: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               wire: bool = False, cover: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One axis of :func:`binvox_parts`, in the view's order (k along ``axis``, then the
-    columns (u, v)): (keep (n, n_u, n_v) bool, votes 0-2 uint8, voxels holding a crossing)."""
+    columns (u, v)): (keep (n, n_u, n_v) bool, votes 0-2 uint8, voxels holding a crossing);
+    the crossings those of ``cover`` where given."""
     n = dims[axis]
     nu, nv = dims[(axis + 1) % 3], dims[(axis + 2) % 3]
     d = 1 if dilated else 0
-    ju, jv, q = axis_crossings(tris, dims, axis)
+    ju, jv, q = axis_crossings(tris if cover is None else cover, dims, axis)
     slot = np.clip(np.floor(q + 0.5), 0, n).astype(np.int64)
     lo = np.full((nu, nv), n + 1, dtype=np.int64)
     hi = np.full((nu, nv), -1, dtype=np.int64)
@@ -171,7 +179,8 @@ def halve(occ: np.ndarray, dmin: int = 4) -> np.ndarray:
 
 
 def binvox_solid(tris: np.ndarray, dims: Sequence[int], mode: str = "default", dilated: bool = False,
-                 surface: bool = True, down: int = 0, dmin: int = 4, wire: bool = False) -> np.ndarray:
+                 surface: bool = True, down: int = 0, dmin: int = 4, wire: bool = False,
+                 cover: Sequence[np.ndarray] | None = None) -> np.ndarray:
     """binvox's solid of voxel-space triangles (``reference-binvox``; see the module docstring).
 
     Parameters
@@ -187,6 +196,8 @@ def binvox_solid(tris: np.ndarray, dims: Sequence[int], mode: str = "default", d
     dmin : int
     wire : bool
         binvox ``-aw`` (:func:`wire_hits`).
+    cover : three (T, 3, 3) float64, optional
+        :func:`binvox_parts`' ``cover``, in the units of ``tris``.
 
     Returns
     -------
@@ -197,11 +208,11 @@ def binvox_solid(tris: np.ndarray, dims: Sequence[int], mode: str = "default", d
     if down:
         f = 2 ** down
         out = binvox_solid(np.asarray(tris, dtype=np.float64) * f, [d * f for d in dims], mode, dilated, surface,
-                          wire=wire)
+                          wire=wire, cover=None if cover is None else [np.asarray(c, np.float64) * f for c in cover])
         for _ in range(down):
             out = halve(out, dmin)
         return out
-    carve, votes, surf = binvox_parts(tris, dims, dilated, wire)
+    carve, votes, surf = binvox_parts(tris, dims, dilated, wire, cover)
     out = np.zeros(carve.shape, dtype=bool)
     if mode in ("default", "carve"):
         out |= carve

@@ -13,6 +13,17 @@
 // where the true one is, and the top-left rule counts a center on a shared edge
 // or vertex exactly once.
 
+// A float32 point in units of 2^-bits voxel: rounded to the nearest, ties to even (a
+// vertex), or exactly (a column center).  |p| < 2^(29 - bits) (fixed_bits).
+// exact: a float product by a power of two (exact: GLSL's float * is correctly rounded), then roundEven
+ivec2 fixed_point(vec2 p, int bits) {
+    precise vec2 x = p * float(1 << bits);
+    return ivec2(roundEven(x));
+}
+
+// The center of column (j, k) in units of 2^-bits voxel: (2 j + 1, 2 k + 1) 2^(bits-1).
+ivec2 fixed_center(ivec2 jk, int bits) { return (2 * jk + 1) << (bits - 1); }
+
 // 2^-bits (bits 0..1022), from its bits: GLSL lets a division be 2.5 ulp off.
 double fixed_unit(int bits) { return packDouble2x32(uvec2(0u, uint(1023 - bits) << 20)); }
 

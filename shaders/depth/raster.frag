@@ -1,7 +1,9 @@
 #version 450
 // Passalis et al. 2006, Sec. 2-3: one z-buffer of a view.  A fragment is a crossing of
 // the column's ray (its pixel center) with the triangle, decided as the reference decides
-// it; its crossing depth q is computed from the triangle's plane in double, in voxel units.
+// it, in integers on the fixed point of depth/raster.geom (common/fixed.glsl); its crossing
+// depth q is the barycentric combination of the vertices' depths with the exact edge
+// functions as weights, in double, in voxel units.
 //
 // The depth test orders crossings by a key: (q - u_key_lo) * u_key_scale rounded to float,
 // monotone in q and inside (0, 1) for the whole mesh (reversed with u_far, so that the test
@@ -15,11 +17,17 @@
 // previous layer's.  The id breaks ties between crossings with equal keys: the depth test
 // keeps the first of equal keys in primitive order, i.e. the smallest id, so the layers
 // enumerate every crossing of a column exactly once, however close two of them are.
+#include "common/fixed.glsl"
 flat in vec3 g_p0;
 flat in vec3 g_p1;
 flat in vec3 g_p2;
-flat in double g_na;
+flat in ivec2 g_f0;
+flat in ivec2 g_f1;
+flat in ivec2 g_f2;
+flat in int g_sgn;
+flat in double g_inv_area2;
 flat in uint g_id;
+uniform int u_fix_bits;
 uniform ivec2 u_tile_origin;
 uniform int u_depth_n;       // voxels along the rays
 uniform double u_key_lo;
@@ -34,48 +42,36 @@ uniform usampler2D u_prev;   // previous layer: (key bits, id, slot, valid)
 // the crossing when it lies in [0, u_depth_n) (binvox-solid's surface; 0 is never written).
 layout(location = 0) out uvec4 o_layer;
 
-// Edge function of p -> q at c, evaluated from the lexicographically smaller end point and
-// negated when the edge runs the other way, so the two triangles of a shared edge get
-// exactly opposite values (as glvox.reference.solid does).
-// exact: opposite values for the two triangles of an edge (the reference's)
-double edge_function(dvec2 p, dvec2 q, dvec2 c) {
-    bool swap = p.x > q.x || (p.x == q.x && p.y > q.y);
-    dvec2 s = swap ? q : p;
-    dvec2 t = swap ? p : q;
-    precise double f = (t.x - s.x) * (c.y - s.y) - (t.y - s.y) * (c.x - s.x);
-    return swap ? -f : f;
+// Does the triangle f (sgn: its orientation) cover the column center cf (units)?  A
+// center on an edge counts for a top-left edge only, so a center on an edge shared by
+// two triangles counts once.  w: the oriented edge functions there (edge i weighs
+// vertex i + 2), each rounded once.
+// exact: the reference's coverage test with the top-left rule, in integers
+bool covers(ivec2 f[3], int sgn, ivec2 cf, out dvec3 w) {
+    for (int i = 0; i < 3; ++i) {
+        int s;
+        w[i] = fixed_edge(f[i], f[(i + 1) % 3], cf, s) * double(sgn);
+        s *= sgn;
+        if (!(s > 0 || (s == 0 && fixed_top_left(f, i, sgn)))) return false;
+    }
+    return true;
 }
 
-// Center c belongs to the projected triangle on the inner side of edge p -> q, with the
-// top-left rule for centers exactly on it (sgn orients the triangle counter-clockwise).
-// exact: the reference's coverage test with the top-left rule
-bool owns(dvec2 p, dvec2 q, dvec2 c, double sgn) {
-    precise double f = edge_function(p, q, c) * sgn;
-    precise dvec2 e = q - p;
-    precise double neu = -e.y * sgn;
-    precise double nev = e.x * sgn;
-    bool top_left = neu > 0.0 || (neu == 0.0 && nev < 0.0);
-    return f > 0.0 || (f == 0.0 && top_left);
-}
-
-// exact: the crossing, in the reference's order; clamped to the triangle's extent
-// (the exact crossing lies within it; this only removes rounding)
-double crossing(dvec3 a, dvec3 b, dvec3 d, dvec2 c) {
-    precise dvec3 e0 = b - a, e1 = d - a;
-    precise dvec3 n = dvec3(e0.y * e1.z - e0.z * e1.y, e0.z * e1.x - e0.x * e1.z, e0.x * e1.y - e0.y * e1.x);
-    precise double q = a.z + (n.x * (a.x - c.x) + n.y * (a.y - c.y)) / g_na;
+// The crossing's depth: the vertices' depths weighted by w, clamped to the triangle's
+// extent (outside it only by rounding).
+// exact: one formula on exact weights
+double crossing(dvec3 a, dvec3 b, dvec3 d, dvec3 w) {
+    precise double q = a.z + (w.x * (d.z - a.z) + w.z * (b.z - a.z)) * g_inv_area2;
     return clamp(q, min(a.z, min(b.z, d.z)), max(a.z, max(b.z, d.z)));
 }
 
 void main() {
     ivec2 pix = ivec2(gl_FragCoord.xy);
-    dvec2 c = dvec2(pix + u_tile_origin) + 0.5;
+    ivec2 cf = fixed_center(pix + u_tile_origin, u_fix_bits);
     dvec3 a = dvec3(g_p0), b = dvec3(g_p1), d = dvec3(g_p2);
-    double sgn = g_na > 0.0 ? 1.0 : -1.0;
-    if (!(owns(a.xy, b.xy, c, sgn) && owns(b.xy, d.xy, c, sgn) && owns(d.xy, a.xy, c, sgn))) {
-        discard;
-    }
-    double q = crossing(a, b, d, c);
+    dvec3 w;
+    if (!covers(ivec2[3](g_f0, g_f1, g_f2), g_sgn, cf, w)) discard;
+    double q = crossing(a, b, d, w);
     precise double kd = (q - u_key_lo) * u_key_scale;
     float key = float(kd);
     if (u_far) key = 1.0 - key;

@@ -3,7 +3,9 @@
 // pixel (x, y) of the render target is voxel column u_tile_origin + (x, y).
 //
 // Which columns a triangle crosses is decided in the fragment shader exactly as the
-// reference decides it (edge functions in double, top-left rule), not by GL's rasterizer:
+// reference decides it (edge functions, top-left rule), in integers on the view's (u, v)
+// rounded to multiples of 2^-F voxel (common/fixed.glsl; F = u_fix_bits,
+// glvox.gpu.fixed_point.fixed_bits), not by GL's rasterizer:
 // GL snaps vertices to a sub-pixel grid (1/256 pixel on llvmpipe, 8 bits on most GPUs),
 // which moves a silhouette edge by up to ~0.003 voxel and so adds or drops whole crossing
 // pairs next to it, far from any tie (measured: a 256-voxel column of cad_featuretype.stl
@@ -11,19 +13,25 @@
 // own with a margin of PROXY_MARGIN pixel, far more than the snapping moves it: the
 // triangle with its edges pushed out, or for slivers (long miters) its bounding box.  It
 // also sorts triangles into Passalis' two facing classes by the sign of the normal's
-// component along the rays (what face culling does, decided in double so it agrees with
-// the fragment shader and the reference).
+// component along the rays (what face culling does), the exact orientation of the rounded
+// projection, so that it agrees with the fragment shader.
 layout(triangles) in;
 layout(triangle_strip, max_vertices = 4) out;
 #include "view.glsl"
+#include "common/fixed.glsl"
 in vec3 v_vox[];
 uniform ivec2 u_tile_origin;
 uniform ivec2 u_target_size;
 uniform int u_class;  // 0: every triangle; +1: n_a > 0 only; -1: n_a < 0 only
+uniform int u_fix_bits;
 flat out vec3 g_p0;
 flat out vec3 g_p1;
 flat out vec3 g_p2;
-flat out double g_na;
+flat out ivec2 g_f0;  // (u, v) of the vertices in units of 2^-F voxel
+flat out ivec2 g_f1;
+flat out ivec2 g_f2;
+flat out int g_sgn;   // the orientation of the rounded projection: the sign of n_a
+flat out double g_inv_area2;  // 1 / twice its area, units^2 (the crossing's divisor)
 flat out uint g_id;
 
 const double PROXY_MARGIN = 1.0 / 16.0;
@@ -41,11 +49,11 @@ void main() {
     vec3 p1 = to_view(v_vox[1]);
     vec3 p2 = to_view(v_vox[2]);
     dvec3 a = dvec3(p0), b = dvec3(p1), c = dvec3(p2);
-    // n_a of (p1 - p0) x (p2 - p0); the differences and products of float32 values are
-    // exact in double, so its sign is exact
-    precise double na = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
-    if (na == 0.0) return;  // parallel to the rays: no crossing, as in the reference
-    if (u_class != 0 && ((na > 0.0) != (u_class > 0))) return;
+    ivec2 f0 = fixed_point(p0.xy, u_fix_bits), f1 = fixed_point(p1.xy, u_fix_bits), f2 = fixed_point(p2.xy, u_fix_bits);
+    int sgn;
+    double area2 = abs(fixed_det(f1.x - f0.x, f2.y - f0.y, f1.y - f0.y, f2.x - f0.x, sgn));
+    if (sgn == 0) return;  // parallel to the rays: no crossing, as in the reference
+    if (u_class != 0 && ((sgn > 0) != (u_class > 0))) return;
     dvec2 off = dvec2(u_tile_origin);
     dvec2 q[3] = dvec2[3](a.xy - off, b.xy - off, c.xy - off);
     dvec2 lo = min(q[0], min(q[1], q[2]));
@@ -58,10 +66,14 @@ void main() {
     g_p0 = p0;
     g_p1 = p1;
     g_p2 = p2;
-    g_na = na;
+    g_f0 = f0;
+    g_f1 = f1;
+    g_f2 = f2;
+    g_sgn = sgn;
+    g_inv_area2 = 1.0lf / area2;
     g_id = uint(gl_PrimitiveIDIn);
 
-    double s = na > 0.0 ? 1.0 : -1.0;
+    double s = double(sgn);
     bool pushed = true;
     dvec2 nrm[3];
     for (int i = 0; i < 3; ++i) {

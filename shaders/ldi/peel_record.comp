@@ -1,16 +1,17 @@
 #version 450
 // Depth-peeling LDI: record one peeled layer (depth/raster.frag's RGBA32UI layer: key bits,
 // triangle id, first voxel beyond, valid) as the layer's depth in voxel units.  The depth is
-// recomputed from the triangle id in double exactly as depth/raster.frag computes it (the
-// same snapped float32 voxel-space vertices as depth/raster.vert, the plane at the pixel center,
-// clamped to the triangle's extent), then clamped to the grid [0, n_axis] and rounded to
-// float32.  Peeling orders crossings by (float32 key, triangle id); crossings whose keys
+// recomputed from the triangle id exactly as depth/raster.frag computes it (the same snapped
+// float32 voxel-space vertices as depth/raster.vert, (u, v) in its fixed point, the depths
+// weighted by the exact edge functions at the pixel center, clamped to the triangle's
+// extent), then clamped to the grid [0, n_axis] and rounded to float32.  Peeling orders crossings by (float32 key, triangle id); crossings whose keys
 // tie can come out of depth order by less than a key step, so each ray keeps the running
 // maximum: the samples are sorted.
 layout(local_size_x = 8, local_size_y = 8) in;
 #include "depth/view.glsl"
 #include "ldi/pixels.glsl"
 #include "common/snap.glsl"
+#include "common/fixed.glsl"
 
 uniform usampler2D u_layer;
 uniform ivec2 u_tile_origin;
@@ -20,6 +21,7 @@ uniform int u_chunk_layers;
 uniform int u_depth_n;
 uniform dvec3 u_origin_d;
 uniform double u_inv_h_d;
+uniform int u_fix_bits;  // depth/raster.geom's F for this view
 layout(std430, binding = 0) readonly buffer Verts { float verts[]; };  // world, relative to the anchor
 layout(std430, binding = 1) readonly buffer Faces { uint faces[]; };
 layout(std430, binding = 2) writeonly buffer Depths { float depths[]; };  // this chunk
@@ -31,12 +33,20 @@ vec3 vertex(uint vi) {
     return to_view(vec3(vertex_to_voxel(p, u_origin_d, u_inv_h_d)));
 }
 
-// exact: depth/raster.frag's crossing, in its order (cross() written out)
-double peel_crossing(dvec3 a, dvec3 b, dvec3 d, dvec2 c) {
-    precise dvec3 e0 = b - a, e1 = d - a;
-    precise dvec3 n = dvec3(e0.y * e1.z - e0.z * e1.y, e0.z * e1.x - e0.x * e1.z, e0.x * e1.y - e0.y * e1.x);
-    precise double q = a.z + (n.x * (a.x - c.x) + n.y * (a.y - c.y)) / n.z;
-    return clamp(q, min(a.z, min(b.z, d.z)), max(a.z, max(b.z, d.z)));
+// depth/raster.frag's crossing at the column center cf (units of 2^-F), in its order: the
+// weights are the oriented edge functions of the vertices' (u, v) in the fixed point,
+// the divisor twice the projected area, each rounded once (as depth/raster.geom).
+// exact: depth/raster.frag's crossing
+double peel_crossing(vec3 a, vec3 b, vec3 d, ivec2 cf) {
+    ivec2 f[3] = ivec2[3](fixed_point(a.xy, u_fix_bits), fixed_point(b.xy, u_fix_bits), fixed_point(d.xy, u_fix_bits));
+    int sgn, s;
+    double area2 = abs(fixed_det(f[1].x - f[0].x, f[2].y - f[0].y, f[1].y - f[0].y, f[2].x - f[0].x, sgn));
+    double inv_area2 = 1.0lf / area2;
+    dvec3 w;
+    for (int i = 0; i < 3; ++i) w[i] = fixed_edge(f[i], f[(i + 1) % 3], cf, s) * double(sgn);
+    dvec3 p = dvec3(a.z, b.z, d.z);
+    precise double q = p.x + (w.x * (p.z - p.x) + w.z * (p.y - p.x)) * inv_area2;
+    return clamp(q, min(p.x, min(p.y, p.z)), max(p.x, max(p.y, p.z)));
 }
 
 void main() {
@@ -46,11 +56,10 @@ void main() {
     uvec4 layer = texelFetch(u_layer, pix, 0);
     if (layer.w == 0u) return;
     uint t = layer.y;
-    dvec3 a = dvec3(vertex(faces[3u * t]));
-    dvec3 b = dvec3(vertex(faces[3u * t + 1u]));
-    dvec3 d = dvec3(vertex(faces[3u * t + 2u]));
-    dvec2 c = dvec2(uv) + 0.5;
-    double q = clamp(peel_crossing(a, b, d, c), 0.0, double(u_depth_n));
+    vec3 a = vertex(faces[3u * t]);
+    vec3 b = vertex(faces[3u * t + 1u]);
+    vec3 d = vertex(faces[3u * t + 2u]);
+    double q = clamp(peel_crossing(a, b, d, fixed_center(uv, u_fix_bits)), 0.0, double(u_depth_n));
     uint col = ldi_column(uv);
     float v = u_layer_index == 0 ? float(q) : max(float(q), last[col]);
     last[col] = v;

@@ -45,13 +45,9 @@ struct SolidTri {
     float xlo, xhi;  // x extent, to clamp q against rounding on edge-on triangles
 };
 
-// A (y, z) point as integers in units of 2^-F voxel: rounded to the nearest, ties to
-// even (a vertex), or exactly (a column center).  |p| < 2^(29 - F) (fixed_bits).
-// exact: a float product by a power of two (exact), then roundEven
-ivec2 solid_fixed(vec2 p) {
-    precise vec2 x = p * float(1 << u_solid_fix_bits);
-    return ivec2(roundEven(x));
-}
+// A (y, z) point in units of 2^-F voxel (common/fixed.glsl's fixed_point).
+// exact: fixed_point
+ivec2 solid_fixed(vec2 p) { return fixed_point(p, u_solid_fix_bits); }
 
 // One voxel^2 in the edge functions' units^2 is 2^2F: their value times this is in voxel^2.
 double solid_unit2() {
@@ -100,7 +96,7 @@ void solid_edge(SolidTri t, int i, ivec2 cf, out int hi, out uint lo) {
 }
 
 // The center of column (j, k) in units: (2 j + 1, 2 k + 1) 2^(F-1).
-ivec2 solid_center(ivec2 jk) { return (2 * jk + 1) << (u_solid_fix_bits - 1); }
+ivec2 solid_center(ivec2 jk) { return fixed_center(jk, u_solid_fix_bits); }
 
 // Does the column center cf (units) lie in t's projection (top-left rule)?
 // w: the oriented edge functions there (edge i weighs vertex i + 2), each rounded

@@ -50,6 +50,7 @@ import numpy as np
 from ...gl.shaders import compute_program, render_program
 from ...gpu.buffers import buffer_pool, clear_buffer, mesh_buffers, read_grid_words
 from ...gpu.dispatch import barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
+from ...gpu.fixed_point import fixed_bits
 from ...gpu.transform import gpu_vertices_voxel, snap_defines
 from ...grid import GridSpec
 from ...reference.binvox import empty_cause, fine_snap_eps
@@ -104,6 +105,25 @@ def gpu_triangles(mesh, spec: GridSpec, down: int) -> np.ndarray:
     return fine[mesh.faces].astype(np.float64) / 2 ** down
 
 
+def gpu_cover_triangles(mesh, spec: GridSpec, down: int) -> list[np.ndarray]:
+    """Per ray axis, the triangles binvox-solid's coverage test decides on, in the voxel
+    units of ``spec``: :func:`gpu_triangles` with the two coordinates across the rays
+    rounded to the fixed point of ``depth/raster.geom`` on the fine grid (multiples of
+    2^-F fine voxel, F = :func:`~glvox.gpu.fixed_point.fixed_bits`; ties to even, as the
+    shader's roundEven).  :func:`glvox.reference.binvox.binvox_solid` with these as
+    ``cover`` gives binvox-solid's result voxel for voxel (tests/test_binvox.py)."""
+    fine = fine_spec(spec, down)
+    verts = gpu_vertices_voxel(mesh, fine, fine_snap_eps(down)).astype(np.float64)
+    out = []
+    for axis in range(3):
+        bits = fixed_bits(mesh, fine, axis, warn=False)
+        v = verts.copy()
+        across = [(axis + 1) % 3, (axis + 2) % 3]
+        v[:, across] = np.ldexp(np.round(np.ldexp(v[:, across], bits)), -bits)
+        out.append(v[mesh.faces] / 2 ** down)
+    return out
+
+
 class _BinvoxRun(RasterPass):
     """The raster pass with binvox's recording (``binvox/record.comp``) and, for ``-aw``,
     the wireframe (``binvox/wire.*``) drawn into the carving z-buffers."""
@@ -131,8 +151,8 @@ class _BinvoxRun(RasterPass):
             self.wire_vao = None
         super().__exit__(*exc)
 
-    def set_view(self, spec, bounds, axis: int, size: tuple[int, int]) -> None:
-        super().set_view(spec, bounds, axis, size)
+    def set_view(self, spec, bounds, axis: int, size: tuple[int, int], fix_bits: int) -> None:
+        super().set_view(spec, bounds, axis, size, fix_bits)
         if self.wire is not None:  # the same depth key as the triangles'
             lo, hi = float(bounds[0, axis]) - 2.0, float(bounds[1, axis]) + 2.0
             set_uniforms(self.wire, {"u_axis": axis, "u_target_size": size, "u_depth_n": spec.dims[axis],
@@ -186,6 +206,8 @@ class BinvoxSolid(Method):
     def run(self, mesh, spec, *, ctx, timer, mode, dilated, surface, down, dmin, wire, tile):
         side = tile_side(ctx, tile)
         target_spec, spec = spec, fine_spec(spec, down)
+        # the fixed point of each view's coverage test (refuses a mesh out of its range)
+        fix = {axis: fixed_bits(mesh, spec, axis) for axis in range(3)}
         pool = buffer_pool(ctx, self.info.name)
         what = f"the {spec.dims} bit grid"
         nw = spec.n_words
@@ -216,7 +238,7 @@ class BinvoxSolid(Method):
                 size, origins = tile_origins(n_u, n_v, side)
                 target = depth_target(ctx, size)
                 tiles[name] = len(origins)
-                run.set_view(spec, bounds, axis, size)
+                run.set_view(spec, bounds, axis, size, fix[axis])
                 set_uniforms(record, {"u_axis": axis, "u_view_size": (n_u, n_v)})
                 if carve:
                     with timer.stage(f"carve_{name}"):

@@ -76,6 +76,7 @@ import numpy as np
 from ...gl.shaders import compute_program
 from ...gpu.buffers import buffer_pool, clear_buffer, mesh_buffers, read_grid_words
 from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
+from ...gpu.fixed_point import fixed_bits
 from ...results.voxels import VoxelGrid
 from ..base import Method, MethodInfo, Option, Requirements, register
 from .raster import DepthTarget, RasterPass, depth_target, peel_behind, stencil_layers, tile_origins, tile_side
@@ -156,6 +157,8 @@ class _DepthLayers(Method):
     def run(self, mesh, spec, *, ctx, timer, axes, tile):
         side = tile_side(ctx, tile)
         axis_ids = [_AXIS_NAMES.index(a) for a in axes]
+        # the fixed point of each view's coverage test: a mesh out of its range is refused here
+        fix = {axis: fixed_bits(mesh, spec, axis) for axis in axis_ids}
         grids = self._grids(ctx, spec, axis_ids)
         bufs = mesh_buffers(ctx, mesh)
         uniforms = grid_uniforms(spec, bufs.anchor)
@@ -170,7 +173,7 @@ class _DepthLayers(Method):
         with _Run(ctx, bufs, uniforms, record, grids) as run:
             for n_axis, axis in enumerate(axis_ids):
                 name = _AXIS_NAMES[axis]
-                tiles[name] = self._layers(run, spec, bounds, axis, side, timer)
+                tiles[name] = self._layers(run, spec, bounds, axis, side, timer, fix[axis])
                 passes[name], counts[name] = run.passes, run.counts
                 with timer.stage(f"classify_{name}"):
                     self._classify(ctx, spec, axis, n_axis, len(axis_ids), scan, combine, grids)
@@ -208,13 +211,13 @@ class _DepthLayers(Method):
                            what="per-column crossing flags", clear=False)
         return _Grids(flips, acc, crowded, pool.get("stats", 16), pool.get("count", 8))
 
-    def _layers(self, run: "_Run", spec, bounds, axis: int, side: int, timer) -> int:
+    def _layers(self, run: "_Run", spec, bounds, axis: int, side: int, timer, fix_bits: int) -> int:
         """Stage ``layers_<axis>`` (step 1), tile by tile: the z-buffers of :meth:`_views`,
         each recorded into the flip grid; returns the number of tiles."""
         n_u, n_v = spec.dims[(axis + 1) % 3], spec.dims[(axis + 2) % 3]
         size, origins = tile_origins(n_u, n_v, side)
         target = depth_target(run.ctx, size)
-        run.set_view(spec, bounds, axis, size)
+        run.set_view(spec, bounds, axis, size, fix_bits)
         set_uniforms(run.record, {"u_axis": axis, "u_view_size": (n_u, n_v)})
         with timer.stage(f"layers_{_AXIS_NAMES[axis]}"):
             run.passes, run.counts = 0, [0, 0]

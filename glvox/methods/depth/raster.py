@@ -260,15 +260,17 @@ class RasterPass:
         self.vao.release()
         self.vao = None
 
-    def set_view(self, spec, bounds, axis: int, size: tuple[int, int]) -> None:
-        """Rays along ``axis``, targets of ``size``; ``bounds`` (2, 3) the mesh's, in voxels.
+    def set_view(self, spec, bounds, axis: int, size: tuple[int, int], fix_bits: int) -> None:
+        """Rays along ``axis``, targets of ``size``; ``bounds`` (2, 3) the mesh's, in voxels;
+        coverage decided on (u, v) in multiples of 2^-``fix_bits`` voxel
+        (:func:`glvox.gpu.fixed_point.fixed_bits` of the mesh, the grid and ``axis``).
 
         The depth key maps the mesh's extent along the rays into (0, 1), with
         room for float32 vertices slightly outside the float64 bounds.
         """
         lo, hi = float(bounds[0, axis]) - 2.0, float(bounds[1, axis]) + 2.0
         set_uniforms(self.program, {"u_axis": axis, "u_target_size": size, "u_depth_n": spec.dims[axis],
-                                    "u_key_lo": lo, "u_key_scale": 1.0 / (hi - lo)})
+                                    "u_key_lo": lo, "u_key_scale": 1.0 / (hi - lo), "u_fix_bits": fix_bits})
 
     def set_tile(self, origin: tuple[int, int]) -> None:
         set_uniforms(self.program, {"u_tile_origin": origin})

@@ -24,6 +24,7 @@ from ...errors import MethodError
 from ...gl.shaders import compute_program
 from ...gpu.buffers import buffer_pool, check_buffer_size, clear_buffer, mesh_buffers
 from ...gpu.dispatch import barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
+from ...gpu.fixed_point import fixed_bits
 from ...gpu.transform import SNAP_DEFINES
 from ...results.ldi import LDI
 from ..base import Method, MethodInfo, Option, Requirements, register
@@ -71,7 +72,7 @@ class _DepthChunks:
 class _Peeling:
     """One peel-ldi run: its buffers and programs, and the steps over them."""
 
-    def __init__(self, ctx, mesh, rays: Rays, size: tuple[int, int], owner: str) -> None:
+    def __init__(self, ctx, mesh, rays: Rays, size: tuple[int, int], owner: str, fix_bits: int) -> None:
         self.ctx, self.rays, self.size = ctx, rays, size
         pool = buffer_pool(ctx, owner)
         self.counts = pool.get("counts", rays.n_rays * 4, what="samples per ray")
@@ -84,7 +85,7 @@ class _Peeling:
         set_uniforms(self.count_prog, {"u_stencil": 0})
         set_uniforms(self.record, {"u_layer": 0, "u_axis": rays.axis, "u_grid_uv": (rays.n_u, rays.n_v),
                                    "u_depth_n": rays.n_a, "u_origin_d": self.uniforms["u_origin_d"],
-                                   "u_inv_h_d": self.uniforms["u_inv_h_d"]})
+                                   "u_inv_h_d": self.uniforms["u_inv_h_d"], "u_fix_bits": fix_bits})
         self.groups = ((size[0] + 7) // 8, (size[1] + 7) // 8, 1)
         self.chunks = _DepthChunks(pool, rays.n_rays)
 
@@ -189,11 +190,12 @@ def peeled_ldi(ctx, mesh, spec, *, timer, axis: int = 2, tile: int = 0, owner: s
         raise MethodError(f"option axis must be 0, 1 or 2, got {axis!r}")
     side = tile_side(ctx, tile)
     rays = Rays(spec, int(axis))
+    fix_bits = fixed_bits(mesh, spec, rays.axis)  # before any work: a mesh out of the coverage test's range
     size, origins = tile_origins(rays.n_u, rays.n_v, side)
-    peeling = _Peeling(ctx, mesh, rays, size, owner)
+    peeling = _Peeling(ctx, mesh, rays, size, owner, fix_bits)
     target = depth_target(ctx, size)
     with RasterPass(ctx, peeling.bufs, peeling.uniforms) as run:
-        run.set_view(spec, spec.world_to_voxel(mesh.bounds), rays.axis, size)
+        run.set_view(spec, spec.world_to_voxel(mesh.bounds), rays.axis, size, fix_bits)
         with timer.stage("peel"):
             layers = peeling.peel(run, target, origins)
     with timer.stage("finish"):
