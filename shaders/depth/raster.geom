@@ -58,9 +58,12 @@ void main() {
     dvec2 q[3] = dvec2[3](a.xy - off, b.xy - off, c.xy - off);
     dvec2 lo = min(q[0], min(q[1], q[2]));
     dvec2 hi = max(q[0], max(q[1], q[2]));
-    // no pixel center x + 1/2 of the target inside [lo, hi] along some axis: nothing to own
-    dvec2 first = max(ceil(lo - 0.5), dvec2(0.0));
-    dvec2 last = min(floor(hi - 0.5), dvec2(u_target_size) - 1.0);
+    // no pixel center of the target inside the rounded triangle's bounding box along some
+    // axis: nothing to own (center j is (2 j + 1) 2^(F-1) units)
+    ivec2 flo = min(f0, min(f1, f2)), fhi = max(f0, max(f1, f2));
+    int half_unit = 1 << (u_fix_bits - 1);
+    ivec2 first = max(-((half_unit - flo) >> u_fix_bits) - u_tile_origin, ivec2(0));
+    ivec2 last = min(((fhi - half_unit) >> u_fix_bits) - u_tile_origin, u_target_size - 1);
     if (any(greaterThan(first, last))) return;
 
     g_p0 = p0;

@@ -4,9 +4,10 @@
 // recomputed from the triangle id exactly as depth/raster.frag computes it (the same snapped
 // float32 voxel-space vertices as depth/raster.vert, (u, v) in its fixed point, the depths
 // weighted by the exact edge functions at the pixel center, clamped to the triangle's
-// extent), then clamped to the grid [0, n_axis] and rounded to float32.  Peeling orders crossings by (float32 key, triangle id); crossings whose keys
-// tie can come out of depth order by less than a key step, so each ray keeps the running
-// maximum: the samples are sorted.
+// extent), then clamped to the grid [0, n_axis] and rounded to float32.  Peeling orders
+// crossings by (float32 key, triangle id); crossings whose keys tie can come out of depth
+// order by less than a key step, so each ray keeps the running maximum: the samples are
+// sorted.
 layout(local_size_x = 8, local_size_y = 8) in;
 #include "depth/view.glsl"
 #include "ldi/pixels.glsl"

@@ -143,7 +143,7 @@ bool solid_may_cover(SolidTri t, vec2 c0, vec2 c1) {
 // solid_covers' weights w: floor(q + 1/2); below 0 flips the whole column, at
 // or past dims.x nothing.  The weights' sum is twice the triangle's area, exact up
 // to its one rounding: its reciprocal is taken once per triangle (a division per
-// column cost a third of ss-solid's voxelize pass on llvmpipe); w.y is not needed.
+// column cost about a tenth of the voxelize pass on llvmpipe); w.y is not needed.
 // exact: one formula on exact weights
 int solid_first_flip(SolidTri t, dvec3 w) {
     dvec3 x = dvec3(t.x);

@@ -211,8 +211,8 @@ class GwnSolid(Method):
 
         def prepare(planes: bool, caps: bool = True) -> _Run:
             run = _Run(ctx, spec, pool, bufs, vox, bits, tree, timer, float(threshold), float(accuracy),
-                       bool(winding), fix_bits, planes, stream=None if stream is None else (max(nk for _, nk in stream),
-                                                                                   read_slab))
+                       bool(winding), fix_bits, planes,
+                       stream=None if stream is None else (max(nk for _, nk in stream), read_slab))
             if run.bricks:
                 rows, segs = run.field_part()
                 free = strip_free_share(tree, vox64, rows)
