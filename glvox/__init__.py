@@ -20,6 +20,7 @@ from .errors import (BackendError, CapabilityError, DatasetError, EmptyMeshError
                      GLError, GlvoxError, GridError, LimitError, MeshError, MeshLoadError, MeshNotFoundError,
                      MethodError, NonFiniteVertexError, NotWatertightError, ShaderError)
 from .gl.context import get_context
+from .gpu.cuda import check_device
 from .grid import DEFAULT_RESOLUTION, GridSpec, fit_grid, grid_for
 from .inspect import MeshReport, inspect_mesh
 from .io import load, save
@@ -84,7 +85,7 @@ def voxelize(mesh: Any, resolution: int | None = None, method: str = DEFAULT_MET
              voxel_size: float | None = None, bounds: Any = None, padding: int = 0,
              tight: bool = False, allow_open: bool = False, backend: str | None = None,
              ctx=None, attributes: Any = None, normals: str = "face", fill_attributes: str = "none",
-             progress=None, **options: Any):
+             progress=None, device: str | None = None, **options: Any):
     """Voxelize a mesh with a registered method.
 
     Parameters
@@ -116,6 +117,10 @@ def voxelize(mesh: Any, resolution: int | None = None, method: str = DEFAULT_MET
     progress : callable, optional
         ``progress(done, total)`` after each z slab where the method works the grid
         in slabs (as :func:`glvox.methods.run_method`).
+    device : {'host', 'cuda'}, optional
+        'cuda': the packed words stay in CUDA memory on the GL context's GPU,
+        ``result.device_words``, a DLPack producer for PyTorch, CuPy or JAX
+        (:mod:`glvox.gpu.cuda`; ``pip install 'glvox[cuda]'``).
     **options
         Method options.
 
@@ -126,13 +131,15 @@ def voxelize(mesh: Any, resolution: int | None = None, method: str = DEFAULT_MET
     """
     # before loading: unknown methods, options and attributes fail fast, and are not checked again
     request = Request.make(method, options, attributes, normals, fill_attributes)
+    check_device(device)
     m = load_visual_mesh(_resolve(mesh)) if request.attributes else load_mesh(mesh)
     if grid is None:
         if resolution is None and dims is None and voxel_size is None:
             resolution = DEFAULT_RESOLUTION
         grid = grid_for(m, resolution, dims=dims, voxel_size=voxel_size, bounds=bounds,
                         padding=padding, tight=tight)
-    return run_method(request, m, grid, ctx=ctx, backend=backend, allow_open=allow_open, progress=progress)
+    return run_method(request, m, grid, ctx=ctx, backend=backend, allow_open=allow_open, progress=progress,
+                      device=device)
 
 
 def ldi(mesh: Any, resolution: int | None = None, method: str = "leung-wang-ldi", *,

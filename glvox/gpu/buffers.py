@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import CapabilityError, LimitError
-from .readback import copy_into, read_buffer
+from .readback import active_sink, copy_into, read_buffer
 
 
 @dataclass(eq=False)
@@ -255,6 +255,8 @@ def slab_reader(ctx, spec, timer):
     buffer into its slices of them, timed as stage ``readback``.  The words are a
     mapped read-back buffer where the context lends one (:mod:`glvox.gpu.readback`),
     each slab copied into its part on the GPU."""
+    if active_sink() is not None:  # refused before any work (glvox.gpu.cuda.CudaSink.begin)
+        raise LimitError("a grid voxelized in z slabs cannot stay on the GPU")
     flat = read_buffer(ctx, None, 0, total=spec.n_words * 4, fill=False).view("<u4")
     per_slice = spec.dims[1] * spec.words_per_row
 
@@ -271,9 +273,15 @@ def read_grid_words(ctx, buf, spec, slices: tuple[int, int] | None = None) -> np
     ``slices=(k0, nk)``: only z slices k0 .. k0 + nk - 1 can hold a set voxel;
     only they are read, the rest of the array is zero.  Large grids arrive in a
     mapped read-back buffer that the array owns (:mod:`glvox.gpu.readback`).
+    Inside a :func:`~glvox.gpu.readback.device_sink` block the words stay on the
+    GPU: :class:`glvox.results.DeviceWords` instead of an array.
     """
     per_slice = spec.dims[1] * spec.words_per_row * 4
     k0, nk = (0, spec.dims[2]) if slices is None else slices
+    shape = (spec.dims[2], spec.dims[1], spec.words_per_row)
+    sink = active_sink()
+    if sink is not None:  # a device result: copied on the GPU, never through host memory
+        return sink.grid_words(ctx, buf, k0 * per_slice, max(nk, 0) * per_slice, k0 * per_slice, shape)
     words = read_buffer(ctx, buf, max(nk, 0) * per_slice, k0 * per_slice, total=spec.n_words * 4,
                         at=k0 * per_slice).view("<u4")
     return words.reshape(spec.dims[2], spec.dims[1], spec.words_per_row)

@@ -83,6 +83,28 @@ def readback_mode() -> str:
     return mode
 
 
+_sinks: list = []
+
+
+@contextlib.contextmanager
+def device_sink(sink) -> Iterator[None]:
+    """Inside the block, packed grids read with :func:`glvox.gpu.buffers.read_grid_words`
+    go to ``sink`` (a GPU-to-GPU copy, :class:`glvox.gpu.cuda.CudaSink`) instead of host
+    memory: ``sink.grid_words(ctx, buf, offset, nbytes, at, shape)`` returns
+    :class:`glvox.results.DeviceWords` holding ``nbytes`` of ``buf`` from ``offset`` at
+    byte ``at`` of a zeroed grid of ``shape`` words.  Other reads are unchanged."""
+    _sinks.append(sink)
+    try:
+        yield
+    finally:
+        _sinks.pop()
+
+
+def active_sink():
+    """The sink of the innermost :func:`device_sink` block, or None."""
+    return _sinks[-1] if _sinks else None
+
+
 def lent_limit() -> int:
     """Most bytes of mapped memory lent to results at once: a quarter of physical memory."""
     try:

@@ -11,10 +11,12 @@ from typing import Any
 
 from ..errors import LimitError, MethodError
 
-from ..gpu.readback import readback_mode
+from ..gpu.cuda import CudaSink, check_device
+from ..gpu.readback import device_sink, readback_mode
 from ..grid import MAX_VOXELS, GridSpec
 from ..mesh import Mesh
 from ..reference.attributes import reference_attributes
+from ..results.voxels import VoxelGrid
 from .base import _REGISTRY, FAMILIES, KINDS, PIPELINES, Method, MethodInfo, Option, Requirements, register
 from .attributes.passes import check_mesh, gpu_attributes
 from .envelope import run_in_envelope
@@ -54,7 +56,7 @@ def method_names(kind: str | None = None, family: str | None = None, pipeline: s
 
 def run_method(name: str | Request, mesh: Mesh, spec: GridSpec, *, ctx=None, backend: str | None = None,
                allow_open: bool = False, debug: bool | None = None, attributes=None, normals: str = "face",
-               fill_attributes: str = "none", progress=None, **options: Any):
+               fill_attributes: str = "none", progress=None, device: str | None = None, **options: Any):
     """Run method ``name`` on a validated mesh and grid spec.
 
     Parameters
@@ -89,6 +91,12 @@ def run_method(name: str | Request, mesh: Mesh, spec: GridSpec, *, ctx=None, bac
     progress : callable, optional
         ``progress(done, total)`` after each z slab, where the method works the
         grid in slabs (grids over the storage-block limit; gwn-solid's passes).
+    device : {'host', 'cuda'}, optional
+        Where the result's packed words go: host memory (default), or CUDA memory
+        on the GL context's GPU, without passing through the host
+        (``result.device_words``, a DLPack producer; :mod:`glvox.gpu.cuda`).
+        'cuda' takes GL surface and solid methods without attributes, and needs
+        ``pip install 'glvox[cuda]'``.
     **options
         Method options (see ``glvox methods``).
 
@@ -110,6 +118,7 @@ def run_method(name: str | Request, mesh: Mesh, spec: GridSpec, *, ctx=None, bac
     request = asked if picked == asked.name else asked.for_method(get_method(picked))
     method, opts, names = request.method, dict(request.options), request.attributes
     readback_mode()  # a bad GLVOX_READBACK is refused before any work
+    sink = _device_sink(check_device(device), method.info, names)
     if names:
         check_mesh(mesh, names, request.normals)
         if spec.n_voxels > MAX_VOXELS:  # the attribute passes keep int32 voxel counts and ranks
@@ -117,6 +126,19 @@ def run_method(name: str | Request, mesh: Mesh, spec: GridSpec, *, ctx=None, bac
                              f"{spec.dims} has {spec.n_voxels}: use a smaller grid")
 
     def work(ctx, timer):
+        if sink is None:
+            return _work(ctx, timer)
+        sink.begin(ctx, spec)
+        with device_sink(sink):
+            result = _work(ctx, timer)
+        timer.stats["device"] = "cuda"
+        timer.stats["device_path"] = "gpu" if result.device_words is not None else "host"
+        if result.device_words is None:  # a method whose grid did not reach the sink
+            result = VoxelGrid(words=sink.upload(result.words()), spec=result.spec,
+                               count=result.count if result.counted_on == "gpu" else None)
+        return result
+
+    def _work(ctx, timer):
         result = method.run(mesh, spec, ctx=ctx, timer=timer, **opts)
         if names:
             timer.stats["attributes"] = list(names)
@@ -130,6 +152,21 @@ def run_method(name: str | Request, mesh: Mesh, spec: GridSpec, *, ctx=None, bac
         result.run.stats["requested"] = asked.name
         result.run.stats["picked_because"] = asked.method.why(mesh)
     return result
+
+
+def _device_sink(device: str, info: MethodInfo, attributes) -> CudaSink | None:
+    """The sink of a ``device='cuda'`` run (None for the host), after the checks that
+    need no GL context."""
+    if device == "host":
+        return None
+    if info.kind not in ("surface", "solid") or not info.uses_gl:
+        what = "a CPU method" if not info.uses_gl else f"its result is {info.kind!r}"
+        raise MethodError(f"device={device!r} keeps a packed grid on the GPU, and {info.name!r} makes none "
+                          f"({what}); use a GPU surface or solid method")
+    if attributes:
+        raise MethodError(f"device={device!r} results carry no per-voxel attributes; ask for them with "
+                          f"device='host'")
+    return CudaSink()
 
 
 def _attributes(ctx, mesh, result, timer, names, normals, fill):

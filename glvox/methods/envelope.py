@@ -115,7 +115,9 @@ def run_in_envelope(info: MethodInfo, meshes: Sequence[Any], spec: GridSpec,
                              "degenerate_dropped": sum(m.n_degenerate for m in meshes),
                              "watertight": all(m.watertight for m in meshes)}
     stats.update(timer.stats)
-    count = getattr(result, "count", None)  # once: counting walks every word of the grid
+    # once: counting walks every word of the grid (and would read a device result back)
+    on_device = getattr(result, "device_words", None) is not None and result.counted_on != "gpu"
+    count = None if on_device else getattr(result, "count", None)
     if count is not None:
         stats["voxels"] = count
     result.run = RunInfo(method=info.name, kind=info.kind, spec=spec, timings=timings,

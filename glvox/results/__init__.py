@@ -14,6 +14,6 @@ from .base import Result, RunInfo, read_npz
 from .ldi import LDI
 from .octree import SparseOctree
 from .sdf import SDFGrid
-from .voxels import Comparison, VoxelGrid
+from .voxels import Comparison, DeviceWords, VoxelGrid
 
-__all__ = ["Comparison", "LDI", "Result", "RunInfo", "SDFGrid", "SparseOctree", "VoxelGrid", "read_npz"]
+__all__ = ["Comparison", "DeviceWords", "LDI", "Result", "RunInfo", "SDFGrid", "SparseOctree", "VoxelGrid", "read_npz"]

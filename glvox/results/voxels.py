@@ -90,6 +90,30 @@ class Comparison:
                 "reference_count": self.reference_count, "iou": self.iou}
 
 
+class DeviceWords:
+    """A grid's packed words held in GPU memory: uint32 (nz, ny, words_per_row), the
+    layout of :meth:`VoxelGrid.words`.  Implemented by a device sink
+    (:mod:`glvox.gpu.cuda`); a :class:`VoxelGrid` made from one reads it back only
+    when host data is first asked for.
+
+    It is a DLPack producer (``__dlpack__``, ``__dlpack_device__``): ``torch.from_dlpack``,
+    ``cupy.from_dlpack`` and ``jax.dlpack.from_dlpack`` take it without a copy.
+    """
+
+    #: (nz, ny, words_per_row)
+    shape: tuple[int, int, int]
+
+    def to_host(self) -> np.ndarray:
+        """The words copied into host memory, uint32 of :attr:`shape`."""
+        raise NotImplementedError
+
+    def __dlpack__(self, **kwargs: Any) -> Any:
+        raise NotImplementedError
+
+    def __dlpack_device__(self) -> tuple[int, int]:
+        raise NotImplementedError
+
+
 @npz_type(None)
 class VoxelGrid(Result):
     """A binary voxel grid on a :class:`GridSpec`.
@@ -123,6 +147,11 @@ class VoxelGrid(Result):
     method that wrote ``words`` counted them (fused into a pass it runs
     anyway); without it :attr:`count` popcounts on the CPU when first asked.
     :attr:`counted_on` says which.
+
+    ``words`` may be :class:`DeviceWords` (a run with ``device='cuda'``): the grid
+    then keeps them on the GPU (:attr:`device_words`) and copies them to the host
+    only when host data (:meth:`words`, :meth:`dense`, a file, an uncounted
+    :attr:`count`) is first asked for.
     """
 
     def __init__(self, occupancy: np.ndarray | None = None, spec: GridSpec | None = None, *,
@@ -152,7 +181,8 @@ class VoxelGrid(Result):
                                 f"got {a.dtype} {a.shape}")
             self.fields[name] = a
         self._dense: np.ndarray | None = None
-        self._words: np.ndarray | None = None
+        self._host_words: np.ndarray | None = None
+        self._device_words: DeviceWords | None = None
         self._count = None if count is None else int(count)
         self._gpu_count = count is not None
         self._indices: np.ndarray | None = None
@@ -163,6 +193,11 @@ class VoxelGrid(Result):
             if occ.dtype != bool:
                 raise GridError(f"occupancy must be a bool array, got dtype {occ.dtype}")
             self._dense = occ
+        elif isinstance(words, DeviceWords):
+            shape = (spec.dims[2], spec.dims[1], spec.words_per_row)
+            if tuple(words.shape) != shape:
+                raise GridError(f"expected device words of shape {shape} for dims {spec.dims}, got {words.shape}")
+            self._device_words = words
         else:
             w = np.asarray(words)
             if w.size != spec.n_words:
@@ -189,6 +224,24 @@ class VoxelGrid(Result):
         return a
 
     # -- data ---------------------------------------------------------------
+    @property
+    def _words(self) -> np.ndarray | None:
+        """The host words: read back from :attr:`device_words` on first use."""
+        if self._host_words is None and self._device_words is not None:
+            shape = self._device_words.shape
+            self._host_words = np.asarray(self._device_words.to_host()).view("<u4").reshape(shape)
+        return self._host_words
+
+    @_words.setter
+    def _words(self, words: np.ndarray) -> None:
+        self._host_words = words
+
+    @property
+    def device_words(self) -> DeviceWords | None:
+        """The packed words in GPU memory (a DLPack producer), for a grid made on the
+        GPU with ``device='cuda'``; None for a host result."""
+        return self._device_words
+
     def dense(self) -> np.ndarray:
         """Occupancy as bool (nx, ny, nz), indexed [i, j, k]; read-only view."""
         if self._dense is None:

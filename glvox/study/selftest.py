@@ -55,7 +55,10 @@ The third, ``readback``, checks the way large results leave the GPU
 surface and a solid at :data:`READBACK_N`^3 read into mapped buffers they own
 must have the words glGetBufferSubData reads, and a result kept while another
 call runs must keep its own.  Its detail line gives both ways' readback times
-on this GPU.
+on this GPU.  Where CUDA sees the GL context's GPU (and ``glvox[cuda]`` is
+installed), the same two results kept on the GPU (``device='cuda'``,
+:mod:`glvox.gpu.cuda`) must hold the same words in CUDA memory; a last detail
+line says so, or why that was not checked.
 """
 
 from __future__ import annotations
@@ -69,9 +72,10 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from ..datasets import find
-from ..errors import GlvoxError, NotWatertightWarning, SuspiciousResultWarning
+from ..errors import CapabilityError, GlvoxError, NotWatertightWarning, SuspiciousResultWarning
 from ..gl.context import get_context
 from ..gpu.arithmetic import probe_arithmetic
+from ..gpu.cuda import CudaSink
 from ..gpu.readback import forced_mode, is_mapped, readback_pool
 from ..grid import GridSpec, grid_for, pack_bits
 from ..mesh import load_mesh
@@ -263,8 +267,34 @@ def readback_row(ctx) -> Row:
     row.detail.append(f"{mib:.0f} MiB per result, readback stage: mapped " +
                       ", ".join(f"{t:.1f}" for t in times["mapped"]) + " ms, copied " +
                       ", ".join(f"{t:.1f}" for t in times["copy"]) + " ms")
+    row.detail.append(_device_check(ctx, mesh, spec, row))
     row.seconds = time.perf_counter() - t0
     return row
+
+
+def _device_check(ctx, mesh, spec, row: Row) -> str:
+    """The readback row's ``device='cuda'`` part: its detail line."""
+    try:
+        CudaSink().open_device(ctx)
+    except CapabilityError as exc:
+        why = str(exc).removeprefix("device='cuda'").lstrip(": ")
+        return f"device='cuda' not checked: {why}"
+    times, before = [], row.mismatches
+    try:
+        for name in ("ss-conservative", "ss-solid"):
+            want = run_method(name, mesh, spec, ctx=ctx, device="host")
+            got = run_method(name, mesh, spec, ctx=ctx, device="cuda")
+            row.cases += 1
+            row.mismatches += popcount(got.device_words.to_host() ^ want.words())
+            times.append(_readback_ms(got))
+    except GlvoxError as exc:
+        row.status = "error"
+        return f"device='cuda': {exc}"
+    stage = "readback stage " + ", ".join(f"{t:.1f}" for t in times) + " ms"
+    if row.mismatches > before:
+        row.status = "mismatch" if row.status == "ok" else row.status
+        return f"device='cuda': {row.mismatches - before} voxels differ in CUDA memory, {stage}"
+    return f"device='cuda': the same words in CUDA memory, {stage}"
 
 
 def selftest(methods: Sequence[str] | None = None, progress: Callable[[str], None] = lambda s: None,

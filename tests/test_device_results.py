@@ -1,0 +1,248 @@
+"""Results kept on the GPU (``device='cuda'``, glvox/gpu/cuda.py): every GL surface and
+solid method hands its packed grid to the device sink instead of host memory, the
+result reads it back only when host data is asked for, and everything the sink
+cannot take is refused in one line before any work.
+
+Without CUDA (this suite's llvmpipe) the sink is a loopback: :class:`LoopbackSink`
+keeps to :class:`glvox.gpu.cuda.CudaSink`'s contract (the grid's GL buffer, the
+byte range and where it lands in a zeroed grid) but copies into host memory with
+glGetBufferSubData.  So these tests check what glvox does around the copy; the
+CUDA copy itself (interop, DLPack on the GPU) is checked by
+``test_cuda_words_equal_the_host_words``, which runs only where CUDA sees the GL
+context's GPU.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import glvox
+import glvox.methods
+from glvox.errors import CapabilityError, GlvoxError, LimitError, MethodError
+from glvox.gpu import buffers, cuda
+from glvox.methods import method_infos, run_method
+from glvox.results import DeviceWords
+from glvox.study import selftest
+
+#: Every GL method whose result is a packed grid.
+GRID_METHODS = [i.name for i in method_infos() if i.uses_gl and i.kind in ("surface", "solid")]
+
+N = 24
+
+
+class LoopbackWords(DeviceWords):
+    """Words 'on the device', in a host array; counts its read-backs."""
+
+    def __init__(self, arr: np.ndarray):
+        self.arr = arr
+        self.shape = arr.shape
+        self.reads = 0
+
+    def to_host(self) -> np.ndarray:
+        self.reads += 1
+        return self.arr.copy()
+
+    def __dlpack__(self, **kwargs):
+        return self.arr.__dlpack__(**kwargs)
+
+    def __dlpack_device__(self):
+        return self.arr.__dlpack_device__()
+
+
+class LoopbackSink(cuda.CudaSink):
+    """CudaSink's checks and contract, host memory instead of CUDA's."""
+
+    made: list["LoopbackSink"] = []
+
+    def __init__(self):
+        self.copies: list[tuple[int, int, int, tuple]] = []
+        self.uploads = 0
+        LoopbackSink.made.append(self)
+
+    def open_device(self, ctx) -> None:
+        pass
+
+    def grid_words(self, ctx, buf, offset, nbytes, at, shape):
+        self.copies.append((offset, nbytes, at, tuple(shape)))
+        out = np.zeros(int(np.prod(shape)) * 4, dtype=np.uint8)
+        if nbytes:
+            buf.read_into(out[at:at + nbytes], size=nbytes, offset=offset)
+        return LoopbackWords(out.view("<u4").reshape(shape))
+
+    def upload(self, words):
+        self.uploads += 1
+        return LoopbackWords(np.array(words, dtype="<u4"))
+
+
+@pytest.fixture
+def loopback(monkeypatch):
+    LoopbackSink.made.clear()
+    monkeypatch.setattr(glvox.methods, "CudaSink", LoopbackSink)
+    monkeypatch.setattr(cuda, "_MISSING", None)  # the package check passes, whatever is installed
+    return LoopbackSink.made
+
+
+@pytest.fixture(scope="module")
+def torus():
+    return glvox.load_mesh("gen:torus")
+
+
+@pytest.mark.parametrize("name", GRID_METHODS)
+def test_every_grid_method_hands_its_grid_to_the_sink(gl_context, loopback, torus, name):
+    """One copy of the whole grid into the sink (none through host memory), the host
+    run's words when read back, and no read-back before host data is asked for."""
+    spec = glvox.grid_for(torus, N)
+    want = run_method(name, torus, spec)
+    got = run_method(name, torus, spec, device="cuda")
+    (sink,) = loopback
+    assert got.run.stats["device"] == "cuda" and got.run.stats["device_path"] == "gpu"
+    assert sink.uploads == 0 and len(sink.copies) >= 1
+    offset, nbytes, at, shape = sink.copies[-1]
+    assert shape == (spec.dims[2], spec.dims[1], spec.words_per_row) and 0 <= at and at + nbytes <= spec.n_words * 4
+    words = got.device_words
+    assert isinstance(words, LoopbackWords) and words.reads == 0  # counted on the GPU, or not counted
+    np.testing.assert_array_equal(got.words(), want.words())
+    assert words.reads == 1
+    assert got.count == want.count > 0
+    got.dense()
+    assert words.reads == 1  # read back once
+
+
+def test_an_uncounted_grid_stays_on_the_device_until_counted(gl_context, loopback, torus):
+    """scanline counts nothing on the GPU: its device result has no count in its stats
+    (counting would read the grid back), and counting reads it back once."""
+    spec = glvox.grid_for(torus, N)
+    got = run_method("scanline-ilv", torus, spec, device="cuda")
+    assert got.counted_on == "cpu" and "voxels" not in got.run.stats
+    assert got.device_words.reads == 0
+    assert got.count == run_method("scanline-ilv", torus, spec).count
+    assert got.device_words.reads == 1
+
+
+def test_a_grid_that_missed_the_sink_is_uploaded(gl_context, loopback, torus, monkeypatch):
+    """A method whose grid did not reach the sink still gives a device result, uploaded
+    from its host words, and says so."""
+    monkeypatch.setattr(buffers, "active_sink", lambda: None)
+    spec = glvox.grid_for(torus, N)
+    got = run_method("ss-conservative", torus, spec, device="cuda")
+    (sink,) = loopback
+    assert sink.copies == [] and sink.uploads == 1
+    assert got.run.stats["device_path"] == "host"
+    np.testing.assert_array_equal(got.words(), run_method("ss-conservative", torus, spec).words())
+
+
+def test_the_host_default_is_unchanged(gl_context, torus):
+    got = glvox.voxelize(torus, N, device="host")
+    assert got.device_words is None and "device" not in got.run.stats
+
+
+def _no_work(monkeypatch):
+    """Fail the test if any method runs."""
+    def refuse(*args, **kwargs):
+        raise AssertionError("work started before the refusal")
+    for info in method_infos():
+        monkeypatch.setattr(glvox.methods.get_method(info.name), "run", refuse)
+
+
+@pytest.mark.parametrize("method, kwargs, error, words", [
+    ("reference-solid", {}, MethodError, "a CPU method"),
+    ("ss-octree", {}, MethodError, "its result is 'sparse'"),
+    ("ss-conservative", {"attributes": "triangle"}, MethodError, "no per-voxel attributes"),
+])
+def test_what_cannot_stay_on_the_device_is_refused_first(gl_context, loopback, torus, monkeypatch,
+                                                         method, kwargs, error, words):
+    _no_work(monkeypatch)
+    with pytest.raises(error, match=words) as exc:
+        glvox.voxelize(torus, N, method=method, device="cuda", **kwargs)
+    assert "\n" not in str(exc.value)
+
+
+def test_a_slabbed_grid_is_refused_first(gl_context, loopback, torus, monkeypatch):
+    """A grid over the storage-block limit is voxelized in z slabs, read slab by slab
+    into host memory: refused before any work."""
+    spec = glvox.grid_for(torus, N)
+    limits = gl_context.limits()
+    monkeypatch.setattr(gl_context, "limits", lambda: {**limits, "GL_MAX_SHADER_STORAGE_BLOCK_SIZE":
+                                                       spec.n_words * 4 // 2})
+    _no_work(monkeypatch)
+    with pytest.raises(LimitError, match="z slabs"):
+        run_method("ss-conservative", torus, spec, ctx=gl_context, device="cuda")
+
+
+def test_device_names_and_the_extra_are_checked_before_loading(monkeypatch, tmp_path):
+    """A bad device name, and 'cuda' without cuda-core, fail before the mesh is read
+    (the path does not exist)."""
+    missing = tmp_path / "nothing.ply"
+    with pytest.raises(GlvoxError, match="device must be one of host, cuda, got 'gpu'"):
+        glvox.voxelize(missing, N, device="gpu")
+    monkeypatch.setattr(cuda, "_MISSING", ImportError("No module named 'cuda'"))
+    with pytest.raises(CapabilityError, match=r"pip install 'glvox\[cuda\]'"):
+        glvox.voxelize(missing, N, device="cuda")
+
+
+def _cuda_words_or_skip(gl_context):
+    """A CudaSink open on the GL context's GPU, or skip saying why."""
+    try:
+        sink = cuda.CudaSink()
+        sink.open_device(gl_context)
+    except CapabilityError as exc:
+        pytest.skip(f"no CUDA for this GL context: {exc}")
+    return sink
+
+
+def test_without_cuda_the_refusal_is_one_line_before_any_work(gl_context, torus, monkeypatch):
+    """Where CUDA does not see the GL context's GPU (llvmpipe; a driver without CUDA),
+    'cuda' is refused naming the way out, before any method runs."""
+    try:
+        cuda.check_device("cuda")
+    except CapabilityError:
+        pytest.skip("cuda-core is not installed")
+    try:
+        cuda.CudaSink().open_device(gl_context)
+    except CapabilityError:
+        pass
+    else:
+        pytest.skip("CUDA sees this GL context")
+    _no_work(monkeypatch)
+    with pytest.raises(CapabilityError, match="use device='host'") as exc:
+        glvox.voxelize(torus, N, ctx=gl_context, device="cuda")
+    assert "\n" not in str(exc.value)
+
+
+@pytest.mark.parametrize("name", ["ss-conservative", "ss-solid", "eisemann-solid", "scanline-ilv", "vote-solid"])
+def test_cuda_words_equal_the_host_words(gl_context, torus, name):
+    """On a GPU that CUDA sees: the words in CUDA memory (read back through cuda.core
+    and through DLPack's device tuple) are the host run's, for a whole grid and for a
+    grid read from its mesh's slices only (ss-solid, vote-solid)."""
+    _cuda_words_or_skip(gl_context)
+    spec = glvox.grid_for(torus, 64)
+    got = run_method(name, torus, spec, ctx=gl_context, device="cuda")
+    want = run_method(name, torus, spec, ctx=gl_context)
+    assert got.run.stats["device_path"] == "gpu"
+    kind, _ = got.device_words.__dlpack_device__()
+    assert kind == 2  # kDLCUDA
+    np.testing.assert_array_equal(got.device_words.to_host(), want.words())
+    assert got.count == want.count > 0
+
+
+class CorruptingSink(LoopbackSink):
+    """A copy that flips the 32 bits of the grid's last word."""
+
+    def grid_words(self, ctx, buf, offset, nbytes, at, shape):
+        words = super().grid_words(ctx, buf, offset, nbytes, at, shape)
+        words.arr.reshape(-1)[-1] ^= 0xFFFFFFFF
+        return words
+
+
+@pytest.mark.parametrize("sink, status", [(LoopbackSink, "ok"), (CorruptingSink, "mismatch")])
+def test_the_selftest_checks_device_words(gl_context, loopback, monkeypatch, sink, status):
+    """``glvox selftest``'s readback row compares device words with host words where
+    the sink opens (here the loopback stands in for CUDA), and fails a bad copy."""
+    monkeypatch.setattr(glvox.methods, "CudaSink", sink)
+    monkeypatch.setattr(selftest, "CudaSink", sink)
+    row = selftest.readback_row(gl_context)
+    assert row.cases == 4 and row.status == status
+    assert row.detail[-1].startswith("device='cuda': the same words" if status == "ok" else
+                                     "device='cuda': 64 voxels differ in CUDA memory")  # 32 bits flipped, twice
+    assert (row.mismatches == 0) == (status == "ok")
