@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from glvox.errors import BackendError
-from glvox.gl.context import create_context, get_context
+from glvox.gl.context import _egl_devices, create_context, egl_cuda_ordinal, get_context
 from glvox.testing import run_compute, run_fragment
 
 
@@ -90,6 +90,25 @@ def test_no_backend_gives_one_clear_line(tmp_path):
     assert lines[0].startswith("glvox: error: no headless OpenGL 4.5 core context could be created")
     assert "egl:" in lines[0] and "apt-get install libegl1 libegl-mesa0" in lines[0]
     assert "Traceback" not in proc.stderr
+
+
+def test_the_cuda_ordinal_is_read_from_egl_devices_that_have_one(gl_context):
+    """EGL_NV_device_cuda: a device that lists the extension reports its CUDA ordinal
+    (device='cuda' copies results to that GPU); every other device, an index that is
+    no device, and OSMesa report None."""
+    exts = _egl_devices()
+    for i, e in enumerate(exts):
+        got = egl_cuda_ordinal(i)
+        if "EGL_NV_device_cuda" in e.split():
+            assert isinstance(got, int) and got >= 0
+        else:
+            assert got is None
+    assert egl_cuda_ordinal(len(exts)) is None and egl_cuda_ordinal(-1) is None
+    if gl_context.backend == "egl":
+        assert gl_context.egl_index is not None and 0 <= gl_context.egl_index < max(len(exts), 1)
+        assert gl_context.cuda_ordinal() == egl_cuda_ordinal(gl_context.egl_index)
+    else:
+        assert gl_context.egl_index is None and gl_context.cuda_ordinal() is None
 
 
 def test_logic_op_xor_over_eight_uint_targets(gl_context):

@@ -49,10 +49,11 @@ _PACKAGE_HINT = (
 class _LoaderContext:
     """The object moderngl gets from a glcontext backend, keeping the loader."""
 
-    def __init__(self, inner: Any, backend: str, device: str):
+    def __init__(self, inner: Any, backend: str, device: str, egl_index: int | None = None):
         self._inner = inner
         self.backend = backend
         self.device = device
+        self.egl_index = egl_index
 
     def load_opengl_function(self, name: str) -> int:
         return self._inner.load_opengl_function(name)
@@ -71,26 +72,56 @@ _EGL_EXTENSIONS = 0x3055
 _last_created: list[_LoaderContext] = []
 
 
-def _egl_devices() -> list[str]:
-    """Extension strings of the EGL devices, in eglQueryDevicesEXT order."""
+#: eglQueryDeviceAttribEXT's attribute for the CUDA ordinal of an NVIDIA EGL device
+#: (EGL_NV_device_cuda): its place among the devices CUDA_VISIBLE_DEVICES lets CUDA see.
+_EGL_CUDA_DEVICE_NV = 0x323A
+
+
+def _egl_query() -> tuple[Any, list[int]]:
+    """The EGL library (or None) and its devices' handles, in eglQueryDevicesEXT order."""
     name = ctypes.util.find_library("EGL")
     if not name:
-        return []
+        return None, []
     egl = ctypes.CDLL(name)
     egl.eglGetProcAddress.restype = ctypes.c_void_p
     egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
     addr = egl.eglGetProcAddress(b"eglQueryDevicesEXT")
-    saddr = egl.eglGetProcAddress(b"eglQueryDeviceStringEXT")
-    if not addr or not saddr:
-        return []
+    if not addr:
+        return egl, []
     query = ctypes.CFUNCTYPE(ctypes.c_uint, ctypes.c_int, ctypes.POINTER(ctypes.c_void_p),
                              ctypes.POINTER(ctypes.c_int))(addr)
-    qstr = ctypes.CFUNCTYPE(ctypes.c_char_p, ctypes.c_void_p, ctypes.c_int)(saddr)
     devs = (ctypes.c_void_p * 16)()
     n = ctypes.c_int(0)
     if not query(16, devs, ctypes.byref(n)):
+        return egl, []
+    return egl, [devs[i] for i in range(n.value)]
+
+
+def _egl_devices() -> list[str]:
+    """Extension strings of the EGL devices, in eglQueryDevicesEXT order."""
+    egl, devs = _egl_query()
+    saddr = egl.eglGetProcAddress(b"eglQueryDeviceStringEXT") if devs else None
+    if not saddr:
         return []
-    return [(qstr(devs[i], _EGL_EXTENSIONS) or b"").decode() for i in range(n.value)]
+    qstr = ctypes.CFUNCTYPE(ctypes.c_char_p, ctypes.c_void_p, ctypes.c_int)(saddr)
+    return [(qstr(d, _EGL_EXTENSIONS) or b"").decode() for d in devs]
+
+
+def egl_cuda_ordinal(index: int) -> int | None:
+    """The CUDA device ordinal of EGL device ``index`` (EGL_NV_device_cuda), or None
+    where the device has none (Mesa's, any non-NVIDIA driver) or EGL cannot say."""
+    try:
+        egl, devs = _egl_query()
+    except OSError:
+        return None
+    addr = egl.eglGetProcAddress(b"eglQueryDeviceAttribEXT") if 0 <= index < len(devs) else None
+    if not addr:
+        return None
+    attrib = ctypes.CFUNCTYPE(ctypes.c_uint, ctypes.c_void_p, ctypes.c_int, ctypes.POINTER(ctypes.c_ssize_t))(addr)
+    value = ctypes.c_ssize_t(-1)
+    if not attrib(devs[index], _EGL_CUDA_DEVICE_NV, ctypes.byref(value)) or value.value < 0:
+        return None
+    return int(value.value)
 
 
 def _egl_device_index() -> int:
@@ -112,7 +143,7 @@ def _create_egl(**kwargs) -> _LoaderContext:
     index = _egl_device_index()
     kwargs["device_index"] = index
     inner = glcontext.get_backend_by_name("egl")(**kwargs)
-    ctx = _LoaderContext(inner, "egl", f"EGL device {index}")
+    ctx = _LoaderContext(inner, "egl", f"EGL device {index}", index)
     _last_created.append(ctx)
     return ctx
 
@@ -261,6 +292,8 @@ class GLContext:
     #: use (results viewing mapped buffers, :mod:`glvox.gpu.readback`): :meth:`release`
     #: then keeps the GL context itself until they all return False
     keep_alive: list = field(default_factory=list)
+    #: index of the EGL device (eglQueryDevicesEXT order), None for OSMesa
+    egl_index: int | None = None
     _released: bool = False
     _query: Any = None
     _limits: Any = None
@@ -278,6 +311,11 @@ class GLContext:
     @property
     def version(self) -> str:
         return self.mgl.info["GL_VERSION"]
+
+    def cuda_ordinal(self) -> int | None:
+        """The CUDA device ordinal of this context's GPU as its EGL device reports it
+        (:func:`egl_cuda_ordinal`), or None (OSMesa, Mesa, non-NVIDIA drivers)."""
+        return None if self.egl_index is None else egl_cuda_ordinal(self.egl_index)
 
     @property
     def is_software(self) -> bool:
@@ -457,7 +495,8 @@ def create_context(backend: str | None = None, *, require: int = GL_VERSION_REQU
                     pass
             continue
         made = _last_created[-1]
-        ctx = GLContext(mgl=mgl, backend=b, device=made.device, raw=RawGL(made.load_opengl_function))
+        ctx = GLContext(mgl=mgl, backend=b, device=made.device, raw=RawGL(made.load_opengl_function),
+                        egl_index=made.egl_index)
         global _current
         _current = ctx  # a new context is current where it was made
         return ctx

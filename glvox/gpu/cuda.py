@@ -16,7 +16,8 @@ The grid reads the words back to the host only when host data is asked for
 does the interop and the DLPack export: ``pip install 'glvox[cuda]'``.
 
 Requirements, each checked before any work, in one line: a GL context on an
-NVIDIA GPU that CUDA sees (``cuGLGetDevices``); a GL surface or solid method;
+NVIDIA GPU that CUDA sees (its EGL device's CUDA ordinal, else
+``cuGLGetDevices``); a GL surface or solid method;
 no per-voxel attributes; a grid within one storage block (a grid that a method
 voxelizes in z slabs is refused).
 
@@ -103,16 +104,24 @@ class CudaSink:
         self.open_device(ctx)
 
     def open_device(self, ctx) -> None:
-        """The CUDA device the current GL context runs on, made current, and a stream on it."""
+        """The CUDA device the current GL context runs on, made current, and a stream on it:
+        the ordinal its EGL device reports (EGL_NV_device_cuda, as EGL renderers that share
+        with CUDA find it), else CUDA's answer for the current GL context (cuGLGetDevices)."""
+        ordinal = ctx.cuda_ordinal()
         try:
             Device().set_current()  # initializes CUDA; cuGLGetDevices may want a current context
-            err, n, devices = _driver.cuGLGetDevices(1, _driver.CUGLDeviceList.CU_GL_DEVICE_LIST_ALL)
+            if ordinal is None:
+                err, n, devices = _driver.cuGLGetDevices(1, _driver.CUGLDeviceList.CU_GL_DEVICE_LIST_ALL)
+                if err == _driver.CUresult.CUDA_SUCCESS and n >= 1:
+                    ordinal = int(devices[0])
+                else:
+                    why = f"cuGLGetDevices: {getattr(err, 'name', err)}"
         except Exception as exc:  # no driver library, no device
             raise CapabilityError(f"device='cuda': CUDA is not available here ({exc}); use device='host'") from None
-        if err != _driver.CUresult.CUDA_SUCCESS or n < 1:
-            raise CapabilityError(f"device='cuda': the GL context ({ctx.renderer}) is on no CUDA device "
-                                  f"(cuGLGetDevices: {getattr(err, 'name', err)}); use device='host'")
-        self.device = Device(int(devices[0]))
+        if ordinal is None:
+            raise CapabilityError(f"device='cuda': the GL context ({ctx.renderer}, {ctx.device}) is on no CUDA "
+                                  f"device ({why}); use device='host'")
+        self.device = Device(ordinal)
         self.device.set_current()
         self.stream = self.device.create_stream()
 
