@@ -14,13 +14,15 @@ context's GPU.
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 import pytest
 
 import glvox
 import glvox.methods
 from glvox.errors import CapabilityError, GlvoxError, LimitError, MethodError
-from glvox.gpu import buffers, cuda
+from glvox.gpu import buffers, cuda, readback
 from glvox.methods import method_infos, run_method
 from glvox.results import DeviceWords
 from glvox.study import selftest
@@ -120,16 +122,33 @@ def test_an_uncounted_grid_stays_on_the_device_until_counted(gl_context, loopbac
     assert got.device_words.reads == 1
 
 
-def test_a_grid_that_missed_the_sink_is_uploaded(gl_context, loopback, torus, monkeypatch):
+@pytest.mark.parametrize("name", ["ss-conservative", "passalis-stencil"])
+def test_a_grid_that_missed_the_sink_is_uploaded(gl_context, loopback, torus, monkeypatch, name):
     """A method whose grid did not reach the sink still gives a device result, uploaded
-    from its host words, and says so."""
+    from its host words, with its extra masks, and says so."""
     monkeypatch.setattr(buffers, "active_sink", lambda: None)
     spec = glvox.grid_for(torus, N)
-    got = run_method("ss-conservative", torus, spec, device="cuda")
+    got = run_method(name, torus, spec, device="cuda")
     (sink,) = loopback
     assert sink.copies == [] and sink.uploads == 1
     assert got.run.stats["device_path"] == "host"
-    np.testing.assert_array_equal(got.words(), run_method("ss-conservative", torus, spec).words())
+    want = run_method(name, torus, spec)
+    np.testing.assert_array_equal(got.words(), want.words())
+    assert set(got.extras) == set(want.extras) == ({"unclassifiable"} if name == "passalis-stencil" else set())
+
+
+def test_a_sink_is_seen_only_by_its_own_thread():
+    """GL contexts are current per thread: a device_sink block routes that thread's reads alone."""
+    seen = []
+    with readback.device_sink("mine"):
+        worker = threading.Thread(target=lambda: seen.append(readback.active_sink()))
+        worker.start()
+        worker.join()
+        assert readback.active_sink() == "mine"
+        with readback.device_sink("inner"):
+            assert readback.active_sink() == "inner"
+        assert readback.active_sink() == "mine"
+    assert seen == [None] and readback.active_sink() is None
 
 
 def test_the_host_default_is_unchanged(gl_context, torus):

@@ -36,6 +36,7 @@ caller that wants to write copies first, as with any :class:`glvox.VoxelGrid`'s 
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import os
 import threading
 import weakref
@@ -83,7 +84,9 @@ def readback_mode() -> str:
     return mode
 
 
-_sinks: list = []
+#: The device sinks of the enclosing :func:`device_sink` blocks (per thread and task:
+#: a GL context is current in one thread).
+_sinks: contextvars.ContextVar[tuple] = contextvars.ContextVar("glvox_device_sinks", default=())
 
 
 @contextlib.contextmanager
@@ -93,16 +96,17 @@ def device_sink(sink) -> Iterator[None]:
     memory: ``sink.grid_words(ctx, buf, offset, nbytes, at, shape)`` returns
     :class:`glvox.results.DeviceWords` holding ``nbytes`` of ``buf`` from ``offset`` at
     byte ``at`` of a zeroed grid of ``shape`` words.  Other reads are unchanged."""
-    _sinks.append(sink)
+    token = _sinks.set(_sinks.get() + (sink,))
     try:
         yield
     finally:
-        _sinks.pop()
+        _sinks.reset(token)
 
 
 def active_sink():
     """The sink of the innermost :func:`device_sink` block, or None."""
-    return _sinks[-1] if _sinks else None
+    sinks = _sinks.get()
+    return sinks[-1] if sinks else None
 
 
 def lent_limit() -> int:

@@ -134,7 +134,8 @@ def run_method(name: str | Request, mesh: Mesh, spec: GridSpec, *, ctx=None, bac
         timer.stats["device"] = "cuda"
         timer.stats["device_path"] = "gpu" if result.device_words is not None else "host"
         if result.device_words is None:  # a method whose grid did not reach the sink
-            result = VoxelGrid(words=sink.upload(result.words()), spec=result.spec,
+            result = VoxelGrid(words=sink.upload(result.words()), spec=result.spec, extras=result.extras,
+                               fields=result.fields, attributes=result.attributes,
                                count=result.count if result.counted_on == "gpu" else None)
         return result
 
