@@ -368,8 +368,8 @@ def _pack_pass(ctx, render: SliceRender, pp: _PassPrograms, tg: _Targets, used: 
     for t in range(used):
         tg.textures[t].bind_to_image(t, read=True, write=False)
     bind(pp.pack, Grid=grid, Count=count)
-    if render.axis == 0:
-        count = used * tw * th
+    if render.axis == 0:  # one invocation per pixel, its targets in turn
+        count = tw * th
         words_x = 0
     else:
         x_n, other_n = (tw, th) if render.axis == 2 else (th, tw)
