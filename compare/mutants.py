@@ -314,6 +314,18 @@ MUTANTS: list[Mutant] = [
     Mutant("reference-solid-half-open", "reference-solid: centers on the crossing flip (>= instead of >)",
            "glvox/reference/solid.py", (("        qbar = np.floor(q + 0.5)", "        qbar = np.ceil(q - 0.5)"),),
            (EXACT, "-k", "rules_on_the_surface")),
+    Mutant("eisemann-pack-x-last-target-dropped", "eisemann pack along x: the loop over the targets stops one short",
+           "shaders/eisemann/pack.comp", (("    for (int t = 0; t < EIS_TARGETS; ++t) {\n        uvec4 words",
+                                           "    for (int t = 0; t < EIS_TARGETS - 1; ++t) {\n        uvec4 words"),),
+           ("tests/test_eisemann.py", "-k", "fewer_targets_more_passes")),
+    Mutant("device-sink-ignored", "device='cuda': read_grid_words reads into host memory whatever the sink",
+           "glvox/gpu/buffers.py", (("    if sink is not None:  # a device result", "    if False:  # a device result"),),
+           ("tests/test_device_results.py", "-k", "hands_its_grid_to_the_sink")),
+    Mutant("device-grid-counted-on-the-host", "device='cuda': the envelope counts a grid the GPU did not count "
+           "(reading it back)", "glvox/methods/envelope.py",
+           (("    count = None if on_device else getattr(result, \"count\", None)",
+             "    count = getattr(result, \"count\", None)"),),
+           ("tests/test_device_results.py", "-k", "uncounted")),
 ]
 
 
