@@ -6,14 +6,18 @@ cannot take is refused in one line before any work.
 Without CUDA (this suite's llvmpipe) the sink is a loopback: :class:`LoopbackSink`
 keeps to :class:`glvox.gpu.cuda.CudaSink`'s contract (the grid's GL buffer, the
 byte range and where it lands in a zeroed grid) but copies into host memory with
-glGetBufferSubData.  So these tests check what glvox does around the copy; the
-CUDA copy itself (interop, DLPack on the GPU) is checked by
-``test_cuda_words_equal_the_host_words``, which runs only where CUDA sees the GL
+glGetBufferSubData.  So these tests check what glvox does around the copy.
+CudaSink's own copy code runs on a stand-in for cuda.core (the ``Fake*`` classes:
+its API as glvox calls it, host memory for device memory).  The CUDA copy itself
+(interop, DLPack on the GPU) is checked only by
+``test_cuda_words_equal_the_host_words``, which runs where CUDA sees the GL
 context's GPU.
 """
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import threading
 
 import numpy as np
@@ -265,3 +269,140 @@ def test_the_selftest_checks_device_words(gl_context, loopback, monkeypatch, sin
     assert row.detail[-1].startswith("device='cuda': the same words" if status == "ok" else
                                      "device='cuda': 64 voxels differ in CUDA memory")  # 32 bits flipped, twice
     assert (row.mismatches == 0) == (status == "ok")
+
+
+# -- CudaSink itself, on a stand-in for cuda.core ------------------------------------
+# cuda.core's objects as glvox uses them (its 1.2 API), with host memory for device
+# memory: a mapped GL buffer is read into host memory on map(), pointers are addresses,
+# copies are memmoves.  They run CudaSink's own code (pointer arithmetic, the zeroed
+# grid, map / unmap / unregister order) against real GL buffers; they prove nothing
+# about the driver.
+
+_GL_BUFFER_SIZE = 0x8764
+
+
+class FakeStream:
+    def __init__(self):
+        self.syncs = 0
+
+    def sync(self):
+        self.syncs += 1
+
+
+class FakeBuffer:
+    def __init__(self, address: int, size: int, owner=None):
+        self.handle, self.size, self.owner = int(address), int(size), owner
+
+    @classmethod
+    def from_handle(cls, ptr, size, mr=None, owner=None, *, stream=None):
+        return cls(ptr, size, owner)
+
+    def copy_from(self, src, *, stream):
+        assert src.size == self.size
+        ctypes.memmove(self.handle, src.handle, self.size)
+
+    def copy_to(self, dst, *, stream):
+        assert dst.size == self.size
+        ctypes.memmove(dst.handle, self.handle, self.size)
+
+    def fill(self, value, *, stream):
+        ctypes.memset(self.handle, value, self.size)
+
+
+class FakeDevice:
+    def __init__(self, device_id=None):
+        self.device_id = 0 if device_id is None else device_id
+
+    def set_current(self):
+        pass
+
+    def create_stream(self):
+        return FakeStream()
+
+    def allocate(self, size, *, stream):
+        arr = np.full(size, 0xAB, dtype=np.uint8)  # garbage, as cudaMalloc's may be
+        return FakeBuffer(arr.ctypes.data, size, owner=arr)
+
+
+class FakeResource:
+    live: list["FakeResource"] = []
+    ctx = None
+
+    def __init__(self, name):
+        self.name, self.mapped = name, False
+
+    @classmethod
+    def from_gl_buffer(cls, gl_buffer, *, flags=None, stream=None):
+        assert flags == "read_only"
+        r = cls(int(gl_buffer))
+        cls.live.append(r)
+        return r
+
+    @contextlib.contextmanager
+    def map(self, *, stream):
+        load = FakeResource.ctx.raw._loader
+        size = ctypes.c_int(0)
+        ctypes.CFUNCTYPE(None, ctypes.c_uint, ctypes.c_uint, ctypes.POINTER(ctypes.c_int))(
+            load("glGetNamedBufferParameteriv"))(self.name, _GL_BUFFER_SIZE, ctypes.byref(size))
+        host = np.empty(size.value, dtype=np.uint8)
+        ctypes.CFUNCTYPE(None, ctypes.c_uint, ctypes.c_ssize_t, ctypes.c_ssize_t, ctypes.c_void_p)(
+            load("glGetNamedBufferSubData"))(self.name, 0, size.value, host.ctypes.data)
+        self.mapped = True
+        try:
+            yield FakeBuffer(host.ctypes.data, host.size, owner=host)
+        finally:
+            self.mapped = False
+
+    def close(self):
+        assert not self.mapped, "unregistered while mapped"
+        FakeResource.live.remove(self)
+
+
+class FakeView:
+    @classmethod
+    def from_buffer(cls, buffer, shape, strides=None, *, itemsize=None, dtype=None, is_readonly=False):
+        v = cls()
+        v.buffer = buffer
+        raw = (ctypes.c_uint8 * buffer.size).from_address(buffer.handle)
+        v.arr = np.frombuffer(raw, dtype=np.uint8).view(dtype).reshape(shape)
+        return v
+
+    def __dlpack__(self, **kwargs):
+        return self.arr.__dlpack__(**kwargs)
+
+    def __dlpack_device__(self):
+        return self.arr.__dlpack_device__()
+
+
+@pytest.fixture
+def fake_cuda(gl_context, monkeypatch):
+    for name, fake in (("Buffer", FakeBuffer), ("Device", FakeDevice), ("GraphicsResource", FakeResource),
+                       ("StridedMemoryView", FakeView)):
+        monkeypatch.setattr(cuda, name, fake, raising=False)
+    monkeypatch.setattr(cuda, "_MISSING", None)
+    monkeypatch.setattr(gl_context, "cuda_ordinal", lambda: 0)
+    FakeResource.live.clear()
+    FakeResource.ctx = gl_context
+    return FakeResource.live
+
+
+@pytest.mark.parametrize("name", GRID_METHODS)
+def test_the_cuda_sink_copies_each_grid_whole(fake_cuda, gl_context, torus, name):
+    """CudaSink's copy on the stand-in: the host run's words, the slices a method did
+    not read zeroed (the allocation starts as garbage), DLPack giving the same words,
+    and every registration unmapped and closed."""
+    spec = glvox.grid_for(torus, N)
+    got = run_method(name, torus, spec, ctx=gl_context, device="cuda")
+    want = run_method(name, torus, spec, ctx=gl_context)
+    assert isinstance(got.device_words, cuda.CudaWords) and got.run.stats["device_path"] == "gpu"
+    np.testing.assert_array_equal(np.from_dlpack(got.device_words), want.words())
+    np.testing.assert_array_equal(got.device_words.to_host(), want.words())
+    assert fake_cuda == []
+
+
+def test_the_cuda_sink_uploads_a_grid_that_missed_it(fake_cuda, gl_context, torus, monkeypatch):
+    monkeypatch.setattr(buffers, "active_sink", lambda: None)
+    spec = glvox.grid_for(torus, N)
+    got = run_method("ss-solid", torus, spec, ctx=gl_context, device="cuda")
+    assert got.run.stats["device_path"] == "host"
+    np.testing.assert_array_equal(got.device_words.to_host(), run_method("ss-solid", torus, spec).words())
