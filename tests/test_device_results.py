@@ -406,3 +406,14 @@ def test_the_cuda_sink_uploads_a_grid_that_missed_it(fake_cuda, gl_context, toru
     got = run_method("ss-solid", torus, spec, ctx=gl_context, device="cuda")
     assert got.run.stats["device_path"] == "host"
     np.testing.assert_array_equal(got.device_words.to_host(), run_method("ss-solid", torus, spec).words())
+
+
+def test_a_failing_cuda_copy_is_one_line(fake_cuda, gl_context, torus, monkeypatch):
+    """A driver error in the interop (here the registration) reaches the user as one
+    CapabilityError line naming the step and the way out, not a traceback of cuda.core's."""
+    def refuse(*args, **kwargs):
+        raise RuntimeError("CUDA_ERROR_INVALID_GRAPHICS_CONTEXT")
+    monkeypatch.setattr(FakeResource, "from_gl_buffer", refuse)
+    with pytest.raises(CapabilityError, match="interop.*CUDA_ERROR_INVALID_GRAPHICS_CONTEXT.*use device='host'") as exc:
+        glvox.voxelize(torus, N, ctx=gl_context, device="cuda")
+    assert "\n" not in str(exc.value)

@@ -29,6 +29,9 @@ since the methods' scratch buffers are reallocated as grids grow.
 
 from __future__ import annotations
 
+import contextlib
+from typing import Iterator
+
 import numpy as np
 
 from ..errors import CapabilityError, GlvoxError, LimitError
@@ -48,6 +51,18 @@ else:
     _MISSING = None
 
 DEVICES = ("host", "cuda")
+
+
+@contextlib.contextmanager
+def _cuda_errors(what: str) -> Iterator[None]:
+    """A CUDA call's failure as one line (a CapabilityError naming ``what``), not a traceback."""
+    try:
+        yield
+    except GlvoxError:
+        raise
+    except Exception as exc:  # cuda.core's CUDAError and whatever the driver raises
+        raise CapabilityError(f"device='cuda': {what} failed ({type(exc).__name__}: {exc}); "
+                              f"use device='host'") from exc
 
 
 def check_device(device: str | None) -> str:
@@ -78,9 +93,10 @@ class CudaWords(DeviceWords):
 
     def to_host(self) -> np.ndarray:
         out = np.empty(self.shape, dtype="<u4")
-        host = Buffer.from_handle(out.ctypes.data, out.nbytes, owner=out)
-        self.buffer.copy_to(host, stream=self.stream)
-        self.stream.sync()
+        with _cuda_errors("reading the words back"):
+            host = Buffer.from_handle(out.ctypes.data, out.nbytes, owner=out)
+            self.buffer.copy_to(host, stream=self.stream)
+            self.stream.sync()
         return out
 
     def __repr__(self) -> str:
@@ -121,13 +137,18 @@ class CudaSink:
         if ordinal is None:
             raise CapabilityError(f"device='cuda': the GL context ({ctx.renderer}, {ctx.device}) is on no CUDA "
                                   f"device ({why}); use device='host'")
-        self.device = Device(ordinal)
-        self.device.set_current()
-        self.stream = self.device.create_stream()
+        with _cuda_errors(f"opening CUDA device {ordinal}"):
+            self.device = Device(ordinal)
+            self.device.set_current()
+            self.stream = self.device.create_stream()
 
     def grid_words(self, ctx, buf, offset: int, nbytes: int, at: int, shape) -> CudaWords:
         """``nbytes`` of GL buffer ``buf`` from ``offset``, at byte ``at`` of a zeroed
         grid of ``shape`` words in new CUDA memory."""
+        with _cuda_errors("the copy from the GL buffer (CUDA-OpenGL interop)"):
+            return self._grid_words(buf, offset, nbytes, at, shape)
+
+    def _grid_words(self, buf, offset: int, nbytes: int, at: int, shape) -> CudaWords:
         s = self.stream
         total = int(np.prod(shape)) * 4
         out = self.device.allocate(total, stream=s)
@@ -150,7 +171,8 @@ class CudaSink:
         """Host words copied to CUDA memory: the fallback for a method whose grid did
         not reach :meth:`grid_words` (the run's ``stats['device_path']`` says 'host')."""
         host = np.ascontiguousarray(words, dtype="<u4")
-        out = self.device.allocate(host.nbytes, stream=self.stream)
-        out.copy_from(Buffer.from_handle(host.ctypes.data, host.nbytes, owner=host), stream=self.stream)
-        self.stream.sync()
-        return CudaWords(out, host.shape, self.stream)
+        with _cuda_errors("the upload of the host words"):
+            out = self.device.allocate(host.nbytes, stream=self.stream)
+            out.copy_from(Buffer.from_handle(host.ctypes.data, host.nbytes, owner=host), stream=self.stream)
+            self.stream.sync()
+            return CudaWords(out, host.shape, self.stream)
