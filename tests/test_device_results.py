@@ -383,7 +383,11 @@ def fake_cuda(gl_context, monkeypatch):
     monkeypatch.setattr(gl_context, "cuda_ordinal", lambda: 0)
     FakeResource.live.clear()
     FakeResource.ctx = gl_context
-    return FakeResource.live
+    kept = gl_context.caches.pop("cuda", None)  # the device CudaSink opened for this context
+    yield FakeResource.live
+    gl_context.caches.pop("cuda", None)
+    if kept is not None:
+        gl_context.caches["cuda"] = kept
 
 
 @pytest.mark.parametrize("name", GRID_METHODS)
@@ -406,6 +410,17 @@ def test_the_cuda_sink_uploads_a_grid_that_missed_it(fake_cuda, gl_context, toru
     got = run_method("ss-solid", torus, spec, ctx=gl_context, device="cuda")
     assert got.run.stats["device_path"] == "host"
     np.testing.assert_array_equal(got.device_words.to_host(), run_method("ss-solid", torus, spec).words())
+
+
+def test_the_cuda_device_is_opened_once_per_context(fake_cuda, gl_context, torus, monkeypatch):
+    """Finding the GL context's CUDA device (EGL or cuGLGetDevices) and making a stream is
+    setup, not per-call work: a second call reuses them."""
+    opened = []
+    monkeypatch.setattr(gl_context, "cuda_ordinal", lambda: opened.append(1) or 0)
+    spec = glvox.grid_for(torus, N)
+    first = run_method("ss-conservative", torus, spec, ctx=gl_context, device="cuda")
+    second = run_method("ss-conservative", torus, spec, ctx=gl_context, device="cuda")
+    assert opened == [1] and first.device_words.stream is second.device_words.stream
 
 
 def test_a_failing_cuda_copy_is_one_line(fake_cuda, gl_context, torus, monkeypatch):

@@ -120,9 +120,20 @@ class CudaSink:
         self.open_device(ctx)
 
     def open_device(self, ctx) -> None:
-        """The CUDA device the current GL context runs on, made current, and a stream on it:
-        the ordinal its EGL device reports (EGL_NV_device_cuda, as EGL renderers that share
-        with CUDA find it), else CUDA's answer for the current GL context (cuGLGetDevices)."""
+        """The CUDA device the current GL context runs on, made current, and a stream on it,
+        found once per context (kept in ``ctx.caches['cuda']``): the ordinal its EGL device
+        reports (EGL_NV_device_cuda, as EGL renderers that share with CUDA find it), else
+        CUDA's answer for the current GL context (cuGLGetDevices)."""
+        opened = ctx.caches.get("cuda")
+        if opened is None:
+            self._open(ctx)
+            ctx.caches["cuda"] = (self.device, self.stream)
+            return
+        self.device, self.stream = opened
+        with _cuda_errors(f"making CUDA device {self.device.device_id} current"):
+            self.device.set_current()
+
+    def _open(self, ctx) -> None:
         ordinal = ctx.cuda_ordinal()
         try:
             Device().set_current()  # initializes CUDA; cuGLGetDevices may want a current context
