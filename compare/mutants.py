@@ -326,6 +326,11 @@ MUTANTS: list[Mutant] = [
            (("    count = None if on_device else getattr(result, \"count\", None)",
              "    count = getattr(result, \"count\", None)"),),
            ("tests/test_device_results.py", "-k", "uncounted")),
+    Mutant("word-index-int32", "a packed word's index from the voxel's flat index in int, shifted with its sign "
+           "(wrong past 2^31 voxels in one buffer, as NVIDIA's 2048^3 grids are)", "shaders/common/voxel_space.glsl",
+           (("    return (k * uint(u_dims.y) + uint(v.y)) * words_per_row() + (uint(v.x) >> 5);",
+             "    int at = (int(k) * u_dims.y + v.y) * int(words_per_row()) * 32 + v.x;\n    return uint(at >> 5);"),),
+           ("tests/test_ss.py", "-k", "one_buffer_past")),
 ]
 
 

@@ -308,6 +308,71 @@ def test_surfaces_take_grids_over_the_dense_limit(gl_context):
         run_method("ss-solid-tiled", load_mesh("gen:box"), big)
 
 
+#: NVIDIA's GL_MAX_SHADER_STORAGE_BLOCK_SIZE (2 GiB - 1 on the H100, driver 580): a
+#: 2048^3 grid's 1 GiB of bits fits one buffer there, so no slabs and flat indices
+#: past 2^31 and 2^32 voxels inside one dispatch.
+NVIDIA_SSBO_LIMIT = 2**31 - 1
+
+
+def _one_block_limit(gl_context, monkeypatch, nbytes: int) -> None:
+    """The context's storage-block limit where it holds ``nbytes``; on llvmpipe (128 MiB)
+    NVIDIA's is forced, since llvmpipe binds and bounds-checks a storage buffer by its
+    real size whatever limit it reports.  Elsewhere a limit under ``nbytes`` skips."""
+    limits = gl_context.limits()
+    if int(limits["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"]) >= nbytes:
+        return
+    if "llvmpipe" not in gl_context.renderer:
+        pytest.skip(f"this context's storage blocks hold less than {nbytes} bytes")
+    monkeypatch.setattr(gl_context, "limits",
+                        lambda: {**limits, "GL_MAX_SHADER_STORAGE_BLOCK_SIZE": NVIDIA_SSBO_LIMIT})
+
+
+def _far_corner(big_dims):
+    """The sphere 20 voxels across ending 3.7 voxels before the far corner of a grid of
+    ``big_dims``, and a 27^3 grid holding it with the same voxel size and the same
+    fractions of a voxel (its origin 27 voxels before the far corner): the big grid's
+    last 27 voxels along each axis must equal the small grid."""
+    mesh = load_mesh("gen:sphere")
+    lo, hi = mesh.bounds
+    h = float((hi - lo).max()) / 20.0
+    far = [float(lo[a] - (big_dims[a] - 23.7) * h) for a in range(3)]
+    near = [float(lo[a] - 3.3 * h) for a in range(3)]
+    return mesh, GridSpec(big_dims, far, h), GridSpec((27, 27, 27), near, h)
+
+
+def _last_voxels(grid, n: int) -> np.ndarray:
+    """The last ``n`` voxels along each axis of a packed grid, as bools (z, y, x)."""
+    nx = grid.spec.dims[0]
+    words = grid.words()[-n:, -n:, :]
+    bits = np.unpackbits(np.ascontiguousarray(words).view(np.uint8), bitorder="little")
+    return bits.reshape(n, n, -1)[:, :, nx - n:nx].astype(bool)
+
+
+@pytest.mark.parametrize("dims", [
+    (2048, 2048, 520),  # past 2^31 voxels: int32 flat indices overflow
+    pytest.param((2048, 2048, 1040), marks=pytest.mark.slow),  # past 2^32: uint32 ones wrap
+])
+def test_a_grid_in_one_buffer_past_two_billion_voxels(gl_context, monkeypatch, dims):
+    """On NVIDIA a grid past MAX_VOXELS fits one storage buffer (2048^3: 1 GiB of bits),
+    so the methods that take such grids index it in one dispatch, without the slabs that
+    keep every index small on llvmpipe: the sphere at the far corner (voxel indices past
+    2^31, or 2^32) must equal a small grid's voxels."""
+    mesh, big, small = _far_corner(dims)
+    assert big.n_voxels > (2**32 if dims[2] > 1024 else 2**31)
+    _one_block_limit(gl_context, monkeypatch, big.n_words * 4)
+    runs = [("ss-conservative", {"variant": v}) for v in CONSERVATIVE_VARIANTS]
+    runs += [("ss-6sep", {}), ("ss-solid", {}), ("gwn-solid", {})]
+    for name, opts in runs:
+        got = run_method(name, mesh, big, **opts)
+        if name != "gwn-solid":  # its field is computed in slabs whatever the grid's buffer
+            assert "slabs" not in got.run.stats, name
+        want = run_method(name, mesh, small, **opts)
+        dense = want.dense().transpose(2, 1, 0)
+        assert dense.any() and not dense[0].any() and not dense[:, 0].any() and not dense[:, :, 0].any()
+        np.testing.assert_array_equal(_last_voxels(got, 27), dense, err_msg=f"{name} {opts}")
+        assert got.count == want.count, f"{name} {opts}"
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("n", [256, 512, 1024])
 @pytest.mark.parametrize("name", ["stanford_bunny_bun_zipper.ply", "stanford_dragon_vrip_res2.ply"])
