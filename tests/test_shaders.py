@@ -2,14 +2,20 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
+import glvox
 from glvox.errors import ShaderError
+from glvox.gl import shaders as loader
 from glvox.gl.shaders import (LINE_BASE, MAX_INCLUDE_DEPTH, builtin_shader_dir, compute_program, preprocess,
                               render_program)
 from glvox.gpu.dispatch import bind
 from glvox.grid import GridSpec, pack_bits
+from glvox.mesh import load_mesh
+from glvox.methods import run_method
 from glvox.results.voxels import VoxelGrid
 from glvox.testing import run_compute
 
@@ -264,3 +270,65 @@ def test_bind_needs_a_program_from_the_loader(gl_context):
     finally:
         buf.release()
         prog.release()
+
+
+# ---------------------------------------------------------------------------
+# geometry shaders: outputs are undefined after EmitVertex()
+# ---------------------------------------------------------------------------
+
+_GS_OUT = re.compile(r"^\s*(?:flat\s+|noperspective\s+|smooth\s+)*out\s+(\w+)\s+(\w+)\s*;", re.M)
+
+
+def _clobbering_emit(text: str) -> str:
+    """A define that makes each ``EmitVertex();`` of a geometry shader's source leave its
+    outputs holding 7777 afterwards: ``EmitVertex(); g_a = T(7777); ...; memoryBarrier();``
+    (the preprocessor does not expand a macro inside its own expansion)."""
+    outs = _GS_OUT.findall(text)
+    assert outs, "a geometry shader without user outputs"
+    return "EmitVertex(); " + " ".join(f"{name} = {typ}(7777);" for typ, name in outs) + " memoryBarrier"
+
+
+GEOMETRY_SHADER_RUNS = [
+    ("karabassi", {}),
+    ("passalis-peel", {}),
+    ("passalis-stencil", {}),
+    ("binvox-solid", {"wire": False}),  # depth/raster.geom alone
+    ("binvox-solid", {}),                # and binvox/wire.geom (-aw, the default)
+    ("peel-ldi", {}),
+]
+
+
+@pytest.mark.parametrize("name, options", GEOMETRY_SHADER_RUNS,
+                         ids=[n + "".join(f"-{k}={v}" for k, v in o.items()) for n, o in GEOMETRY_SHADER_RUNS])
+def test_geometry_shaders_set_their_outputs_for_every_vertex(gl_context, monkeypatch, name, options):
+    """GLSL 4.50 Sec. 8.16: "On return from [EmitVertex], the values of all output
+    variables are undefined."  Mesa's llvmpipe keeps them, a GPU's compiler need not, and a
+    flat output is read from each primitive's provoking vertex (the last, by default): a
+    shader that sets its flat outputs once before emitting three or four vertices hands the
+    fragments whatever the hardware left there.  With every output overwritten right after
+    each EmitVertex (a define named EmitVertex, compiled into the methods' own programs), the
+    methods that draw through geometry shaders must give the same result."""
+    mesh = load_mesh("gen:torus")
+    spec = glvox.grid_for(mesh, 24)
+    want = run_method(name, mesh, spec, **options)
+    real = loader.preprocess
+    geometry = []
+
+    def clobbering(path, defines=None, search=(), *args, **kwargs):
+        if not str(path).endswith(".geom"):
+            return real(path, defines, search, *args, **kwargs)
+        plain = real(path, defines, search, *args, **kwargs)
+        geometry.append(str(path))
+        return real(path, {**(defines or {}), "EmitVertex": _clobbering_emit(plain.text)}, search, *args, **kwargs)
+
+    monkeypatch.setattr(loader, "preprocess", clobbering)
+    monkeypatch.setattr(gl_context, "programs", {})  # compile them again, with the define
+    got = run_method(name, mesh, spec, **options)
+    assert geometry, f"{name} drew through no geometry shader"
+    if name == "peel-ldi":
+        assert want.counts.any()
+        np.testing.assert_array_equal(got.counts, want.counts, err_msg=name)
+        np.testing.assert_array_equal(got.depths, want.depths, err_msg=name)
+    else:
+        assert want.count > 0
+        np.testing.assert_array_equal(got.words(), want.words(), err_msg=f"{name}: {sorted(set(geometry))}")

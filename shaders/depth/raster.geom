@@ -39,7 +39,25 @@ const double PROXY_MARGIN = 1.0 / 16.0;
 // replaced by the bounding box: its tips would reach 625 pixels out.
 const double MAX_MITER = 1.0e4;
 
+// The triangle's data for the fragments, written with every vertex: GLSL leaves all outputs
+// undefined after EmitVertex() (GLSL 4.50 Sec. 8.16), and flat ones are read from each
+// primitive's provoking vertex (the last one by default), so setting them once before the
+// first vertex works only where a compiler happens to keep them (llvmpipe does).
+vec3 t_p0, t_p1, t_p2;
+ivec2 t_f0, t_f1, t_f2;
+int t_sgn;
+double t_inv_area2;
+
 void emit(dvec2 p) {
+    g_p0 = t_p0;
+    g_p1 = t_p1;
+    g_p2 = t_p2;
+    g_f0 = t_f0;
+    g_f1 = t_f1;
+    g_f2 = t_f2;
+    g_sgn = t_sgn;
+    g_inv_area2 = t_inv_area2;
+    g_id = uint(gl_PrimitiveIDIn);
     gl_Position = vec4(vec2(2.0 * p / dvec2(u_target_size) - 1.0), 0.0, 1.0);
     EmitVertex();
 }
@@ -66,15 +84,14 @@ void main() {
     ivec2 last = min(((fhi - half_unit) >> u_fix_bits) - u_tile_origin, u_target_size - 1);
     if (any(greaterThan(first, last))) return;
 
-    g_p0 = p0;
-    g_p1 = p1;
-    g_p2 = p2;
-    g_f0 = f0;
-    g_f1 = f1;
-    g_f2 = f2;
-    g_sgn = sgn;
-    g_inv_area2 = 1.0lf / area2;
-    g_id = uint(gl_PrimitiveIDIn);
+    t_p0 = p0;
+    t_p1 = p1;
+    t_p2 = p2;
+    t_f0 = f0;
+    t_f1 = f1;
+    t_f2 = f2;
+    t_sgn = sgn;
+    t_inv_area2 = 1.0lf / area2;
 
     double s = double(sgn);
     bool pushed = true;
