@@ -42,6 +42,9 @@ _VERSION = re.compile(r"^\s*#\s*version\b")
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 # a storage block's declaration: `... buffer Name {` (comments stripped first)
 _STORAGE_BLOCK = re.compile(r"\bbuffer\s+([A-Za-z_][A-Za-z0-9_]*)\s*\{")
+# the same with the qualifiers before it: `layout(...) readonly buffer Name {`
+_QUALIFIED_BLOCK = re.compile(r"((?:\b(?:layout\s*\([^)]*\)|readonly|writeonly|coherent|volatile|restrict)\s*)*)"
+                              r"\bbuffer\s+([A-Za-z_][A-Za-z0-9_]*)\s*\{")
 _COMMENT = re.compile(r"//[^\n]*|/\*.*?\*/", re.S)
 
 
@@ -151,11 +154,108 @@ class Source:
         """
         return frozenset(_STORAGE_BLOCK.findall(_COMMENT.sub(" ", self.text)))
 
+    @property
+    def storage_access(self) -> dict[str, tuple[bool, bool, bool]]:
+        """Storage block name -> (read, written, atomic) as the source allows: ``readonly``
+        blocks are not written, ``writeonly`` ones not read, others both; ``atomic`` when
+        every use of the block's members is the first argument of an ``atomic*()`` call
+        (what :mod:`glvox.testing.hazards` checks barriers by).  Read from the branches of
+        ``#if`` the defines select (:func:`active_text`)."""
+        text = active_text(_COMMENT.sub(" ", self.text))
+        out: dict[str, tuple[bool, bool, bool]] = {}
+        for m in _QUALIFIED_BLOCK.finditer(text):
+            quals, name = m.group(1), m.group(2)
+            body = text[m.end():text.find("}", m.end())]
+            members = re.findall(r"([A-Za-z_]\w*)\s*(?:\[[^\]]*\])?\s*;", body)
+            rest = text[:m.start()] + text[m.end() + len(body):]
+            uses = [u for mem in members for u in re.finditer(rf"\b{mem}\b", rest)]
+            atomic = bool(uses) and all(re.search(r"\batomic\w*\s*\(\s*$", rest[:u.start()]) for u in uses)
+            read = re.search(r"\bwriteonly\b", quals) is None
+            written = re.search(r"\breadonly\b", quals) is None
+            old = out.get(name)
+            out[name] = (read, written, atomic) if old is None else (read or old[0], written or old[1],
+                                                                     atomic and old[2])
+        return out
+
     def map_log(self, log: str) -> str:
         """``log`` with each located line (Mesa, NVIDIA, AMD or glslang shape,
         :mod:`glvox.gl.compiler_log`) rewritten to ``file:line[:column]:
         severity: message``; lines without a location are kept as they are."""
         return map_log(log, self.location)
+
+
+_DIRECTIVE = re.compile(r"^\s*#\s*(if|ifdef|ifndef|elif|else|endif|define|undef)\b(.*)$")
+_DEFINED = re.compile(r"\bdefined\s*(?:\(\s*([A-Za-z_]\w*)\s*\)|([A-Za-z_]\w*))")
+_WORD = re.compile(r"[A-Za-z_]\w*")
+
+
+def _condition(expr: str, macros: Mapping[str, str], depth: int = 0) -> bool:
+    """A ``#if`` expression's value: integers, macros, ``defined``, C's operators."""
+    expr = _DEFINED.sub(lambda m: "1" if (m.group(1) or m.group(2)) in macros else "0", expr)
+
+    def word(m: re.Match) -> str:
+        value = macros.get(m.group(0))
+        if value is None or depth > 8:
+            return "0"
+        return f"({_expand(value, macros, depth + 1)})"
+
+    if re.search(r"[A-Za-z_]\w*\s*\(", _DEFINED.sub("", expr)):
+        raise ValueError(f"a function-like macro in #if {expr}")
+    expr = _WORD.sub(word, expr)
+    expr = re.sub(r"(\d+)[uU]\b", r"\1", expr).replace("&&", " and ").replace("||", " or ")
+    expr = re.sub(r"!(?!=)", " not ", expr)
+    return bool(eval(expr, {"__builtins__": {}}, {}))  # digits and operators only by now
+
+
+def _expand(value: str, macros: Mapping[str, str], depth: int) -> str:
+    return _WORD.sub(lambda m: f"({_expand(macros[m.group(0)], macros, depth + 1)})"
+                     if m.group(0) in macros and depth <= 8 else m.group(0), value)
+
+
+def active_text(text: str) -> str:
+    """``text`` with the lines of ``#if`` branches its own ``#define``s do not select blanked
+    (line numbers kept).  An expression this cannot evaluate keeps every branch: the
+    text stays a superset of what the compiler sees."""
+    macros: dict[str, str] = {}
+    out: list[str] = []
+    stack: list[tuple[bool, bool, bool]] = []  # (enclosing active, this branch active, a branch taken)
+    active = True
+    for line in text.split("\n"):
+        m = _DIRECTIVE.match(line)
+        if m is None:
+            out.append(line if active else "")
+            continue
+        kind, rest = m.group(1), m.group(2).strip()
+        out.append("")
+        if kind in ("if", "ifdef", "ifndef"):
+            try:
+                value = (_condition(rest, macros) if kind == "if" else
+                         (rest.split()[0] in macros) == (kind == "ifdef"))
+            except Exception:  # noqa: BLE001 - not evaluable here: keep the branch
+                value = None
+            stack.append((active, value is not False, value is True))
+            active = active and value is not False
+        elif kind == "elif" and stack:
+            outer, _, taken = stack[-1]
+            try:
+                value = False if taken else _condition(rest, macros)
+            except Exception:  # noqa: BLE001
+                value = None
+            stack[-1] = (outer, value is not False, taken or value is True)
+            active = outer and value is not False
+        elif kind == "else" and stack:
+            outer, _, taken = stack[-1]
+            stack[-1] = (outer, not taken, True)
+            active = outer and not taken
+        elif kind == "endif" and stack:
+            active = stack.pop()[0]
+        elif active and kind == "define":
+            parts = rest.split(None, 1)
+            if parts and "(" not in parts[0]:
+                macros[parts[0]] = parts[1] if len(parts) > 1 else ""
+        elif active and kind == "undef" and rest:
+            macros.pop(rest.split()[0], None)
+    return "\n".join(out)
 
 
 def resolve(path: str | os.PathLike, dirs: Sequence[Path], relative_to: Path | None = None) -> Path:
@@ -253,10 +353,13 @@ class ProgramSource:
         The top file of each stage, as messages name them (``shaders/ss/fill.comp``).
     storage_blocks : frozenset of str
         Storage block names the stages' sources declare, active or not.
+    storage_access : mapping
+        Block name -> (read, written, atomic) over the stages (:attr:`Source.storage_access`).
     """
 
     files: tuple[str, ...]
     storage_blocks: frozenset[str]
+    storage_access: Mapping[str, tuple[bool, bool, bool]] = field(default_factory=dict, compare=False, hash=False)
 
     @property
     def name(self) -> str:
@@ -280,9 +383,15 @@ def program_source(prog) -> ProgramSource | None:
 
 def _remember(prog, sources: Iterable[Source]) -> None:
     sources = list(sources)
+    access: dict[str, tuple[bool, bool, bool]] = {}
+    for src in sources:
+        for name, (read, written, atomic) in src.storage_access.items():
+            old = access.get(name, (False, False, True))
+            access[name] = (read or old[0], written or old[1], atomic and old[2])
     _SOURCES[prog] = ProgramSource(
         files=tuple(s.name for s in sources),
         storage_blocks=frozenset().union(*(s.storage_blocks for s in sources)),
+        storage_access=access,
     )
 
 
