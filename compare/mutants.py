@@ -331,6 +331,16 @@ MUTANTS: list[Mutant] = [
            (("    return (k * uint(u_dims.y) + uint(v.y)) * words_per_row() + (uint(v.x) >> 5);",
              "    int at = (int(k) * u_dims.y + v.y) * int(words_per_row()) * 32 + v.x;\n    return uint(at >> 5);"),),
            ("tests/test_ss.py", "-k", "one_buffer_past")),
+    Mutant("binvox-total-plain-xor", "binvox-solid: a column's total parity flipped by a plain read-modify-write "
+           "across dispatches with no barrier between them (the hazard a GPU would show)",
+           "shaders/binvox/record.comp", (("        atomicXor(total[col.y * u_view_size.x + col.x], 1u);",
+                                           "        total[col.y * u_view_size.x + col.x] ^= 1u;"),),
+           ("tests/test_hazards.py", "-k", "binvox")),
+    Mutant("eisemann-setup-barrier-dropped", "eisemann: the draw reads the per-triangle setup with no barrier "
+           "after the compute pass that stored it", "glvox/methods/eisemann/passes.py",
+           (("        dispatch_1d(ctx, prog, n_tri, _LOCAL)\n        barrier(ctx)\n    return on_grid",
+             "        dispatch_1d(ctx, prog, n_tri, _LOCAL)\n    return on_grid"),),
+           ("tests/test_hazards.py", "-k", "eisemann")),
 ]
 
 

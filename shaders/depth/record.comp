@@ -4,8 +4,9 @@
 // the first of them with an XOR bit; depth.scan then turns the marks into the parity of
 // crossings before each voxel center, which is "between a pair of z-buffers" of the paper.
 //
-// It also reads the stencil count of the pass when asked: its maximum (how many peeling
-// passes the view needs, Sec. 3.3) or, per column, whether more crossings than the
+// It also reads the stencil count of the pass when asked (STENCIL_MODE, one program each,
+// so that each declares only the buffers it writes): 1, its maximum (how many peeling
+// passes the view needs, Sec. 3.3); 2, per column, whether more crossings than the
 // double-layer buffers hold were counted (Sec. 3.2's unclassifiable columns).
 layout(local_size_x = 8, local_size_y = 8) in;
 #include "common/bits.glsl"
@@ -17,10 +18,12 @@ uniform usampler2D u_layer;    // (key bits, triangle id, first voxel beyond, va
 uniform usampler2D u_dedupe;   // another layer of the same class, or unused
 uniform bool u_use_dedupe;     // a crossing already recorded from u_dedupe is not flipped twice
 uniform usampler2D u_stencil;  // the stencil buffer of the pass (crossings counted)
-uniform int u_stencil_mode;    // 0: not read; 1: maximum into stats[0]; 2: crowded columns
 layout(std430, binding = 0) buffer Flips { uint flips[]; };
+#if STENCIL_MODE == 1
 layout(std430, binding = 1) buffer Stats { uint stats[]; };
-layout(std430, binding = 2) buffer Crowded { uint crowded[]; };  // per column of the view
+#elif STENCIL_MODE == 2
+layout(std430, binding = 2) writeonly buffer Crowded { uint crowded[]; };  // per column of the view
+#endif
 
 void main() {
     ivec2 pix = ivec2(gl_GlobalInvocationID.xy);
@@ -28,11 +31,11 @@ void main() {
     if (any(greaterThanEqual(pix, textureSize(u_layer, 0))) || any(greaterThanEqual(col, u_view_size))) {
         return;
     }
-    if (u_stencil_mode == 1) {
-        atomicMax(stats[0], texelFetch(u_stencil, pix, 0).r);
-    } else if (u_stencil_mode == 2) {
-        crowded[col.y * u_view_size.x + col.x] = texelFetch(u_stencil, pix, 0).r > CLASSIFIABLE_COUNT ? 1u : 0u;
-    }
+#if STENCIL_MODE == 1
+    atomicMax(stats[0], texelFetch(u_stencil, pix, 0).r);
+#elif STENCIL_MODE == 2
+    crowded[col.y * u_view_size.x + col.x] = texelFetch(u_stencil, pix, 0).r > CLASSIFIABLE_COUNT ? 1u : 0u;
+#endif
     uvec4 layer = texelFetch(u_layer, pix, 0);
     if (layer.w == 0u || layer.z >= uint(u_dims[u_axis])) return;
     if (u_use_dedupe) {

@@ -128,8 +128,9 @@ class _BinvoxRun(RasterPass):
     """The raster pass with binvox's recording (``binvox/record.comp``) and, for ``-aw``,
     the wireframe (``binvox/wire.*``) drawn into the carving z-buffers."""
 
-    def __init__(self, ctx, bufs, uniforms, record, bufs_out: dict, wire: bool, snap: dict):
+    def __init__(self, ctx, bufs, uniforms, record: dict, bufs_out: dict, wire: bool, snap: dict):
         super().__init__(ctx, bufs, uniforms, snap)
+        #: binvox/record.comp by stencil mode (0, or 1: the tile's largest count too)
         self.record, self.out = record, bufs_out
         self.wire = None
         self.wire_vao = None
@@ -177,14 +178,15 @@ class _BinvoxRun(RasterPass):
         """Record ``target.layers[layer]`` as ``kind`` (0 nearest, 1 farthest, 2 vote);
         ``stencil`` returns the tile's largest stencil count."""
         out = self.out
+        record = self.record[1 if stencil else 0]
         target.layers[layer].use(0)
         target.stencil.use(1)
-        set_uniforms(self.record, {"u_record": kind, "u_stencil_mode": 1 if stencil else 0})
-        bind(self.record, Flips=out["flips_carve" if kind < 2 else "flips_vote"], Stats=out["stats"],
+        set_uniforms(record, {"u_record": kind})
+        bind(record, Flips=out["flips_carve" if kind < 2 else "flips_vote"], Stats=out["stats"],
              Total=out["total"], Surface=out["surface"])
         if stencil:
             clear_buffer(self.ctx, out["stats"], 4)
-        self.record.run((size[0] + 7) // 8, (size[1] + 7) // 8, 1)
+        record.run((size[0] + 7) // 8, (size[1] + 7) // 8, 1)
         if stencil:
             barrier(self.ctx)
             return int(np.frombuffer(out["stats"].read(size=4), dtype="<u4")[0])
@@ -221,13 +223,16 @@ class BinvoxSolid(Method):
         out["count"] = pool.get("count", 8)
         bufs = mesh_buffers(ctx, mesh)
         uniforms = grid_uniforms(spec, bufs.anchor)
-        record = compute_program(ctx, "binvox/record.comp")
+        # one program per stencil mode, so that each declares only the buffers it touches
+        record = {mode: compute_program(ctx, "binvox/record.comp", {"STENCIL_MODE": mode}) for mode in (0, 1)}
+        records = tuple(record.values())
         scan = compute_program(ctx, "depth/scan.comp")
         combine = compute_program(ctx, "binvox/combine.comp")
         finish = compute_program(ctx, "binvox/finish.comp")
-        for prog in (record, scan, combine, finish):
+        for prog in (*records, scan, combine, finish):
             set_uniforms(prog, uniforms)
-        set_uniforms(record, {"u_layer": 0, "u_stencil": 1, "u_dilate": int(bool(dilated))})
+        for prog in records:
+            set_uniforms(prog, {"u_layer": 0, "u_stencil": 1, "u_dilate": int(bool(dilated))})
         bounds = spec.world_to_voxel(mesh.bounds)
         layers: dict[str, int] = {}
         tiles: dict[str, int] = {}
@@ -239,12 +244,14 @@ class BinvoxSolid(Method):
                 target = depth_target(ctx, size)
                 tiles[name] = len(origins)
                 run.set_view(spec, bounds, axis, size, fix[axis])
-                set_uniforms(record, {"u_axis": axis, "u_view_size": (n_u, n_v)})
+                for prog in records:
+                    set_uniforms(prog, {"u_axis": axis, "u_view_size": (n_u, n_v)})
                 if carve:
                     with timer.stage(f"carve_{name}"):
                         for origin in origins:
                             run.set_tile(origin)
-                            set_uniforms(record, {"u_tile_origin": origin})
+                            for prog in records:
+                                set_uniforms(prog, {"u_tile_origin": origin})
                             run.carve_buffer(target, 0)
                             run.record_layer(target, size, 0, 0)
                             run.carve_buffer(target, 1, far=True)
@@ -257,7 +264,8 @@ class BinvoxSolid(Method):
                     with timer.stage(f"vote_{name}"):
                         for origin in origins:
                             run.set_tile(origin)
-                            set_uniforms(record, {"u_tile_origin": origin})
+                            for prog in records:
+                                set_uniforms(prog, {"u_tile_origin": origin})
                             run.draw(target, 0, count="restart")
                             counted = run.record_layer(target, size, 0, 2, stencil=True)
                             n = peel_behind(run, target, counted,

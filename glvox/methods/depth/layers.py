@@ -162,12 +162,16 @@ class _DepthLayers(Method):
         grids = self._grids(ctx, spec, axis_ids)
         bufs = mesh_buffers(ctx, mesh)
         uniforms = grid_uniforms(spec, bufs.anchor)
-        record = compute_program(ctx, "depth/record.comp", {"CLASSIFIABLE_COUNT": CLASSIFIABLE_COUNT})
+        # one program per stencil mode, so that each declares only the buffers it touches
+        record = {mode: compute_program(ctx, "depth/record.comp", {"CLASSIFIABLE_COUNT": CLASSIFIABLE_COUNT,
+                                                                   "STENCIL_MODE": mode})
+                  for mode in (0, 1, 2)}
         scan = compute_program(ctx, "depth/scan.comp")
         combine = compute_program(ctx, "depth/combine.comp")
-        for prog in (record, scan, combine):
+        for prog in (*record.values(), scan, combine):
             set_uniforms(prog, uniforms)
-        set_uniforms(record, {"u_layer": 0, "u_dedupe": 1, "u_stencil": 2})
+        for prog in record.values():
+            set_uniforms(prog, {"u_layer": 0, "u_dedupe": 1, "u_stencil": 2})
         bounds = spec.world_to_voxel(mesh.bounds)
         passes, counts, tiles = {}, {}, {}
         with _Run(ctx, bufs, uniforms, record, grids) as run:
@@ -218,12 +222,14 @@ class _DepthLayers(Method):
         size, origins = tile_origins(n_u, n_v, side)
         target = depth_target(run.ctx, size)
         run.set_view(spec, bounds, axis, size, fix_bits)
-        set_uniforms(run.record, {"u_axis": axis, "u_view_size": (n_u, n_v)})
+        for prog in run.record.values():
+            set_uniforms(prog, {"u_axis": axis, "u_view_size": (n_u, n_v)})
         with timer.stage(f"layers_{_AXIS_NAMES[axis]}"):
             run.passes, run.counts = 0, [0, 0]
             for origin in origins:
                 run.set_tile(origin)
-                set_uniforms(run.record, {"u_tile_origin": origin})
+                for prog in run.record.values():
+                    set_uniforms(prog, {"u_tile_origin": origin})
                 self._views(run, target, size)
             barrier(run.ctx)
         return len(origins)
@@ -259,8 +265,9 @@ class _DepthLayers(Method):
 class _Run(RasterPass):
     """The raster pass with the recording of step 2 (the state every pass needs)."""
 
-    def __init__(self, ctx, bufs, uniforms, record, grids: _Grids):
+    def __init__(self, ctx, bufs, uniforms, record: dict, grids: _Grids):
         super().__init__(ctx, bufs, uniforms)
+        #: depth/record.comp by stencil mode (:meth:`record_layer`)
         self.record, self.grids = record, grids
         #: the largest stencil count of each facing class (+, -) over the tiles of a view
         self.counts = [0, 0]
@@ -273,14 +280,15 @@ class _Run(RasterPass):
         marks the tile's columns holding more than CLASSIFIABLE_COUNT crossings.
         """
         ctx, grids = self.ctx, self.grids
+        record = self.record[stencil]
         target.layers[layer].use(0)
         target.layers[dedupe if dedupe is not None else layer].use(1)
         target.stencil.use(2)
-        set_uniforms(self.record, {"u_use_dedupe": dedupe is not None, "u_stencil_mode": stencil})
-        bind(self.record, Flips=grids.flips, Stats=grids.stats, Crowded=grids.crowded)
+        set_uniforms(record, {"u_use_dedupe": dedupe is not None})
+        bind(record, Flips=grids.flips, Stats=grids.stats, Crowded=grids.crowded)
         if stencil == 1:
             clear_buffer(ctx, grids.stats, 4)
-        self.record.run((size[0] + 7) // 8, (size[1] + 7) // 8, 1)
+        record.run((size[0] + 7) // 8, (size[1] + 7) // 8, 1)
         if stencil == 1:
             barrier(ctx)
             return int(np.frombuffer(grids.stats.read(size=4), dtype="<u4")[0])
