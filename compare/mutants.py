@@ -341,6 +341,14 @@ MUTANTS: list[Mutant] = [
            (("        dispatch_1d(ctx, prog, n_tri, _LOCAL)\n        barrier(ctx)\n    return on_grid",
              "        dispatch_1d(ctx, prog, n_tri, _LOCAL)\n    return on_grid"),),
            ("tests/test_hazards.py", "-k", "eisemann")),
+    Mutant("ss-surface-slab-end-unclipped", "ss surfaces: a triangle's voxels not clipped at its slab's last "
+           "slice (stores past the slab's buffer, which llvmpipe drops)", "shaders/ss/setup.glsl",
+           (("    T.hi.z = min(T.hi.z, u_slab.x + u_slab.y - 1);\n", ""),),
+           ("tests/test_bounds.py", "-k", "slab")),
+    Mutant("ss-solid-slab-end-unclipped", "ss-solid: a triangle's columns not clipped at its slab's last row "
+           "(stores past the slab's buffer, which llvmpipe drops)", "shaders/ss/solid_input.glsl",
+           (("    c.w = min(c.w, u_slab.x + u_slab.y - 1);\n", ""),),
+           ("tests/test_bounds.py", "-k", "slab")),
 ]
 
 

@@ -1,0 +1,156 @@
+"""No shader writes past the buffer it was given, whatever the driver does with such a write.
+
+A store past the end of a storage buffer is undefined in GL (4.5 core Sec. 7.8, without
+robust buffer access): llvmpipe checks every access against the bound buffer's size and
+drops it, so a store one word too far changes nothing here, while a GPU may write it into
+whatever memory follows.  These tests give every pooled buffer (:class:`BufferPool`) the
+size its method asked for plus a guard of canary words, inside the buffer, where llvmpipe
+keeps a stray store, and check after each run that the guard is intact.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import warnings
+
+import moderngl
+import numpy as np
+import pytest
+
+import glvox
+from glvox.gl import raw as rawgl
+from glvox.gl.shaders import compute_program
+from glvox.gpu import buffers as gpu_buffers
+from glvox.gpu.buffers import buffer_pool, check_buffer_size, z_slabs
+from glvox.gpu.dispatch import barrier, bind
+from glvox.mesh import load_mesh
+from glvox.methods import method_infos, run_method
+
+CANARY = 0xA5A5A5A5
+
+
+def guard_bytes(nbytes: int) -> int:
+    """The guard after a buffer of ``nbytes``: as long as the buffer (at least 4 KiB), so that
+    a store that runs a whole slice or row too far still lands in it."""
+    return max(4096, -(-nbytes // 4) * 4)
+
+
+@contextlib.contextmanager
+def guarded(ctx, monkeypatch):
+    """Every BufferPool buffer made in the block is fresh, its asked size plus
+    :func:`guard_bytes` of CANARY; clears stop at the asked size.  Yields ``check()``, which returns the buffers
+    whose guard changed (and re-arms them)."""
+    tracked: dict[int, tuple] = {}  # GL name -> (buffer, asked bytes, pool name)
+    plain_clear = rawgl.RawGL.clear_buffer_words
+    plain_mgl_clear = moderngl.Buffer.clear
+
+    def get(self, name, nbytes, *, what=None, clear=True):
+        nbytes = max(4, int(nbytes))
+        check_buffer_size(self.ctx, nbytes, what or name)
+        old = self._bufs.get(name)
+        if old is not None:
+            tracked.pop(old.glo, None)
+            old.release()
+        nbytes = -(-nbytes // 4) * 4
+        buf = self._bufs[name] = self.ctx.mgl.buffer(reserve=nbytes + guard_bytes(nbytes))
+        plain_clear(self.ctx.raw, buf.glo, 0, nbytes, 0 if clear else 0xDEADBEEF)
+        plain_clear(self.ctx.raw, buf.glo, nbytes, guard_bytes(nbytes), CANARY)
+        tracked[buf.glo] = (buf, nbytes, name)
+        return buf
+
+    def clear_words(self, buffer, offset, size, value):
+        held = tracked.get(int(buffer))
+        if held is not None:
+            size = min(size, held[1] - offset)
+            if size <= 0:
+                return None
+        return plain_clear(self, buffer, offset, size, value)
+
+    def mgl_clear(self, size=-1, offset=0, chunk=None):
+        held = tracked.get(self.glo)
+        if held is not None and (size < 0 or offset + size > held[1]):
+            size = held[1] - offset
+        return plain_mgl_clear(self, size=size, offset=offset, chunk=chunk)
+
+    def check() -> list[str]:
+        ctx.mgl.memory_barrier()
+        bad = []
+        for glo, (buf, nbytes, name) in tracked.items():
+            guard = np.frombuffer(buf.read(size=guard_bytes(nbytes), offset=nbytes), dtype="<u4")
+            if (guard != CANARY).any():
+                i = int(np.argmax(guard != CANARY))
+                bad.append(f"{name}: word {i} past its {nbytes} bytes holds {int(guard[i]):#x}")
+                plain_clear(ctx.raw, glo, nbytes, guard_bytes(nbytes), CANARY)
+        return bad
+
+    for pool in list(gpu_buffers._caches(ctx)["pools"].values()):
+        pool.release()  # every buffer from here on is a guarded one
+    monkeypatch.setattr(gpu_buffers.BufferPool, "get", get)
+    monkeypatch.setattr(rawgl.RawGL, "clear_buffer_words", clear_words)
+    monkeypatch.setattr(moderngl.Buffer, "clear", mgl_clear)
+    try:
+        yield check
+    finally:
+        for pool in list(gpu_buffers._caches(ctx)["pools"].values()):
+            pool.release()  # no guarded buffer outlives the test in a pool
+
+
+def test_the_guard_sees_a_store_one_word_past_the_end(gl_context, monkeypatch, tmp_path):
+    (tmp_path / "past.comp").write_text(
+        "#version 450\nlayout(local_size_x = 1) in;\nuniform uint u_at;\n"
+        "layout(std430, binding = 0) writeonly buffer Out { uint data[]; };\n"
+        "void main() { data[u_at] = 7u; }\n")
+    prog = compute_program(gl_context, "past.comp", search=[tmp_path])
+    with guarded(gl_context, monkeypatch) as check:
+        buf = buffer_pool(gl_context, "test-bounds").get("out", 64)
+        bind(prog, Out=buf)
+        prog["u_at"].value = 15  # the last word asked for
+        prog.run(1)
+        barrier(gl_context)
+        assert check() == []
+        prog["u_at"].value = 16  # one past it
+        prog.run(1)
+        assert check() == ["out: word 0 past its 64 bytes holds 0x7"]
+
+
+def _option_runs():
+    runs = []
+    for info in method_infos():
+        if info.pipeline == "cpu":
+            continue
+        runs.append((info.name, {}))
+        for name, opt in info.options.items():
+            runs += [(info.name, {name: c}) for c in (opt.choices or ()) if c != opt.default]
+    return runs
+
+
+OPTION_RUNS = _option_runs()
+
+
+@pytest.mark.parametrize("name, options", OPTION_RUNS,
+                         ids=[n + "".join(f"-{k}={v}" for k, v in o.items()) for n, o in OPTION_RUNS])
+def test_no_method_stores_past_its_buffers(gl_context, monkeypatch, name, options):
+    """An odd grid (rows end inside a word) and a larger one, with tiles where a method has them."""
+    mesh = load_mesh("gen:bunny-like")
+    with guarded(gl_context, monkeypatch) as check, warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for n, extra in ((23, {}), (72, {"tile": 32} if "tile" in _options(name) else {})):
+            run_method(name, mesh, glvox.grid_for(mesh, n), **options, **extra)
+            assert check() == [], f"{name} {options} at {n}^3"
+
+
+def _options(name):
+    return next(i.options for i in method_infos() if i.name == name)
+
+
+@pytest.mark.parametrize("name", ["ss-conservative", "ss-6sep", "ss-solid", "gwn-solid"])
+def test_no_slab_stores_past_its_buffers(gl_context, monkeypatch, name):
+    mesh = load_mesh("gen:bunny-like")
+    spec = glvox.grid_for(mesh, dims=(512, 256, 24))  # 16 KiB a slice; the mesh's buffers fit 6
+    real = gl_context.limits()
+    per_slice = spec.dims[1] * spec.words_per_row * 4
+    monkeypatch.setattr(gl_context, "limits", lambda: {**real, "GL_MAX_SHADER_STORAGE_BLOCK_SIZE": 6 * per_slice})
+    assert len(z_slabs(gl_context, spec)) == 4
+    with guarded(gl_context, monkeypatch) as check:
+        run_method(name, mesh, spec)
+        assert check() == []
