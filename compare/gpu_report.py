@@ -1,0 +1,181 @@
+"""Everything worth knowing about glvox on a GPU, in one command and one folder.
+
+    python compare/gpu_report.py -o results/gpu              # about 8 minutes on an H100
+    python compare/gpu_report.py -o results/gpu --budget 300 --steps info selftest tests
+
+For whoever has a GPU glvox has not met (a new vendor, a new driver): it runs, each
+in its own process with its share of ``--budget`` seconds,
+
+* ``info``: ``glvox info --json`` (renderer, vendor, limits);
+* ``selftest``: ``glvox selftest --json`` (every method against its CPU reference,
+  the compiler's arithmetic, the tie decisions, the read-back);
+* ``tests``: the tests that depend on the GPU's compiler, rasterizer, memory model
+  and limits (:data:`GPU_TESTS`: ties, exactness, barriers, bounds, geometry
+  shaders, big buffers, results kept on the GPU), with pytest-xdist's workers where
+  it is installed;
+* ``readback``: ``compare/bench_readback.py`` at 512^3 and 1024^3 (``--cuda`` too
+  where cuda-core sees a GPU);
+* ``bench``: ``glvox bench`` of the main methods on the bunny at 128^3-1024^3
+  (cuda_voxelizer beside them with ``--cuda-voxelizer PATH``);
+* ``tables``: Schwarz & Seidel's Table 1 (``compare/table1_ss_surface.py``) with
+  the paper's GTX 285 rows beside this GPU's.
+
+It writes at most eight files to the output folder: ``report.md`` (each step's status,
+seconds and last lines), ``info.json``, ``selftest.json``, and a ``.log`` per other
+step (the bench's ``bench.md`` beside its log).  A step that fails, times out or is
+left without budget is reported as such and the next one runs; the exit status is 1
+when any step did not finish with status 0.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+try:  # glvox[cuda], optional: the readback step adds device='cuda' where it works
+    import cuda.core  # noqa: F401
+    from cuda.bindings import driver as _cuda_driver
+except ImportError:
+    _cuda_driver = None
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: The test files whose outcome depends on the GPU and its driver.
+GPU_TESTS = [
+    "tests/test_ties.py", "tests/test_exact.py", "tests/test_hazards.py", "tests/test_bounds.py",
+    "tests/test_shaders.py", "tests/test_arithmetic.py", "tests/test_precise.py", "tests/test_tie_probe.py",
+    "tests/test_context.py", "tests/test_device_results.py", "tests/test_readback.py",
+    "tests/test_mapped_readback.py", "tests/test_capabilities.py",
+    "tests/test_ss.py::test_a_grid_in_one_buffer_past_two_billion_voxels",
+]
+
+#: Steps in order, with their share of the budget.
+STEPS = {"info": 0.02, "selftest": 0.12, "tests": 0.35, "readback": 0.08, "bench": 0.33, "tables": 0.10}
+
+BUNNY = "stanford_bunny_bun_zipper.ply"
+
+
+def _cuda_seen() -> bool:
+    """cuda-core is installed and the CUDA driver answers (device='cuda' can be timed)."""
+    if _cuda_driver is None:
+        return False
+    try:
+        err, = _cuda_driver.cuInit(0)
+    except Exception:  # noqa: BLE001 - no driver library
+        return False
+    return err == _cuda_driver.CUresult.CUDA_SUCCESS
+
+
+def commands(step: str, out: Path, work: Path, args) -> tuple[list[str], Path]:
+    """The command of ``step`` and the file its standard output goes to."""
+    py, glvox = sys.executable, [sys.executable, "-m", "glvox"]
+    if step == "info":
+        return [*glvox, "info", "--json"], out / "info.json"
+    if step == "selftest":
+        return [*glvox, "selftest", "--json"], out / "selftest.json"
+    if step == "tests":
+        workers = ["-n", str(max(1, min(8, (os.cpu_count() or 2) // 2)))] \
+            if importlib.util.find_spec("xdist") is not None else []
+        return [py, "-m", "pytest", "-q", "-rfE", *workers, *GPU_TESTS], out / "tests.log"
+    if step == "readback":
+        return [py, str(ROOT / "compare" / "bench_readback.py"), "-r", *args.readback_sizes, "--repeat", "3",
+                *(["--cuda"] if _cuda_seen() else [])], out / "readback.log"
+    if step == "bench":
+        peers = ["--peers", "cuda-voxelizer", "--cuda-voxelizer", args.cuda_voxelizer] if args.cuda_voxelizer \
+            else ["--peers"]
+        return [*glvox, "bench", "-m", *args.bench_methods, "--meshes", args.mesh, "-r", *args.bench_sizes,
+                "--repeat", "5", "--check-max", "128", *peers, "-o", str(work / "bench"), "-q"], out / "bench.log"
+    if step == "tables":
+        return [py, str(ROOT / "compare" / "table1_ss_surface.py"), "--sizes", *args.bench_sizes,
+                "--repeat", "3"], out / "tables.log"
+    raise ValueError(step)
+
+
+def run_step(cmd: list[str], log: Path, timeout: float) -> tuple[str, float]:
+    t0 = time.perf_counter()
+    with open(log, "w") as f:
+        try:
+            proc = subprocess.run(cmd, stdout=f, stderr=subprocess.STDOUT, timeout=timeout, cwd=ROOT,
+                                  env={**os.environ, "PYTHONUNBUFFERED": "1"})
+            status = "ok" if proc.returncode == 0 else f"failed (exit {proc.returncode})"
+        except subprocess.TimeoutExpired:
+            status = f"timed out after {timeout:.0f} s"
+    return status, time.perf_counter() - t0
+
+
+def _tail(path: Path, lines: int) -> str:
+    try:
+        text = path.read_text(errors="replace").rstrip().splitlines()
+    except OSError:
+        return ""
+    return "\n".join(text[-lines:])
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("-o", "--out", required=True, help="folder for report.md and the steps' files")
+    ap.add_argument("--budget", type=float, default=540.0, help="seconds for all steps together")
+    ap.add_argument("--steps", nargs="+", choices=list(STEPS), default=list(STEPS))
+    ap.add_argument("--mesh", default=BUNNY, help="the bench's mesh (a path or a shared mesh's name)")
+    ap.add_argument("--bench-sizes", nargs="+", default=["128", "256", "512", "1024"])
+    ap.add_argument("--bench-methods", nargs="+",
+                    default=["ss-conservative", "ss-solid", "eisemann-solid", "gwn-solid", "ss-octree",
+                             "scanline-rlv"])
+    ap.add_argument("--readback-sizes", nargs="+", default=["512", "1024"])
+    ap.add_argument("--cuda-voxelizer", default=os.environ.get("GLVOX_CUDA_VOXELIZER"),
+                    help="a cuda_voxelizer binary to bench beside glvox (default: $GLVOX_CUDA_VOXELIZER)")
+    args = ap.parse_args(argv)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
+    total = sum(STEPS[s] for s in args.steps)
+    rows = []
+    failed = False
+    with tempfile.TemporaryDirectory(prefix="glvox-gpu-report-") as tmp:
+        work = Path(tmp)
+        for n, step in enumerate(args.steps):
+            left = args.budget - (time.perf_counter() - start)
+            later = sum(STEPS[s] for s in args.steps[n:])
+            share = left * STEPS[step] / later if later else left
+            cmd, log = commands(step, out, work, args)
+            if share < 5:
+                rows.append((step, "skipped (no budget left)", 0.0, log, cmd))
+                failed = True  # the report lacks it
+                continue
+            print(f"gpu_report: {step} ({share:.0f} s at most): {' '.join(cmd)}", flush=True)
+            status, seconds = run_step(cmd, log, share)
+            failed |= status != "ok"
+            if step == "bench" and (work / "bench" / "bench.md").is_file():
+                shutil.copy(work / "bench" / "bench.md", out / "bench.md")
+            rows.append((step, status, seconds, log, cmd))
+    lines = ["# glvox on this GPU", ""]
+    info = out / "info.json"
+    if info.is_file():
+        try:
+            d = json.loads(info.read_text())
+            lines += [f"Renderer: {d.get('renderer')} ({d.get('vendor')}, {d.get('version')}), "
+                      f"backend {d.get('backend')}.", ""]
+        except ValueError:
+            pass
+    lines += [f"`python compare/gpu_report.py {' '.join(argv if argv is not None else sys.argv[1:])}`, "
+              f"budget {args.budget:.0f} s, {time.perf_counter() - start:.0f} s used.", "",
+              "| step | status | seconds | output |", "|---|---|---|---|"]
+    lines += [f"| {s} | {st} | {sec:.1f} | `{log.name}` |" for s, st, sec, log, _ in rows]
+    for s, st, sec, log, cmd in rows:
+        lines += ["", f"## {s}: {st}", "", f"`{' '.join(cmd)}`", "", "```text", _tail(log, 25), "```"]
+    (out / "report.md").write_text("\n".join(lines) + "\n")
+    print(f"gpu_report: {out / 'report.md'}" + (" (some steps failed)" if failed else ""))
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
