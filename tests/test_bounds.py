@@ -21,7 +21,7 @@ import glvox
 from glvox.gl import raw as rawgl
 from glvox.gl.shaders import compute_program
 from glvox.gpu import buffers as gpu_buffers
-from glvox.gpu.buffers import buffer_pool, check_buffer_size, z_slabs
+from glvox.gpu.buffers import buffer_pool, check_buffer_size, release_pools, z_slabs
 from glvox.gpu.dispatch import barrier, bind
 from glvox.mesh import load_mesh
 from glvox.methods import method_infos, run_method
@@ -83,16 +83,14 @@ def guarded(ctx, monkeypatch):
                 plain_clear(ctx.raw, glo, nbytes, guard_bytes(nbytes), CANARY)
         return bad
 
-    for pool in list(gpu_buffers._caches(ctx)["pools"].values()):
-        pool.release()  # every buffer from here on is a guarded one
+    release_pools(ctx)  # every buffer from here on is a guarded one
     monkeypatch.setattr(gpu_buffers.BufferPool, "get", get)
     monkeypatch.setattr(rawgl.RawGL, "clear_buffer_words", clear_words)
     monkeypatch.setattr(moderngl.Buffer, "clear", mgl_clear)
     try:
         yield check
     finally:
-        for pool in list(gpu_buffers._caches(ctx)["pools"].values()):
-            pool.release()  # no guarded buffer outlives the test in a pool
+        release_pools(ctx)  # no guarded buffer outlives the test in a pool
 
 
 def test_the_guard_sees_a_store_one_word_past_the_end(gl_context, monkeypatch, tmp_path):

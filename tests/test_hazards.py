@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import warnings
 
+import moderngl
 import numpy as np
 import pytest
 
@@ -68,8 +69,6 @@ def test_a_read_without_the_barrier_is_a_hazard(gl_context, programs):
 
 
 def test_the_barrier_clears_it_and_only_with_the_right_bit(gl_context, programs):
-    import moderngl
-
     write, read, _, data, total = programs
     with trace() as t:
         bind(write, Out=data)

@@ -196,6 +196,13 @@ def buffer_pool(ctx, owner: str) -> BufferPool:
     return pool
 
 
+def release_pools(ctx) -> None:
+    """Release the buffers of every owner's pool in ``ctx``: GPU memory back to the driver
+    between jobs; the next run of a method allocates its buffers again."""
+    for pool in _caches(ctx)["pools"].values():
+        pool.release()
+
+
 def object_cache(ctx, owner: str, release) -> dict:
     """A dict of GL objects (render targets, framebuffers...) that ``owner`` keeps
     in ``ctx`` between runs; ``release(cache)`` frees and empties it, and runs

@@ -12,10 +12,12 @@ there; a GPU overlaps commands and caches, and the same code reads stale words.
 
 :func:`trace` records, while a block runs, every storage block a dispatch or draw
 binds (read or written as its declaration says: ``readonly``, ``writeonly``, or
-both), every buffer read, written, copied or cleared through moderngl or
+both; atomic where every use of it is an ``atomic*()`` call, in the ``#if``
+branches the program's defines select: :attr:`glvox.gl.shaders.Source.storage_access`),
+every buffer read, written, copied or cleared through moderngl or
 :class:`glvox.gl.raw.RawGL`, and every barrier, and reports each command that
 reads a buffer a shader wrote before it without the barrier bit that read needs
-in between::
+in between (atomic operations after atomic operations need none)::
 
     from glvox.testing.hazards import trace
 
@@ -46,6 +48,7 @@ NEEDS = {
     "vertex": moderngl.VERTEX_ATTRIB_ARRAY_BARRIER_BIT,
     "index": moderngl.ELEMENT_ARRAY_BARRIER_BIT,
 }
+
 
 @dataclass
 class Hazard:
