@@ -349,6 +349,11 @@ MUTANTS: list[Mutant] = [
            "(stores past the slab's buffer, which llvmpipe drops)", "shaders/ss/solid_input.glsl",
            (("    c.w = min(c.w, u_slab.x + u_slab.y - 1);\n", ""),),
            ("tests/test_bounds.py", "-k", "slab")),
+    Mutant("ss-solid-grid-not-cleared", "ss-solid: the crossing grid taken from the pool without clearing "
+           "(a new GL buffer's content is undefined; llvmpipe's is zero)", "glvox/methods/ss/solid.py",
+           (('    grid = pool.get("grid" + tag, slices * per_slice, what=f"the {spec.dims} bit grid")',
+             '    grid = pool.get("grid" + tag, slices * per_slice, what=f"the {spec.dims} bit grid", clear=False)'),),
+           ("tests/test_bounds.py", "-k", "ss-solid")),
 ]
 
 
