@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 import glvox
-from glvox.gl.shaders import active_text, compute_program, preprocess
+from glvox.gl.shaders import active_text, compute_program, preprocess, program_source
 from glvox.gpu.buffers import z_slabs
 from glvox.gpu.dispatch import barrier, bind
 from glvox.mesh import load_mesh
@@ -181,3 +181,24 @@ def test_attributes_and_the_sdf_wait_too(gl_context):
                                               fill_attributes="nearest" if name != "ss-conservative" else "none")) == ""
     assert _hazards_of(lambda: glvox.sdf(mesh, 32)) == ""
     assert np.isfinite(glvox.sdf(mesh, 16).sdf).any()
+
+
+def test_the_access_map_covers_every_block_the_compiler_keeps(gl_context):
+    """The tracer reads each block's access from the #if branches it evaluates itself
+    (glvox.gl.shaders.active_text); every storage block the GL program keeps active must
+    be in that map, or the evaluation dropped a branch the compiler took."""
+    mesh = load_mesh("gen:torus")
+    spec = glvox.grid_for(mesh, 16)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for name, options in OPTION_RUNS:
+            run_method(name, mesh, spec, **options)
+    checked = 0
+    for prog in list(gl_context.programs.values()):
+        src = program_source(prog)
+        if src is None:
+            continue
+        active = {n for n in prog if isinstance(prog[n], moderngl.StorageBlock)}
+        assert active <= set(src.storage_access), f"{src.name}: {active - set(src.storage_access)}"
+        checked += bool(active)
+    assert checked >= 50
