@@ -19,11 +19,13 @@ import numpy as np
 import pytest
 
 import glvox
+from glvox.cli import main as cli_main
 from glvox.gl.shaders import active_text, compute_program, preprocess, program_source
 from glvox.gpu.buffers import z_slabs
 from glvox.gpu.dispatch import barrier, bind
 from glvox.mesh import load_mesh
 from glvox.methods import method_infos, run_method
+from glvox.testing import run_compute
 from glvox.testing.hazards import trace
 
 WRITER = """#version 450
@@ -202,3 +204,24 @@ def test_the_access_map_covers_every_block_the_compiler_keeps(gl_context):
         assert active <= set(src.storage_access), f"{src.name}: {active - set(src.storage_access)}"
         checked += bool(active)
     assert checked >= 50
+
+
+def test_the_harness_and_the_selftest_wait_too(gl_context, tmp_path, capsys):
+    """run_compute (the harness users test their shaders with) reads its buffers after a
+    barrier, and so does every probe of ``glvox selftest`` (the arithmetic, the tie probe,
+    the read-back), which is what users run on a GPU glvox has not met."""
+    (tmp_path / "twice.comp").write_text(
+        "#version 450\nlayout(local_size_x = 64) in;\n"
+        "layout(std430, binding = 0) readonly buffer In { uint a[]; };\n"
+        "layout(std430, binding = 1) writeonly buffer Out { uint b[]; };\n"
+        "void main() { uint i = gl_GlobalInvocationID.x; b[i] = 2u * a[i]; }\n")
+    values = np.arange(256, dtype=np.uint32)
+    with trace() as t:
+        out = run_compute(gl_context, "twice.comp", 4, buffers={"In": values, "Out": (256, np.uint32)},
+                          read=["Out"], search=[tmp_path])
+    np.testing.assert_array_equal(out["Out"], 2 * values)
+    assert t.commands >= 2 and not t.hazards, t.describe()
+    with trace() as t:
+        assert cli_main(["selftest", "-q", "--methods", "ss-conservative"]) == 0
+    capsys.readouterr()
+    assert t.commands > 100 and not t.hazards, t.describe()

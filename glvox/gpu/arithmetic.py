@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..gl.shaders import compute_program
-from .dispatch import bind, set_uniforms
+from .dispatch import barrier, bind, set_uniforms
 
 SHADER = "testing/arithmetic.comp"
 LOCAL_SIZE = 64
@@ -142,6 +142,7 @@ def probe_arithmetic(ctx, n: int = PROBES) -> ArithmeticReport:
     try:
         bind(prog, **bufs)
         prog.run((n + LOCAL_SIZE - 1) // LOCAL_SIZE)
+        barrier(ctx)  # the shader's stores, before glGetBufferSubData reads them
         fout = np.frombuffer(bufs["FloatOut"].read(), np.float32).reshape(n, 4)
         dout = np.frombuffer(bufs["DoubleOut"].read(), np.float64).reshape(n, 4)
         extra = np.frombuffer(bufs["Extra"].read(), np.float32).reshape(n, 2)

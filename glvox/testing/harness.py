@@ -12,7 +12,7 @@ import numpy as np
 
 from ..gl.shaders import compute_program, render_program
 from ..gpu.buffers import clear_buffer
-from ..gpu.dispatch import bind
+from ..gpu.dispatch import barrier, bind
 
 
 def _from_caller(search: Iterable[os.PathLike | str], frame) -> list[Path]:
@@ -84,6 +84,7 @@ def run_compute(ctx, shader: str, groups: int | Sequence[int], *,
         _storage(ctx, prog, buffers, made, meta)
         g = (int(groups), 1, 1) if np.isscalar(groups) else tuple(int(x) for x in groups)
         prog.run(*g)
+        barrier(ctx)  # the shader's stores, before glGetBufferSubData reads them (GL 4.5 Sec. 7.12.2)
         return _read_back(made, meta, read)
     finally:
         for buf in made.values():
