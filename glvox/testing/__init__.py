@@ -26,7 +26,9 @@ trimesh and glvox.batch, which this package does not import):
 
 And :mod:`glvox.testing.cells`: boxes, L-shapes and stairs made of lattice
 cells, with their exact conservative surfaces and parity solids computed from
-the breakpoints alone (numpy only).
+the breakpoints alone (numpy only); :mod:`glvox.testing.hazards`:
+``trace()``, which names every command that reads a shader's stores without
+the memory barrier GL requires (llvmpipe never shows a missing one).
 """
 
 from .harness import run_compute, run_fragment
