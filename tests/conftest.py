@@ -15,6 +15,10 @@ import pytest
 # SHARED_MESHES`: tests over "every shared mesh" are parametrized by these
 # names and skip one that is absent.
 from glvox.datasets import SHARED_MESHES  # noqa: F401
+from glvox.gpu.buffers import z_slabs
+from glvox.grid import grid_for
+from glvox.mesh import load_mesh
+from glvox.methods import method_infos
 
 #: Heavier runs (large grids, every shared mesh) are opt-in.
 SLOW = os.environ.get("GLVOX_SLOW", "") not in ("", "0")
@@ -71,3 +75,33 @@ def ssbo_limit(gl_context, monkeypatch):
     if real > 2**27:
         monkeypatch.setattr(gl_context, "limits", lambda: {**limits, "GL_MAX_SHADER_STORAGE_BLOCK_SIZE": 2**27})
     return min(real, 2**27)
+
+
+def gl_option_runs() -> list[tuple[str, dict]]:
+    """Every GL method with its defaults, then with each other value of each choice option
+    (for tests that hold every method and option to a property: barriers, bounds)."""
+    runs = []
+    for info in method_infos():
+        if info.pipeline == "cpu":
+            continue
+        runs.append((info.name, {}))
+        for name, opt in info.options.items():
+            runs += [(info.name, {name: c}) for c in (opt.choices or ()) if c != opt.default]
+    return runs
+
+
+def run_ids(runs) -> list[str]:
+    """Test ids for (method, options) pairs: ``name-option=value``."""
+    return [n + "".join(f"-{k}={v}" for k, v in o.items()) for n, o in runs]
+
+
+def slab_case(gl_context, monkeypatch):
+    """gen:bunny-like on a 512 x 256 x 24 grid (16 KiB a slice) with the context's storage
+    blocks limited to 6 slices, which the mesh's buffers fit: voxelized in 4 z slabs."""
+    mesh = load_mesh("gen:bunny-like")
+    spec = grid_for(mesh, dims=(512, 256, 24))
+    real = gl_context.limits()
+    per_slice = spec.dims[1] * spec.words_per_row * 4
+    monkeypatch.setattr(gl_context, "limits", lambda: {**real, "GL_MAX_SHADER_STORAGE_BLOCK_SIZE": 6 * per_slice})
+    assert len(z_slabs(gl_context, spec)) == 4
+    return mesh, spec

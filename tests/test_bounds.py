@@ -17,12 +17,13 @@ import warnings
 import moderngl
 import numpy as np
 import pytest
+from conftest import gl_option_runs, run_ids, slab_case
 
 import glvox
 from glvox.gl import raw as rawgl
 from glvox.gl.shaders import compute_program
 from glvox.gpu import buffers as gpu_buffers
-from glvox.gpu.buffers import buffer_pool, check_buffer_size, release_pools, z_slabs
+from glvox.gpu.buffers import buffer_pool, check_buffer_size, release_pools
 from glvox.gpu.dispatch import barrier, bind
 from glvox.mesh import load_mesh
 from glvox.methods import method_infos, run_method
@@ -112,18 +113,7 @@ def test_the_guard_sees_a_store_one_word_past_the_end(gl_context, monkeypatch, t
         assert check() == ["out: word 0 past its 64 bytes holds 0x7"]
 
 
-def _option_runs():
-    runs = []
-    for info in method_infos():
-        if info.pipeline == "cpu":
-            continue
-        runs.append((info.name, {}))
-        for name, opt in info.options.items():
-            runs += [(info.name, {name: c}) for c in (opt.choices or ()) if c != opt.default]
-    return runs
-
-
-OPTION_RUNS = _option_runs()
+OPTION_RUNS = gl_option_runs()
 
 
 def _result(out) -> list[np.ndarray]:
@@ -136,8 +126,7 @@ def _result(out) -> list[np.ndarray]:
     return [np.asarray(out.to_grid().words())]
 
 
-@pytest.mark.parametrize("name, options", OPTION_RUNS,
-                         ids=[n + "".join(f"-{k}={v}" for k, v in o.items()) for n, o in OPTION_RUNS])
+@pytest.mark.parametrize("name, options", OPTION_RUNS, ids=run_ids(OPTION_RUNS))
 def test_no_method_stores_past_its_buffers(gl_context, monkeypatch, name, options):
     """An odd grid (rows end inside a word) and a larger one, with tiles where a method has
     them.  The guarded runs also hand out the buffers asked for without clearing full of
@@ -163,12 +152,7 @@ def _options(name):
 
 @pytest.mark.parametrize("name", ["ss-conservative", "ss-6sep", "ss-solid", "gwn-solid"])
 def test_no_slab_stores_past_its_buffers(gl_context, monkeypatch, name):
-    mesh = load_mesh("gen:bunny-like")
-    spec = glvox.grid_for(mesh, dims=(512, 256, 24))  # 16 KiB a slice; the mesh's buffers fit 6
-    real = gl_context.limits()
-    per_slice = spec.dims[1] * spec.words_per_row * 4
-    monkeypatch.setattr(gl_context, "limits", lambda: {**real, "GL_MAX_SHADER_STORAGE_BLOCK_SIZE": 6 * per_slice})
-    assert len(z_slabs(gl_context, spec)) == 4
+    mesh, spec = slab_case(gl_context, monkeypatch)
     with guarded(gl_context, monkeypatch) as check:
         run_method(name, mesh, spec)
         assert check() == []

@@ -17,14 +17,14 @@ import warnings
 import moderngl
 import numpy as np
 import pytest
+from conftest import gl_option_runs, run_ids, slab_case
 
 import glvox
 from glvox.cli import main as cli_main
 from glvox.gl.shaders import active_text, compute_program, preprocess, program_source
-from glvox.gpu.buffers import z_slabs
 from glvox.gpu.dispatch import barrier, bind
 from glvox.mesh import load_mesh
-from glvox.methods import method_infos, run_method
+from glvox.methods import run_method
 from glvox.testing import run_compute
 from glvox.testing.hazards import trace
 
@@ -119,18 +119,7 @@ def test_access_follows_the_selected_branches():
     assert {"Flips", "Stats", "Crowded"} <= src.storage_blocks  # bind() still knows every block
 
 
-def _option_runs():
-    runs = []
-    for info in method_infos():
-        if info.pipeline == "cpu":
-            continue
-        runs.append((info.name, {}))
-        for name, opt in info.options.items():
-            runs += [(info.name, {name: c}) for c in (opt.choices or ()) if c != opt.default]
-    return runs
-
-
-OPTION_RUNS = _option_runs()
+OPTION_RUNS = gl_option_runs()
 
 
 def _hazards_of(fn) -> str:
@@ -144,8 +133,7 @@ def _hazards_of(fn) -> str:
     return "" if not t.hazards else t.describe()
 
 
-@pytest.mark.parametrize("name, options", OPTION_RUNS,
-                         ids=[n + "".join(f"-{k}={v}" for k, v in o.items()) for n, o in OPTION_RUNS])
+@pytest.mark.parametrize("name, options", OPTION_RUNS, ids=run_ids(OPTION_RUNS))
 def test_every_method_waits_for_the_stores_it_reads(gl_context, name, options):
     mesh = load_mesh("gen:torus")
     spec = glvox.grid_for(mesh, 40)
@@ -166,12 +154,7 @@ def test_tiles_fields_and_options_wait_too(gl_context, name, options):
 
 @pytest.mark.parametrize("name", ["ss-conservative", "ss-6sep", "ss-solid", "gwn-solid"])
 def test_slabs_wait_too(gl_context, monkeypatch, name):
-    mesh = load_mesh("gen:bunny-like")
-    spec = glvox.grid_for(mesh, dims=(512, 256, 24))  # 16 KiB a slice; the mesh's buffers fit 6
-    real = gl_context.limits()
-    per_slice = spec.dims[1] * spec.words_per_row * 4
-    monkeypatch.setattr(gl_context, "limits", lambda: {**real, "GL_MAX_SHADER_STORAGE_BLOCK_SIZE": 6 * per_slice})
-    assert len(z_slabs(gl_context, spec)) == 4
+    mesh, spec = slab_case(gl_context, monkeypatch)
     assert _hazards_of(lambda: run_method(name, mesh, spec)) == ""
 
 

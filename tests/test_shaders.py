@@ -6,6 +6,7 @@ import re
 
 import numpy as np
 import pytest
+from conftest import run_ids
 
 import glvox
 from glvox.errors import ShaderError
@@ -298,8 +299,7 @@ GEOMETRY_SHADER_RUNS = [
 ]
 
 
-@pytest.mark.parametrize("name, options", GEOMETRY_SHADER_RUNS,
-                         ids=[n + "".join(f"-{k}={v}" for k, v in o.items()) for n, o in GEOMETRY_SHADER_RUNS])
+@pytest.mark.parametrize("name, options", GEOMETRY_SHADER_RUNS, ids=run_ids(GEOMETRY_SHADER_RUNS))
 def test_geometry_shaders_set_their_outputs_for_every_vertex(gl_context, monkeypatch, name, options):
     """GLSL 4.50 Sec. 8.16: "On return from [EmitVertex], the values of all output
     variables are undefined."  Mesa's llvmpipe keeps them, a GPU's compiler need not, and a
