@@ -354,6 +354,19 @@ MUTANTS: list[Mutant] = [
            (('    grid = pool.get("grid" + tag, slices * per_slice, what=f"the {spec.dims} bit grid")',
              '    grid = pool.get("grid" + tag, slices * per_slice, what=f"the {spec.dims} bit grid", clear=False)'),),
            ("tests/test_bounds.py", "-k", "ss-solid")),
+    Mutant("gwn-gradient-sign", "gwn-solid: the bricks' first-order records with the gradient of F reversed",
+           "shaders/gwn/bricks.comp",
+           (("    return vec4(g * (0.25 / GWN_PI), h * (1.001 * 0.25 / GWN_PI));",
+             "    return vec4(g * (-0.25 / GWN_PI), h * (1.001 * 0.25 / GWN_PI));"),),
+           ("tests/test_gwn.py", "-k", "first_order")),
+    Mutant("gwn-second-derivative-tenth", "gwn-solid: the bound of F's second derivative over a brick a tenth "
+           "of the proven one", "shaders/gwn/bricks.comp",
+           (("h * (1.001 * 0.25 / GWN_PI)", "h * (0.1 * 0.25 / GWN_PI)"),),
+           ("tests/test_gwn.py", "-k", "first_order")),
+    Mutant("gwn-first-order-unused", "gwn-solid: the rows pass ignores the first-order records",
+           "shaders/gwn/rows.comp",
+           (("    return bvec4(uvec4(near0) * uvec4(near1));", "    return near0;"),),
+           ("tests/test_gwn.py", "-k", "first_order")),
 ]
 
 

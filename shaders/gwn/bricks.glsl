@@ -12,6 +12,11 @@
 //      along +x and along -x); 3: the caps decide (gwn/caps.glsl): w(p) is
 //      on the threshold's side of C(p), counted with the caps' crossings.
 // gwn/bricks.comp writes them, gwn/rows.comp decides voxels with them.
+// The second vec4 of the pair, once the last chunk has run: the first-order
+// record of a brick with w 0 or 2, xyz the gradient of F (or F-, the same)
+// at p0 (turns per voxel), w H, a bound of its second derivative over the box
+// (turns per voxel^2); GWN_NO_H in w where there is none (it decides nothing).
+const float GWN_NO_H = 1.0e30;
 
 // The brick of voxel (i, j, k), k inside the slab, and its index in Bricks
 // (bricks of the slab, x fastest, over the padded row of row_cells()).

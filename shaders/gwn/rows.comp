@@ -57,6 +57,8 @@ layout(std430, binding = 7) buffer Bits { uint bits[]; };
 layout(std430, binding = 8) buffer Count {
     uint voxel_count; uint refine_count; uint todo_count; uint todo_total;
     uint split_blocks;  // blocks decided by the -x split (run.stats)
+    uint overflow;      // gwn/events.comp's
+    uint first_order_blocks;  // blocks decided by a first-order record (run.stats)
 };
 uniform float u_threshold;
 #if BRICKS
@@ -80,6 +82,29 @@ layout(std430, binding = 10) readonly buffer CapEvents { uvec4 cap_events[]; };
 layout(std430, binding = 11) readonly buffer CapBits { uint cap_bits[]; };
 #endif
 #endif
+#if BRICKS
+// Whether w(p) may lie within the bound of u_threshold at the 4 voxels
+// p = p0 + (dx, dyz) of a brick whose record is rec (w 0 or 2) and first-order
+// record rec1 (gwn/bricks.glsl), where w is the zeroth-order value (C, or
+// C - T, plus F at p0); where the first order decides a voxel the zeroth does
+// not, w becomes the first-order value (the two are on the same side of the
+// threshold where both decide) and `first` is set.  Zeroth order:
+// |w(p) - w| <= err + G |p - p0|.  First order: |w(p) - w - grad . (p - p0)|
+// <= err + H |p - p0|^2 / 2, plus 1e-3 G |p - p0| for the float32 rounding of
+// the gradient's sum (a few ulp of each edge's term, each at most that edge's
+// share of G); a brick without a gradient has H = GWN_NO_H: nothing decided.
+bvec4 brick_near(inout vec4 w, vec4 rec, vec4 rec1, vec4 dx, vec2 dyz, float dyz2, out bool first) {
+    vec4 d2 = dx * dx + dyz2;
+    vec4 dist = sqrt(d2);
+    bvec4 near0 = lessThanEqual(abs(w - u_threshold), rec.y + rec.z * dist + u_margin);
+    vec4 w1 = w + rec1.x * dx + dot(rec1.yz, dyz);
+    bvec4 near1 = lessThanEqual(abs(w1 - u_threshold), rec.y + 1e-3 * rec.z * dist + 0.5 * rec1.w * d2 + u_margin);
+    first = any(near0);
+    w = mix(w, w1, near0);
+    return bvec4(uvec4(near0) * uvec4(near1));
+}
+#endif
+
 // the rows visited: j0 .. j0 + nj - 1, k0 .. k0 + nk - 1 (inside the slab);
 // rows without crossings keep C = 0 (cleared cells; their bits stay clear
 // unless 0 >= u_threshold, when the caller passes every row)
@@ -104,7 +129,7 @@ void main() {
     vec2 dyz = vec2(j, k) + 0.5 - center.yz;
     float dyz2 = dot(dyz, dyz);
     vec4 rec;
-    bool later = false;
+    bool later = false, left_any = false;
 #if CAPS
     int run_caps = 0;  // the row sums of the caps' crossings
     uvec4 cev;
@@ -245,6 +270,7 @@ void main() {
                 }
                 if (seg >= u_segs.x && seg < u_segs.x + u_segs.y) {
                     masks[uint(seg - u_segs.x) * uint(u_rows.y * u_rows.w) + row] = todo_mask;
+                    left_any = left_any || todo_mask != 0u;
                     todo_mask = 0u;
                 }
             }
@@ -269,15 +295,19 @@ void main() {
     }
 #endif
 #if BRICKS
-    // the blocks of -x split bricks: w = (C - T) + F-, T = the row's total crossings
-    // (T from the boundary chain: the row sums miss crossings past the grid;
-    // a row through a projected boundary edge or vertex leaves them undecided.
-    // chain_winding walks the whole tree in one invocation: GWN_SPLIT is 0,
-    // and those blocks go to the walk, when the tree is over the loop budget)
+    // The blocks left above, after the row: those of -x split bricks, w = (C - T)
+    // + F-, T = the row's total crossings (T from the boundary chain: the row sums
+    // miss crossings past the grid; a row through a projected boundary edge or
+    // vertex leaves them undecided.  chain_winding walks the whole tree in one
+    // invocation: GWN_SPLIT is 0, and those blocks go to the walk, when the tree
+    // is over the loop budget), and those of both splits by their bricks'
+    // first-order records (brick_near).  Here and not in the loop above, which
+    // every block of the row goes through: there the first order's sums made
+    // the pass 20% slower on llvmpipe where they decide nothing.
     bool tie = false;
     int total = later ? -chain_winding(vec2(j, k) + 0.5, tie) : 0;
-    uint split = 0u;
-    if (later && !tie) {
+    uint split = 0u, first_order = 0u;
+    if (left_any) {
         for (int seg = u_segs.x; seg < u_segs.x + u_segs.y; ++seg) {
             uint at = uint(seg - u_segs.x) * uint(u_rows.y * u_rows.w) + row;
             uint left = masks[at], add = 0u;
@@ -286,17 +316,19 @@ void main() {
                 if ((left & (1u << i)) == 0u) continue;
                 uint bx = q / uint(GWN_BRICK / 4);
                 vec4 r = bricks[2u * (brick_row + bx)];
-                if (r.w != 2.0) continue;
+                bool minus_split = r.w == 2.0 && later && !tie;
+                if (r.w != 0.0 && !minus_split) continue;
                 vec4 dx = vec4(float(4u * q) + 0.5 - center.x) + vec4(0.0, 1.0, 2.0, 3.0) - float(bx * uint(GWN_BRICK));
-                vec4 dist = sqrt(dx * dx + dyz2);
-                vec4 w = vec4(cells[base + q] - total) + r.x * (0.5 / GWN_PI);
-                if (any(lessThanEqual(abs(w - u_threshold), r.y + r.z * dist + u_margin))) continue;
+                vec4 w = vec4(cells[base + q] - (minus_split ? total : 0)) + r.x * (0.5 / GWN_PI);
+                bool by_first = false;
+                if (any(brick_near(w, r, bricks[2u * (brick_row + bx) + 1u], dx, dyz, dyz2, by_first))) continue;
                 uint x = 4u * q;
                 uvec4 in4 = uvec4(greaterThanEqual(w, vec4(u_threshold)))
                             * uvec4(lessThan(uvec4(x) + uvec4(0u, 1u, 2u, 3u), uvec4(u_dims.x)));
                 add |= (in4.x | in4.y << 1u | in4.z << 2u | in4.w << 3u) << (x & 31u);
                 left &= ~(1u << i);
-                ++split;
+                if (by_first) ++first_order;
+                else ++split;
             }
             if (add != 0u) {
                 bits[wbase + uint(seg)] |= add;
@@ -305,6 +337,7 @@ void main() {
             masks[at] = left;
         }
         if (split != 0u) atomicAdd(split_blocks, split);
+        if (first_order != 0u) atomicAdd(first_order_blocks, first_order);
     }
 #endif
 #if !EDGES || BRICKS

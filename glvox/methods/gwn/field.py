@@ -81,7 +81,7 @@ _REQUIRES = Requirements(gl_version=430, extensions=("GL_ARB_gpu_shader_fp64",),
                          # the row pass with bricks and caps binds the most blocks (12)
                          compute=(("gwn/*.comp", {}),
                                   ("gwn/rows.comp", {"EDGES": 1, "BRICKS": 1, "CAPS": 1, "PLANES": 1}),
-                                  ("gwn/bricks.comp", {"CAPS": 1}))
+                                  ("gwn/bricks.comp", {"CAPS": 1, "GWN_GRAD": 1}))
                          + SOLID_COMPUTE + SURFACE_COMPUTE)
 
 #: Segments one invocation of gwn/todo.comp lists (as many as a work group of
@@ -106,6 +106,13 @@ TREE_STACK = 64
 #: the teapot, the tower, the wall at 128^3, the gyroid at 256^3) bricks made
 #: the call 1.3-5x faster.
 BRICKS_MIN_FREE = 0.5
+
+#: Boundary edges up to which gwn/bricks.comp gives the bricks it cannot leave
+#: to the caps a first-order record (the gradient of F at the brick's center
+#: and a bound of its second derivative, summed over every boundary edge: one
+#: loop of this many iterations per such brick, within the loop budget beside
+#: the tree walk's half of it).
+GRAD_EDGES = 4096
 
 #: Nor below this many voxels in the part the field is evaluated over (the
 #: mesh's rows times its x segments), where their three extra passes cost
@@ -239,13 +246,14 @@ class GwnSolid(Method):
         with timer.stage("readback", gpu=False):
             if stream is None:
                 words = read_grid_words(ctx, bits, spec)
-            voxels, _, _, left, split = (int(x) for x in np.frombuffer(run.count.read(size=20), dtype="<u4"))
+            voxels, _, _, left, split, _, first = (int(x) for x in np.frombuffer(run.count.read(size=28), dtype="<u4"))
         if stream is not None:
             run.stats["streamed"] = True  # its bits read slab by slab, one per z slab
             timer.merge_repeats()
         if run.bricks:
             run.stats["field_segments"] = left  # the segments the bricks left to the tree walk
             run.stats["split_blocks"] = split  # blocks of 4 voxels the -x split decided
+            run.stats["first_order_blocks"] = first  # blocks the bricks' first-order records decided
         if run.caps is not None:
             # bricks decided by the caps' bound, counts alone
             run.stats["cap_bricks"] = int(np.frombuffer(run.count.read(size=4, offset=28), dtype="<u4")[0])
@@ -503,8 +511,13 @@ class _Run:
         if not (nj and nk and segs[1]):
             return buf, cap_bits
         self.stats["bricks"] += n
+        edges = len(self.tree.edges)
+        grad = edges <= GRAD_EDGES
         prog = compute_program(ctx, "gwn/bricks.comp", {"GWN_SEGV": SEGV, "GWN_BRICK": BRICK,
-                                                         "GWN_NODE_VEC4": NODE_VEC4, **self._cap_defines})
+                                                         "GWN_NODE_VEC4": NODE_VEC4, "GWN_GRAD": int(grad),
+                                                         **self._cap_defines})
+        if grad:
+            set_uniforms(prog, {"u_edges": edges})
         t = self.gpu_tree
         bind(prog, VoxVerts=self.vox, Bricks=buf, Edges=t["edges"], Nodes=t["nodes"], Links=t["links"],
              Roots=t["roots"], **({} if self.caps is None else {"Caps": self.caps.buf, "Count": self.count,
