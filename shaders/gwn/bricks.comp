@@ -116,13 +116,14 @@ float edge_gap(vec3 u, vec3 v, float len, vec3 lo, vec3 hi) {
 #if GWN_GRAD
 uniform int u_edges;  // boundary edges (all of them: Edges)
 
-// The integral of dl x (x - p) / |x - p|^3 along the edge from p + a to p + b
-// (Biot-Savart): (a x b)(|a| + |b|) / (|a| |b| (|a| |b| + a . b)), the last
-// factor written without cancellation where a . b < 0 (p beside the edge):
-// |a| |b| + a . b = |a x b|^2 / (|a| |b| - a . b).  a x b as a x (b - a), each
-// factor a correctly rounded difference of the vertices.
-vec3 biot_savart(vec3 a, vec3 b) {
-    vec3 c = cross(a, b - a);
+// The integral of dl x (p - x) / |p - x|^3 along the edge from p + a to p + b
+// (Biot-Savart; e = b - a): (a x b)(|a| + |b|) / (|a| |b| (|a| |b| + a . b)),
+// the last factor written without cancellation where a . b < 0 (p beside the
+// edge): |a| |b| + a . b = |a x b|^2 / (|a| |b| - a . b).  a x b as a x e, e
+// the correctly rounded difference of the vertices (not of a and b), so that a
+// short edge far away keeps its direction.
+vec3 biot_savart(vec3 a, vec3 b, vec3 e) {
+    vec3 c = cross(a, e);
     float la = length(a), lb = length(b), ab = la * lb, d = dot(a, b);
     float c2 = dot(c, c);
     if (c2 == 0.0) return vec3(0.0);  // p on the edge's line: no field off the edge
@@ -134,7 +135,7 @@ vec3 biot_savart(vec3 a, vec3 b) {
 // 2): the gradient of F at p0, the Biot-Savart integral over every boundary
 // edge, exact up to float32 rounding (turns per voxel), and H, a bound of
 // F's second derivative over the box (turns per voxel^2): the derivative of
-// (x - p) / |x - p|^3 is (3 r r^T / |r|^2 - I) / |r|^3, of norm 2 / |r|^3, so
+// r / |r|^3 (r = p - x) is (I - 3 r r^T / |r|^2) / |r|^3, of norm 2 / |r|^3, so
 // an edge of length l at distance g from the box adds at most
 // min(2 l / g^3, 4 / g^2) / (4 pi) (the integral of 2 / (g^2 + s^2)^(3/2) over
 // all s is 4 / g^2).  gwn/rows.comp then bounds |F(p) - F(p0) - grad . (p - p0)|
@@ -146,11 +147,12 @@ vec4 gradient_record(vec3 p0, vec3 lo, vec3 hi) {
     for (int e = 0; e < u_edges; ++e) {
         uvec2 ed = edges[e];
         vec3 u = vertex(ed.x), v = vertex(ed.y);
-        float len = length(v - u);
+        vec3 uv = v - u;
+        float len = length(uv);
         float gap = edge_gap(u, v, len, lo, hi);
         if (!(gap > 0.0)) return vec4(0.0, 0.0, 0.0, GWN_NO_H);
         h += min(2.0 * len / (gap * gap * gap), 4.0 / (gap * gap));
-        g += biot_savart(u - p0, v - p0);
+        g += biot_savart(u - p0, v - p0, uv);
     }
     // H rounded up (float32 sums of a bound, distances cubed)
     return vec4(g * (0.25 / GWN_PI), h * (1.001 * 0.25 / GWN_PI));
