@@ -1,12 +1,17 @@
 """compare/gpu_report.py: the steps run in their own processes within the budget, and the
-report says what each gave, also when one fails or is left without time."""
+report says what each gave, also when one fails or is left without time.  compare/gpu_lease.py:
+the one command that runs it on a lent GPU machine fits the device tool, and the wheels it
+carries are the versions tested here."""
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import subprocess
 import sys
 from pathlib import Path
+
+import moderngl
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "compare" / "gpu_report.py"
@@ -42,3 +47,45 @@ def test_a_failed_step_and_a_spent_budget_are_reported(tmp_path):
     p, out = report(tmp_path, "--steps", "info", "--budget", "1")
     assert p.returncode == 1
     assert "| info | skipped (no budget left) |" in (out / "report.md").read_text()
+
+
+def _lease():
+    """compare/gpu_lease.py as a module (compare/ is scripts, not a package)."""
+    spec = importlib.util.spec_from_file_location("gpu_lease", ROOT / "compare" / "gpu_lease.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_the_lease_command_fits_the_device_tool_and_carries_what_it_uses():
+    """One command within the device tool's 2,000 characters that unpacks the debs,
+    installs the wheels, finds the carried meshes and runs gpu_report.py into $OUT;
+    `command` prints it with the folders to carry (at most 8)."""
+    lease = _lease()
+    cmd = lease.command(480)
+    assert len(cmd) <= lease.COMMAND_MAX
+    for folder in lease.CARRY:
+        assert f"{folder}/" in cmd or f"$PWD/{folder}" in cmd, folder
+    assert cmd.index("dpkg -x") < cmd.index("pip install") < cmd.index("compare/gpu_report.py -o $OUT/r --budget 480")
+    assert "--steps" not in cmd and "--steps info tests" in lease.command(60, ["info", "tests"])
+    p = subprocess.run([sys.executable, str(ROOT / "compare" / "gpu_lease.py"), "command"], capture_output=True,
+                       text=True, timeout=60, cwd=ROOT)
+    assert p.returncode == 0 and p.stdout.splitlines() == [cmd, "carry: " + " ".join(lease.CARRY)]
+    assert len(lease.CARRY) <= 8
+
+
+def test_the_lease_pins_the_wheels_tested_here_and_keeps_its_folders_out_of_git(tmp_path):
+    """prepare fetches the versions installed here, and adds each carried folder to
+    .git/info/exclude once however often it runs."""
+    lease = _lease()
+    pins = dict(p.split("==") for p in lease.pinned() if "==" in p)
+    assert pins["moderngl"] == moderngl.__version__
+    assert set(lease.WHEELS) >= {"moderngl", "glcontext", "trimesh", "pooch"}
+    apt, pip = lease.fetch_commands(tmp_path)
+    assert apt[-len(lease.DEBS):] == list(lease.DEBS) and "--no-deps" in pip and "3.12" in pip
+    (tmp_path / ".git" / "info").mkdir(parents=True)
+    (tmp_path / ".git" / "info" / "exclude").write_text("# git's own comment\n")
+    lease.exclude(tmp_path)
+    lease.exclude(tmp_path)
+    lines = (tmp_path / ".git" / "info" / "exclude").read_text().splitlines()
+    assert lines == ["# git's own comment"] + [f"/{d}/" for d in lease.CARRY]
