@@ -15,6 +15,8 @@ in its own process with its share of ``--budget`` seconds,
   it is installed;
 * ``readback``: ``compare/bench_readback.py`` at 512^3 and 1024^3 (``--cuda`` too
   where cuda-core sees a GPU);
+* ``sync``: ``compare/bench_sync.py`` at 64^3-256^3: whole calls with and without
+  the per-stage waits for the GPU, side by side (its table is in ``report.md``);
 * ``bench``: ``glvox bench`` of the main methods on the bunny at 128^3-1024^3
   (cuda_voxelizer beside them with ``--cuda-voxelizer PATH``);
 * ``tables``: Schwarz & Seidel's Table 1 (``compare/table1_ss_surface.py``) with
@@ -58,7 +60,8 @@ GPU_TESTS = [
 ]
 
 #: Steps in order, with their share of the budget.
-STEPS = {"info": 0.02, "selftest": 0.12, "tests": 0.35, "readback": 0.08, "bench": 0.33, "tables": 0.10}
+STEPS = {"info": 0.02, "selftest": 0.12, "tests": 0.35, "readback": 0.08, "sync": 0.05, "bench": 0.28,
+         "tables": 0.10}
 
 BUNNY = "stanford_bunny_bun_zipper.ply"
 
@@ -88,6 +91,9 @@ def commands(step: str, out: Path, work: Path, args) -> tuple[list[str], Path]:
     if step == "readback":
         return [py, str(ROOT / "compare" / "bench_readback.py"), "-r", *args.readback_sizes, "--repeat", "3",
                 *(["--cuda"] if _cuda_seen() else [])], out / "readback.log"
+    if step == "sync":  # its table is in report.md (the output folder holds eight files at most)
+        return [py, str(ROOT / "compare" / "bench_sync.py"), "--meshes", args.mesh, "-r", "64", "128", "256"], \
+            work / "sync.log"
     if step == "bench":
         peers = ["--peers", "cuda-voxelizer", "--cuda-voxelizer", args.cuda_voxelizer] if args.cuda_voxelizer \
             else ["--peers"]
@@ -148,7 +154,7 @@ def main(argv=None) -> int:
             share = left * STEPS[step] / later if later else left
             cmd, log = commands(step, out, work, args)
             if share < 5:
-                rows.append((step, "skipped (no budget left)", 0.0, log, cmd))
+                rows.append((step, "skipped (no budget left)", 0.0, log, cmd, ""))
                 failed = True  # the report lacks it
                 continue
             print(f"gpu_report: {step} ({share:.0f} s at most): {' '.join(cmd)}", flush=True)
@@ -156,7 +162,7 @@ def main(argv=None) -> int:
             failed |= status != "ok"
             if step == "bench" and (work / "bench" / "bench.md").is_file():
                 shutil.copy(work / "bench" / "bench.md", out / "bench.md")
-            rows.append((step, status, seconds, log, cmd))
+            rows.append((step, status, seconds, log, cmd, _tail(log, 25)))  # before work/ goes
     lines = ["# glvox on this GPU", ""]
     info = out / "info.json"
     if info.is_file():
@@ -169,9 +175,10 @@ def main(argv=None) -> int:
     lines += [f"`python compare/gpu_report.py {' '.join(argv if argv is not None else sys.argv[1:])}`, "
               f"budget {args.budget:.0f} s, {time.perf_counter() - start:.0f} s used.", "",
               "| step | status | seconds | output |", "|---|---|---|---|"]
-    lines += [f"| {s} | {st} | {sec:.1f} | `{log.name}` |" for s, st, sec, log, _ in rows]
-    for s, st, sec, log, cmd in rows:
-        lines += ["", f"## {s}: {st}", "", f"`{' '.join(cmd)}`", "", "```text", _tail(log, 25), "```"]
+    lines += [f"| {s} | {st} | {sec:.1f} | `{log.name if log.parent == out else 'below'}` |"
+              for s, st, sec, log, _, _ in rows]
+    for s, st, sec, log, cmd, tail in rows:
+        lines += ["", f"## {s}: {st}", "", f"`{' '.join(cmd)}`", "", "```text", tail, "```"]
     (out / "report.md").write_text("\n".join(lines) + "\n")
     print(f"gpu_report: {out / 'report.md'}" + (" (some steps failed)" if failed else ""))
     return 1 if failed else 0

@@ -89,3 +89,15 @@ def test_the_lease_pins_the_wheels_tested_here_and_keeps_its_folders_out_of_git(
     lease.exclude(tmp_path)
     lines = (tmp_path / ".git" / "info" / "exclude").read_text().splitlines()
     assert lines == ["# git's own comment"] + [f"/{d}/" for d in lease.CARRY]
+
+
+def test_the_sync_step_puts_its_table_in_the_report(tmp_path):
+    """The per-stage waits' cost (compare/bench_sync.py) needs no file of its own: its
+    table, with and without the waits side by side, is in report.md."""
+    p, out = report(tmp_path, "--steps", "sync", "--budget", "200", "--mesh", "gen:torus")
+    assert p.returncode == 0, p.stdout + p.stderr
+    assert sorted(f.name for f in out.iterdir()) == ["report.md"]
+    text = (out / "report.md").read_text()
+    assert "| sync | ok |" in text and "`below`" in text
+    for n in (64, 128, 256):
+        assert f"| ss-conservative | gen:torus | {n} |" in text and f"| ss-solid | gen:torus | {n} |" in text

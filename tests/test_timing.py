@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import slab_case
 
 from glvox.errors import GLError
 from glvox.gl.shaders import compute_program
-from glvox.gl.timing import Stage, StageTimer
+from glvox.gl.timing import Stage, StageTimer, stage_sync
+from glvox.methods import run_method
 
 
 def _dispatch(ctx, defines):
@@ -108,3 +110,53 @@ def test_merge_repeats_sums_stages_by_name():
     t.timings.stages[:] = [Stage("a", 1.0, 0.5), Stage("b", 2.0, None), Stage("a", 3.0, 0.25), Stage("b", 4.0, 1.0)]
     t.merge_repeats()
     assert t.timings.stages == [Stage("a", 4.0, 0.75), Stage("b", 6.0, None)]
+
+
+def _busy_stage(ctx, timer, name, iterations):
+    prog = compute_program(ctx, "testing/busy.comp")
+    out = ctx.mgl.buffer(reserve=64 * 64 * 4)
+    out.bind_to_storage_buffer(0)
+    prog["u_iterations"].value = iterations
+    with timer.stage(name):
+        prog.run(64)
+    out.release()
+
+
+def test_unsynced_stages_keep_their_own_gpu_times(gl_context):
+    """Without the per-stage waits (GLVOX_STAGE_SYNC=0) each stage takes its own pair of
+    timestamp queries, read at the end: a long and a short dispatch keep their own
+    times, also when another timer (a nested run) times a stage in between, and with a
+    framebuffer bound and drawn to (a timestamp in llvmpipe's deferred scene is taken when
+    the scene is flushed: each is followed by a flush)."""
+    tex = gl_context.mgl.texture((8, 8), 4)
+    fbo = gl_context.mgl.framebuffer(color_attachments=[tex])
+    fbo.use()
+    fbo.clear(0.0, 0.0, 0.0, 1.0)
+    with stage_sync(False):
+        outer, inner = StageTimer(gl_context), StageTimer(gl_context)
+    assert not outer.sync and not inner.sync and StageTimer(gl_context).sync
+    _busy_stage(gl_context, outer, "long", 4000)
+    _busy_stage(gl_context, inner, "short", 400)
+    _busy_stage(gl_context, outer, "long again", 4000)
+    short = inner.finish().stage("short").gpu_s
+    first, second = (outer.finish().stage(n).gpu_s for n in ("long", "long again"))
+    gl_context.release_framebuffer(fbo)
+    tex.release()
+    assert 0 < short and first > 3 * short and second > 3 * short, (short, first, second)
+    assert not outer._pending and not inner._pending  # their queries went back to the context
+
+
+def test_unsynced_runs_give_the_same_voxels_and_stage_times(gl_context, monkeypatch):
+    """A run without the waits is the same run: the same words, the same stages, each
+    GPU stage with its GPU time, repeated stages (slab by slab) merged as with them."""
+    mesh, spec = slab_case(gl_context, monkeypatch)
+    for method in ("ss-conservative", "ss-solid", "gwn-solid"):
+        with stage_sync(True):
+            synced = run_method(method, mesh, spec, allow_open=True)
+        with stage_sync(False):
+            unsynced = run_method(method, mesh, spec, allow_open=True)
+        assert np.array_equal(synced.words(), unsynced.words()), method
+        a, b = synced.run.timings.stages, unsynced.run.timings.stages
+        assert [s.name for s in a] == [s.name for s in b], method
+        assert [s.gpu_s is None for s in a] == [s.gpu_s is None for s in b], method
+        assert all(s.gpu_s >= 0 for s in b if s.gpu_s is not None), method

@@ -296,6 +296,8 @@ class GLContext:
     egl_index: int | None = None
     _released: bool = False
     _query: Any = None
+    _free_pairs: list = field(default_factory=list)  # timestamp query pairs of unsynced stages
+    _all_pairs: list = field(default_factory=list)
     _limits: Any = None
     _neutral_fbo: Any = None
 
@@ -368,6 +370,19 @@ class GLContext:
             self._query = tuple(self.raw.gen_queries(2))
         return self._query
 
+    def take_query_pair(self) -> tuple[int, int]:
+        """Two GL_TIMESTAMP query names for one stage whose result is read later (a
+        :class:`~glvox.gl.timing.StageTimer` that does not wait per stage), until
+        :meth:`give_query_pair` returns them; made as needed, kept for the context's life."""
+        if not self._free_pairs:
+            pair = tuple(self.raw.gen_queries(2))
+            self._all_pairs.append(pair)
+            return pair
+        return self._free_pairs.pop()
+
+    def give_query_pair(self, pair: tuple[int, int]) -> None:
+        self._free_pairs.append(pair)
+
     def release_framebuffer(self, fbo: moderngl.Framebuffer) -> None:
         """Release a transient framebuffer without leaving a deleted one bound.
 
@@ -431,6 +446,10 @@ class GLContext:
         if self._query is not None:
             self.raw.delete_queries(list(self._query))
             self._query = None
+        if self._all_pairs:
+            self.raw.delete_queries([q for pair in self._all_pairs for q in pair])
+            self._all_pairs.clear()
+            self._free_pairs.clear()
         for prog in self.programs.values():
             prog.release()
         self.programs.clear()

@@ -49,6 +49,7 @@ _SIGNATURES: dict[str, tuple[object, tuple[object, ...]]] = {
     "glDeleteQueries": (None, (ctypes.c_int, ctypes.POINTER(GLuint))),
     "glQueryCounter": (None, (GLuint, GLenum)),
     "glGetQueryObjectui64v": (None, (GLuint, GLenum, ctypes.POINTER(ctypes.c_uint64))),
+    "glFlush": (None, ()),
 }
 
 _SIGNATURES["glClearNamedBufferSubData"] = (
@@ -198,6 +199,10 @@ class RawGL:
     def timestamp(self, query: int) -> None:
         """Record the GPU time when the commands before it complete (glQueryCounter)."""
         self.fn("glQueryCounter")(query, GL_TIMESTAMP)
+
+    def flush(self) -> None:
+        """Submit the commands so far without waiting for them (glFlush)."""
+        self.fn("glFlush")()
 
     def query_result_ns(self, query: int) -> int:
         """The 64-bit result of a query, waiting for it (nanoseconds for timestamps)."""

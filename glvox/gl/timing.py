@@ -5,14 +5,46 @@ the timer brackets the commands with two ``GL_TIMESTAMP`` queries and waits
 for the GPU at the end of the stage, so the wall time of the stage includes
 the GPU work it issued (stages are coarse; the one sync per stage is the price
 of honest wall times).  Stages do not nest.
+
+``GLVOX_STAGE_SYNC=0`` (or :func:`stage_sync`) leaves the waits out: each stage
+takes its own pair of queries, read once the run ends, so its GPU time stays
+right but its wall time is only the time spent issuing its commands (the wait
+for the GPU moves to whatever reads a result), and the CPU issues the next
+stage while the GPU runs the last.  That is how much the syncs cost a call,
+measured with ``compare/bench_sync.py``.  Each timestamp is followed by a
+``glFlush``, which waits for nothing: llvmpipe takes a timestamp only when its
+scene is flushed.
 """
 
 from __future__ import annotations
 
 import contextlib
+import os
 import time
 from dataclasses import dataclass, field
 from typing import Any, Iterator
+
+
+_forced_sync: list[bool] = []
+
+
+@contextlib.contextmanager
+def stage_sync(on: bool) -> Iterator[None]:
+    """Inside the block, new :class:`StageTimer` s wait for the GPU per stage (``on``)
+    or not, whatever ``GLVOX_STAGE_SYNC`` says."""
+    _forced_sync.append(bool(on))
+    try:
+        yield
+    finally:
+        _forced_sync.pop()
+
+
+def stage_sync_default() -> bool:
+    """Whether stages wait for the GPU: :func:`stage_sync`'s, else ``GLVOX_STAGE_SYNC``
+    (default 1: they do)."""
+    if _forced_sync:
+        return _forced_sync[-1]
+    return os.environ.get("GLVOX_STAGE_SYNC", "1").strip() != "0"
 
 
 @dataclass
@@ -85,9 +117,13 @@ class StageTimer:
         For error messages.
     progress : callable, optional
         ``progress(done, total)`` after each slab of a grid worked in slabs (:meth:`slab_done`).
+    sync : bool, optional
+        Wait for the GPU at the end of each stage (the module's docstring); default
+        :func:`stage_sync_default`.
     """
 
-    def __init__(self, ctx=None, *, debug: bool = False, method: str = "", progress=None):
+    def __init__(self, ctx=None, *, debug: bool = False, method: str = "", progress=None,
+                 sync: bool | None = None):
         self.ctx = ctx
         self.debug = debug
         self.method = method
@@ -98,9 +134,32 @@ class StageTimer:
         #: statistics a method reports beside its result (counts, case shares)
         self.stats: dict[str, Any] = {}
         self._compile0 = ctx.compile_seconds if ctx is not None else 0.0
+        self.sync = stage_sync_default() if sync is None else bool(sync)
+        # stages of an unsynced timer whose GPU times are read at the end: (stage, query pair)
+        self._pending: list[tuple[Stage, tuple[int, int]]] = []
 
     @contextlib.contextmanager
     def stage(self, name: str, gpu: bool = True) -> Iterator[None]:
+        if gpu and self.ctx is not None and not self.sync:
+            pair = self.ctx.take_query_pair()
+            t0 = time.perf_counter()
+            self.ctx.raw.timestamp(pair[0])
+            # llvmpipe takes a timestamp when its scene is flushed (as below): a flush
+            # waits for nothing, and a GPU's driver submits what it has
+            self.ctx.raw.flush()
+            try:
+                yield
+            except BaseException:
+                self.ctx.give_query_pair(pair)
+                raise
+            self.ctx.raw.timestamp(pair[1])
+            self.ctx.raw.flush()
+            stage = Stage(name, time.perf_counter() - t0, None)
+            self.timings.stages.append(stage)
+            self._pending.append((stage, pair))
+            if self.debug:
+                self.ctx.check_error(f"method {self.method!r}, stage {name!r}")
+            return
         queries = self.ctx.timestamp_queries() if gpu and self.ctx is not None else None
         t0 = time.perf_counter()
         if queries is not None:
@@ -128,9 +187,18 @@ class StageTimer:
         if self.progress is not None and total > 1:
             self.progress(done, total)
 
+    def _resolve(self) -> None:
+        """Read the GPU times of the unsynced stages (waits for the GPU)."""
+        raw = self.ctx.raw if self.ctx is not None else None
+        for stage, pair in self._pending:
+            stage.gpu_s = (raw.query_result_ns(pair[1]) - raw.query_result_ns(pair[0])) * 1e-9
+            self.ctx.give_query_pair(pair)
+        self._pending.clear()
+
     def merge_repeats(self) -> None:
         """Sum the stages that share a name into one, in the order of their first run
         (a method that runs its passes several times: ss-conservative slab by slab)."""
+        self._resolve()
         merged: dict[str, Stage] = {}
         for s in self.timings.stages:
             m = merged.get(s.name)
@@ -140,6 +208,7 @@ class StageTimer:
         self.timings.stages[:] = list(merged.values())
 
     def finish(self) -> Timings:
+        self._resolve()
         if self.ctx is not None:
             self.timings.compile_s = self.ctx.compile_seconds - self._compile0
             self.timings.cold = self.timings.compile_s > 0
