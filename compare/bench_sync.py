@@ -12,9 +12,9 @@ process after a warm-up of each, and prints the median and best whole call of
 each (``run_method`` as a user calls it, the packed result in host memory; the
 parity solids with ``allow_open`` on an open mesh, as ``glvox bench`` runs them), their
 ratio, and the unsynced run's GPU time (the sum of its stages' timer queries).
-Both give the same voxels (checked).  On llvmpipe the ratio is about 1 (its
-dispatches run to the end before the call returns); on a GPU it is what the
-waits cost.
+Both give the same voxels (checked).  On llvmpipe the calls without the
+waits took 0.88-0.98 of the time (docs/performance.md); on a GPU the ratio is
+what the waits cost there.
 """
 
 from __future__ import annotations
