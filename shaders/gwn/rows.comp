@@ -17,7 +17,9 @@
 // a block of 4 voxels decided whole gets its bits here; the others keep C in
 // their cells, and Masks gets every segment's mask of such blocks (indexed as
 // gwn/field.comp numbers segments), which gwn/todo.comp lists for
-// gwn/field.comp.
+// gwn/field.comp.  After the row, the blocks left in bricks with a first-order
+// record (gwn/bricks.glsl) get a second chance: F(p0) + grad . (p - p0) within
+// err + H |p - p0|^2 / 2 (brick_near).
 //
 // CAPS 1 (with BRICKS and PLANES): CapEvents holds the crossings of the caps
 // (gwn/caps.glsl) alone, in planes like Events; their row sums C_K added to
