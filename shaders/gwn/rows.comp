@@ -305,7 +305,7 @@ void main() {
     // is over the loop budget), and those of both splits by their bricks'
     // first-order records (brick_near).  Here and not in the loop above, which
     // every block of the row goes through: there the first order's sums made
-    // the pass 20% slower on llvmpipe where they decide nothing.
+    // the pass 15-30% slower on llvmpipe where they decide nothing.
     bool tie = false;
     int total = later ? -chain_winding(vec2(j, k) + 0.5, tie) : 0;
     uint split = 0u, first_order = 0u;
