@@ -295,8 +295,7 @@ class GLContext:
     #: index of the EGL device (eglQueryDevicesEXT order), None for OSMesa
     egl_index: int | None = None
     _released: bool = False
-    _query: Any = None
-    _free_pairs: list = field(default_factory=list)  # timestamp query pairs of unsynced stages
+    _free_pairs: list = field(default_factory=list)  # timestamp query pairs not in use
     _all_pairs: list = field(default_factory=list)
     _limits: Any = None
     _neutral_fbo: Any = None
@@ -358,22 +357,17 @@ class GLContext:
         if err != "GL_NO_ERROR":
             raise GLError(f"OpenGL error {err} after {where}")
 
-    def timestamp_queries(self) -> tuple[int, int]:
-        """Two GL_TIMESTAMP query names of this context, reused by every stage timer.
+    def take_query_pair(self) -> tuple[int, int]:
+        """Two GL_TIMESTAMP query names for one stage of a
+        :class:`~glvox.gl.timing.StageTimer`, its own until :meth:`give_query_pair`
+        returns them (a timer that does not wait per stage reads them at the end, and
+        timers of nested runs interleave); made as needed, kept for the context's life.
 
         Timestamps rather than moderngl's GL_TIME_ELAPSED query: moderngl reads
         query results as 32 bits (wrapping past 4.3 s) and Mesa's llvmpipe
         reports a meaningless elapsed time for compute dispatches, while its
         64-bit timestamps are right.
         """
-        if self._query is None:
-            self._query = tuple(self.raw.gen_queries(2))
-        return self._query
-
-    def take_query_pair(self) -> tuple[int, int]:
-        """Two GL_TIMESTAMP query names for one stage whose result is read later (a
-        :class:`~glvox.gl.timing.StageTimer` that does not wait per stage), until
-        :meth:`give_query_pair` returns them; made as needed, kept for the context's life."""
         if not self._free_pairs:
             pair = tuple(self.raw.gen_queries(2))
             self._all_pairs.append(pair)
@@ -443,9 +437,6 @@ class GLContext:
         for callback in self.on_release:
             callback()
         self.on_release.clear()
-        if self._query is not None:
-            self.raw.delete_queries(list(self._query))
-            self._query = None
         if self._all_pairs:
             self.raw.delete_queries([q for pair in self._all_pairs for q in pair])
             self._all_pairs.clear()

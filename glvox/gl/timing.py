@@ -135,52 +135,45 @@ class StageTimer:
         self.stats: dict[str, Any] = {}
         self._compile0 = ctx.compile_seconds if ctx is not None else 0.0
         self.sync = stage_sync_default() if sync is None else bool(sync)
-        # stages of an unsynced timer whose GPU times are read at the end: (stage, query pair)
+        # GPU stages whose times are not read yet (an unsynced timer's, until the end)
         self._pending: list[tuple[Stage, tuple[int, int]]] = []
 
     @contextlib.contextmanager
     def stage(self, name: str, gpu: bool = True) -> Iterator[None]:
-        if gpu and self.ctx is not None and not self.sync:
-            pair = self.ctx.take_query_pair()
-            t0 = time.perf_counter()
-            self.ctx.raw.timestamp(pair[0])
-            # llvmpipe takes a timestamp when its scene is flushed (as below): a flush
-            # waits for nothing, and a GPU's driver submits what it has
-            self.ctx.raw.flush()
-            try:
-                yield
-            except BaseException:
-                self.ctx.give_query_pair(pair)
-                raise
-            self.ctx.raw.timestamp(pair[1])
-            self.ctx.raw.flush()
-            stage = Stage(name, time.perf_counter() - t0, None)
-            self.timings.stages.append(stage)
-            self._pending.append((stage, pair))
-            if self.debug:
-                self.ctx.check_error(f"method {self.method!r}, stage {name!r}")
-            return
-        queries = self.ctx.timestamp_queries() if gpu and self.ctx is not None else None
+        pair = self.ctx.take_query_pair() if gpu and self.ctx is not None else None
         t0 = time.perf_counter()
-        if queries is not None:
-            raw = self.ctx.raw
-            raw.timestamp(queries[0])
-            # llvmpipe records a timestamp issued while a framebuffer is bound
-            # when its deferred scene is flushed, so the start of a compute-only
-            # stage would be stamped after its work (seen once a raster method
-            # had bound one: compute stages then measured ~0 ms); flush it now
-            self.ctx.mgl.finish()
+        if pair is not None:
+            self.ctx.raw.timestamp(pair[0])
+            self._settle()
+        try:
             yield
-            raw.timestamp(queries[1])
-            self.ctx.mgl.finish()
-            gpu_s = (raw.query_result_ns(queries[1]) - raw.query_result_ns(queries[0])) * 1e-9
-        else:
-            yield
-            gpu_s = None
-        wall = time.perf_counter() - t0
-        self.timings.stages.append(Stage(name, wall, gpu_s))
+        except BaseException:
+            if pair is not None:
+                self.ctx.give_query_pair(pair)
+            raise
+        stage = Stage(name, 0.0, None)
+        if pair is not None:
+            self.ctx.raw.timestamp(pair[1])
+            self._settle()
+            self._pending.append((stage, pair))
+        stage.wall_s = time.perf_counter() - t0
+        self.timings.stages.append(stage)
+        if self.sync:
+            self._resolve()
         if self.debug and self.ctx is not None:
             self.ctx.check_error(f"method {self.method!r}, stage {name!r}")
+
+    def _settle(self) -> None:
+        """After a timestamp: wait for the GPU (a synced timer), else only flush.
+        llvmpipe records a timestamp issued while a framebuffer is bound when its
+        deferred scene is flushed, so without either the start of a compute-only
+        stage would be stamped after its work (seen once a raster method had bound
+        one: compute stages then measured ~0 ms).  A flush waits for nothing, and a
+        GPU's driver submits what it has."""
+        if self.sync:
+            self.ctx.mgl.finish()
+        else:
+            self.ctx.raw.flush()
 
     def slab_done(self, done: int, total: int) -> None:
         """Slab ``done`` of ``total`` is voxelized (a grid worked in z slabs)."""
@@ -188,7 +181,8 @@ class StageTimer:
             self.progress(done, total)
 
     def _resolve(self) -> None:
-        """Read the GPU times of the unsynced stages (waits for the GPU)."""
+        """Read the GPU times of the stages not read yet (waits for the GPU) and give
+        their queries back to the context."""
         raw = self.ctx.raw if self.ctx is not None else None
         for stage, pair in self._pending:
             stage.gpu_s = (raw.query_result_ns(pair[1]) - raw.query_result_ns(pair[0])) * 1e-9
