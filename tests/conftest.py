@@ -6,8 +6,10 @@ from __future__ import annotations
 
 import contextlib
 import importlib
+import importlib.util
 import io
 import os
+from pathlib import Path
 
 import pytest
 
@@ -19,6 +21,9 @@ from glvox.gpu.buffers import z_slabs
 from glvox.grid import grid_for
 from glvox.mesh import load_mesh
 from glvox.methods import method_infos
+
+#: The project's root (compare/ holds the scripts a researcher runs by hand).
+ROOT = Path(__file__).resolve().parent.parent
 
 #: Heavier runs (large grids, every shared mesh) are opt-in.
 SLOW = os.environ.get("GLVOX_SLOW", "") not in ("", "0")
@@ -75,6 +80,14 @@ def ssbo_limit(gl_context, monkeypatch):
     if real > 2**27:
         monkeypatch.setattr(gl_context, "limits", lambda: {**limits, "GL_MAX_SHADER_STORAGE_BLOCK_SIZE": 2**27})
     return min(real, 2**27)
+
+
+def load_script(name: str):
+    """compare/NAME.py as a module (compare/ holds scripts, not a package)."""
+    spec = importlib.util.spec_from_file_location(name, ROOT / "compare" / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
 
 
 def gl_option_runs() -> list[tuple[str, dict]]:

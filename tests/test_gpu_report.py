@@ -5,13 +5,13 @@ carries are the versions tested here."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import subprocess
 import sys
 from pathlib import Path
 
 import moderngl
+from conftest import load_script
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "compare" / "gpu_report.py"
@@ -49,19 +49,11 @@ def test_a_failed_step_and_a_spent_budget_are_reported(tmp_path):
     assert "| info | skipped (no budget left) |" in (out / "report.md").read_text()
 
 
-def _lease():
-    """compare/gpu_lease.py as a module (compare/ is scripts, not a package)."""
-    spec = importlib.util.spec_from_file_location("gpu_lease", ROOT / "compare" / "gpu_lease.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
 def test_the_lease_command_fits_the_device_tool_and_carries_what_it_uses():
     """One command within the device tool's 2,000 characters that unpacks the debs,
     installs the wheels, finds the carried meshes and runs gpu_report.py into $OUT;
     `command` prints it with the folders to carry (at most 8)."""
-    lease = _lease()
+    lease = load_script("gpu_lease")
     cmd = lease.command(480)
     assert len(cmd) <= lease.COMMAND_MAX
     for folder in lease.CARRY:
@@ -77,7 +69,7 @@ def test_the_lease_command_fits_the_device_tool_and_carries_what_it_uses():
 def test_the_lease_pins_the_wheels_tested_here_and_keeps_its_folders_out_of_git(tmp_path):
     """prepare fetches the versions installed here, and adds each carried folder to
     .git/info/exclude once however often it runs."""
-    lease = _lease()
+    lease = load_script("gpu_lease")
     pins = dict(p.split("==") for p in lease.pinned() if "==" in p)
     assert pins["moderngl"] == moderngl.__version__
     assert set(lease.WHEELS) >= {"moderngl", "glcontext", "trimesh", "pooch"}

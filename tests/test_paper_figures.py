@@ -5,12 +5,12 @@ print carry them."""
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import re
 from pathlib import Path
 
 import pytest
+from conftest import load_script
 
 from glvox.study import paper_figures as pf
 
@@ -111,13 +111,6 @@ def test_zhang_table2_gpu_column_is_the_papers():
         expect = pf.ZHANG_TABLE2_GPU[models[k // 5]].get(n)
         got = (num(r[8]), num(r[9]))
         assert got == (expect if expect else (None, None)), (models[k // 5], n, r)
-
-
-def load_script(name: str):
-    spec = importlib.util.spec_from_file_location(name, ROOT / "compare" / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
 
 
 def test_the_scripts_print_the_papers_rows():
