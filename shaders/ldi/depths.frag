@@ -39,6 +39,8 @@ uniform double u_cells_per_voxel;  // LOD-C / n_axis
 flat in uint v_tri;
 
 layout(location = 0) out vec4 o_depths[LDI_TARGETS];
+#define TARGETS_N LDI_TARGETS
+#include "common/each_target.glsl"
 
 void main() {
     dvec3 p0, p1, p2;
@@ -84,9 +86,13 @@ void main() {
     double d_far = clamp(min(qc + widen, zhi) / double(u_cells), 0.0, 1.0);
     float near_key = ldi_round_up(1.0 - d_near);  // entering: the MAX of 1 - d is the nearest
     float far_key = ldi_round_up(d_far);          // leaving: the MAX of d is the farthest
-    vec4 outv[LDI_TARGETS];
-    for (int t = 0; t < LDI_TARGETS; ++t) outv[t] = vec4(0.0);
-    if (first_here) outv[s0 >> 2][s0 & 3] = lv ? far_key : near_key;
-    if (second_here) outv[s1 >> 2][s1 & 3] = far_key;
-    for (int t = 0; t < LDI_TARGETS; ++t) o_depths[t] = outv[t];
+    // layer s0 (if first_here) gets the first key, s1 (if second_here) the far key, the
+    // others 0; per target by constant index (common/each_target.glsl)
+    ivec4 first_at = ivec4(first_here ? s0 : -1), second_at = ivec4(second_here ? s1 : -1);
+    float first_key = lv ? far_key : near_key;
+#define LDI_DEPTHS_OUT(t) { \
+        ivec4 layer = ivec4(4 * t) + ivec4(0, 1, 2, 3); \
+        o_depths[t] = mix(mix(vec4(0.0), vec4(first_key), equal(layer, first_at)), vec4(far_key), \
+                          equal(layer, second_at)); }
+    EACH_TARGET(LDI_DEPTHS_OUT)
 }
