@@ -367,6 +367,14 @@ MUTANTS: list[Mutant] = [
            "shaders/gwn/rows.comp",
            (("    return bvec4(uvec4(near0) * uvec4(near1));", "    return near0;"),),
            ("tests/test_gwn.py", "-k", "first_order")),
+    Mutant("eisemann-cull-off", "eisemann-*: the setup draws every small box, covered or not",
+           "shaders/eisemann/setup.comp",
+           (("#define EIS_CULL_CENTERS 4", "#define EIS_CULL_CENTERS 0"),),
+           ("tests/test_eisemann.py", "-k", "culls")),
+    Mutant("eisemann-cull-off-center", "eisemann-*: the setup's cull tests points a quarter voxel off the centers",
+           "shaders/eisemann/setup.comp",
+           (("dvec2(col) + 0.5, w_unused", "dvec2(col) + 0.25, w_unused"),),
+           ("tests/test_eisemann.py", "-k", "culls or subset or generated")),
 ]
 
 

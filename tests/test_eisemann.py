@@ -347,6 +347,32 @@ def test_the_drawn_proxy_of_a_sliver_holds_it(gl_context):
         assert (inside * np.sign(inside.sum())).min() >= 1 / 32, (order, corner.tolist())
 
 
+def test_the_setup_culls_a_small_box_whose_centers_the_triangle_misses(gl_context):
+    """A fine mesh has many triangles whose bounding box holds a column center that the
+    triangle itself misses; the setup pass (eisemann/setup.comp) gives such a triangle an
+    empty box, so no vertex of it reaches the rasterizer, where its box holds at most
+    EIS_CULL_CENTERS (4) centers.  Hand-worked: the right triangle with legs from
+    (10.125, 10.125) to x + y = 20.875 lies short of the center (10.5, 10.5) of its box:
+    culled; with legs to x + y = 21.125 it covers that center: kept, box (10, 10)."""
+    def setup(legs_end):
+        lo, hi = 10.125, legs_end - 10.125
+        tri = np.array([[lo, lo, 5.0], [hi, lo, 7.0], [lo, hi, 9.0]])
+        boxes = []
+        for order in ([0, 1, 2], [2, 1, 0]):
+            got = harness.run_compute(
+                gl_context, "eisemann/setup.comp", 1, read=["EisSetups"],
+                buffers={"EisVox": tri[order].reshape(-1), "EisFaces": np.arange(3, dtype=np.uint32),
+                         "EisSetups": (12, np.int32)},
+                uniforms={"u_triangles": 1, "u_dims": (64, 64, 64), "u_eis_fix_bits": 20},
+                defines={"EIS_AXIS": 2, "EIS_OP": 0, "EIS_COVERAGE": 0, "EIS_TRACE": 0})["EisSetups"]
+            boxes.append(got[:4].tolist())
+        return boxes
+
+    for box_lo_x, box_lo_y, box_hi_x, box_hi_y in setup(20.875):
+        assert box_hi_x < box_lo_x or box_hi_y < box_lo_y  # empty: culled
+    assert setup(21.125) == [[10, 10, 10, 10]] * 2
+
+
 def test_far_from_the_origin_and_non_cubic(gl_context, shared_mesh):
     """Vertices near 1e5 keep their precision (uploaded relative to the anchor);
     a non-cubic grid whose sides are not multiples of 32 exercises every pack path."""

@@ -36,6 +36,7 @@ layout(local_size_x = 64) in;
 #define EIS_GROW 0.0625
 #define EIS_MITER_MAX 2.0
 #define EIS_FLOAT_SAFE 65536.0
+#define EIS_CULL_CENTERS 4
 
 struct EisSetup { ivec2 box_lo; ivec2 box_hi; ivec2 slices; vec2 corner[3]; };
 layout(std430, binding = 3) writeonly buffer EisSetups { EisSetup eis_setup_out[]; };
@@ -94,6 +95,19 @@ void main() {
         s.corner[0] = x0;
         s.corner[1] = x0 + vec2(2.0 * wh.x, 0.0);
         s.corner[2] = x0 + vec2(0.0, 2.0 * wh.y);
+    }
+    // A small box: no draw at all where the triangle covers none of its centers (the
+    // fragments' own exact test, eis_covers_at), so the rasterizer never sees the many
+    // triangles of a fine mesh that fall between column centers.
+    ivec2 span = c_hi - c_lo + 1;
+    if (orient != 0 && all(greaterThan(span, ivec2(0))) && span.x * span.y <= EIS_CULL_CENTERS) {
+        bool covers = false;
+        for (int k = 0; k < span.x * span.y; ++k) {
+            dvec3 w_unused;
+            ivec2 col = c_lo + ivec2(k % span.x, k / span.x);
+            covers = covers || eis_covers_at(p0, p1, p2, dvec2(col) + 0.5, w_unused);
+        }
+        if (!covers) s.box_hi = c_lo - 1;
     }
 #else
     for (int i = 0; i < 3; ++i) s.corner[i] = vec2(p[i]);

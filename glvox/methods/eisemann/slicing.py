@@ -48,7 +48,10 @@ decide, as the paper does; it counts a center on an edge shared by two
 triangles exactly once too, but on the snapped mesh.
 
 Pipeline: ``transform`` (vertices to voxel space, double), ``setup`` (per
-triangle: the column box, the slices it can reach, the corners to draw), then
+triangle: the column box, the slices it can reach, the corners to draw; a
+box of at most 4 column centers none of which the triangle covers, by the
+fragments' own exact test, is emptied, so that the many triangles of a fine
+mesh that fall between centers are never drawn), then
 per tile and pass ``render`` (zero the targets, draw with the logic op) and
 ``pack`` (a compute pass turning the targets into glvox's packed grid: a copy
 when rendering along x, 32x32 bit transposes along y and z, counting the set
