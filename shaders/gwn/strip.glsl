@@ -7,6 +7,12 @@
 // parameter is copied in and out at every call.
 #include "ss/solid.glsl"
 
+#if GWN_SEGV != 8
+#error "GWN_EACH_BLOCK spells out 8 blocks"
+#endif
+// M(0) .. M(7): a loop over the segment's blocks written out, so that seg_f and
+// seg_bnd are indexed by constants (common/each_target.glsl has why).
+#define GWN_EACH_BLOCK(M) M(0) M(1) M(2) M(3) M(4) M(5) M(6) M(7)
 vec4 seg_f[GWN_SEGV];    // half solid angles
 vec4 seg_bnd[GWN_SEGV];  // the expansions' error bounds, turns
 
@@ -86,11 +92,9 @@ vec4 strip_eval(Strip s, vec3 u, vec3 v, vec4 xs) {
 void add_strip(vec3 u, vec3 v, vec2 c, float x0, float weight, uint blocks) {
     if (strip_empty(u, v)) return;
     Strip s = strip_setup(u, v, c);
-    for (int i = 0; i < GWN_SEGV; ++i) {
-        if ((blocks & (1u << i)) == 0u) continue;
-        vec4 xs = vec4(x0 + 0.5) + vec4(4 * i, 4 * i + 1, 4 * i + 2, 4 * i + 3);
-        seg_f[i] += weight * strip_eval(s, u, v, xs);
-    }
+#define GWN_STRIP_BLOCK(i) if ((blocks & (1u << i)) != 0u) \
+        seg_f[i] += weight * strip_eval(s, u, v, vec4(x0 + 0.5) + vec4(4 * i, 4 * i + 1, 4 * i + 2, 4 * i + 3));
+    GWN_EACH_BLOCK(GWN_STRIP_BLOCK)
 }
 
 // Half the solid angle of the strip of u -> v at the point p.
@@ -155,13 +159,11 @@ vec4 far_eval(Far f, vec4 n[7], vec4 xs, out vec4 bound) {
 // polynomial in t whose coefficients are set up once.
 void add_far(vec4 n[7], vec2 c, float x0, uint blocks) {
     Far f = far_setup(n, c);
-    for (int i = 0; i < GWN_SEGV; ++i) {
-        if ((blocks & (1u << i)) == 0u) continue;
-        vec4 xs = vec4(x0 + 0.5) + vec4(4 * i, 4 * i + 1, 4 * i + 2, 4 * i + 3);
-        vec4 bound;
-        seg_f[i] += far_eval(f, n, xs, bound);
-        seg_bnd[i] += bound;
-    }
+    vec4 bound;
+#define GWN_FAR_BLOCK(i) if ((blocks & (1u << i)) != 0u) { \
+        seg_f[i] += far_eval(f, n, vec4(x0 + 0.5) + vec4(4 * i, 4 * i + 1, 4 * i + 2, 4 * i + 3), bound); \
+        seg_bnd[i] += bound; }
+    GWN_EACH_BLOCK(GWN_FAR_BLOCK)
 }
 
 // The expansion at the point p (half solid angle) and its error bound (turns).
