@@ -375,6 +375,14 @@ MUTANTS: list[Mutant] = [
            "shaders/eisemann/setup.comp",
            (("dvec2(col) + 0.5, w_unused", "dvec2(col) + 0.25, w_unused"),),
            ("tests/test_eisemann.py", "-k", "culls or subset or generated")),
+    Mutant("depth-cull-off", "depth layers: the geometry stage draws every small box, covered or not",
+           "shaders/depth/raster.geom",
+           (("const int CULL_CENTERS = 4;", "const int CULL_CENTERS = 0;"),),
+           ("tests/test_depth.py", "-k", "culls")),
+    Mutant("depth-cull-off-center", "depth layers: the geometry stage's cull tests points a quarter voxel off the centers",
+           "shaders/depth/raster.geom",
+           (("fixed_center(pix, u_fix_bits), w_unused", "fixed_center(pix, u_fix_bits) + (1 << (u_fix_bits - 2)), w_unused"),),
+           ("tests/test_depth.py", "-k", "culls or watertight or generated")),
 ]
 
 

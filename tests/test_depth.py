@@ -21,7 +21,9 @@ import trimesh
 
 import glvox
 from glvox.errors import LimitError, MethodError, NotWatertightError, NotWatertightWarning
-from glvox.gpu.buffers import buffer_pool
+from glvox.gpu.buffers import buffer_pool, mesh_buffers
+from glvox.gpu.dispatch import grid_uniforms
+from glvox.gpu.fixed_point import fixed_bits
 from glvox.gl import raw as rawgl
 from glvox.grid import GridSpec
 from glvox.mesh import load_mesh
@@ -302,6 +304,30 @@ def test_fill_rule_on_vertices_and_edges_at_column_centers(gl_context):
 # ---------------------------------------------------------------------------
 # karabassi and passalis-stencil: the paper's figures and the CPU models
 # ---------------------------------------------------------------------------
+
+
+def test_the_geometry_stage_culls_a_small_box_whose_centers_the_triangle_misses(gl_context):
+    """depth/raster.geom emits nothing for a triangle whose box holds at most 4 column
+    centers, none of which the fragments' own exact test finds covered, so the rasterizer
+    never sees it.  Hand-worked, a 16^3 grid on [0, 16]^3 viewed along z: the right
+    triangle with legs from (10.125, 10.125) to x + y = 20.875 lies short of the center
+    (10.5, 10.5) of its box: no primitive; with legs to x + y = 21.125 it covers that
+    center: one (GL_PRIMITIVES_GENERATED counts what the geometry stage emits)."""
+    spec = GridSpec(dims=(16, 16, 16), origin=(0.0, 0.0, 0.0), voxel_size=1.0)
+
+    def primitives(legs_end):
+        lo, hi = 10.125, legs_end - 10.125
+        mesh = load_mesh((np.array([[lo, lo, 5.0], [hi, lo, 7.0], [lo, hi, 9.0]]), np.array([[0, 1, 2]])))
+        bufs = mesh_buffers(gl_context, mesh)
+        query = gl_context.mgl.query(primitives=True)
+        with depth_raster.RasterPass(gl_context, bufs, grid_uniforms(spec, bufs.anchor)) as run:
+            run.set_view(spec, spec.world_to_voxel(mesh.bounds), 2, (16, 16), fixed_bits(mesh, spec, 2))
+            run.set_tile((0, 0))
+            run.draw(depth_raster.depth_target(gl_context, (16, 16)), 0, query=query)
+        return query.primitives
+
+    assert primitives(20.875) == 0
+    assert primitives(21.125) == 1
 
 
 def test_g_shape_hidden_concavity(gl_context):

@@ -17,7 +17,7 @@
 // previous layer's.  The id breaks ties between crossings with equal keys: the depth test
 // keeps the first of equal keys in primitive order, i.e. the smallest id, so the layers
 // enumerate every crossing of a column exactly once, however close two of them are.
-#include "common/fixed.glsl"
+#include "depth/cover.glsl"
 flat in vec3 g_p0;
 flat in vec3 g_p1;
 flat in vec3 g_p2;
@@ -41,21 +41,6 @@ uniform usampler2D u_prev;   // previous layer: (key bits, id, slot, valid)
 // w = floor(q) + 2 with floor(q) clamped to [-1, u_depth_n], so w - 2 is the voxel holding
 // the crossing when it lies in [0, u_depth_n) (binvox-solid's surface; 0 is never written).
 layout(location = 0) out uvec4 o_layer;
-
-// Does the triangle f (sgn: its orientation) cover the column center cf (units)?  A
-// center on an edge counts for a top-left edge only, so a center on an edge shared by
-// two triangles counts once.  w: the oriented edge functions there (edge i weighs
-// vertex i + 2), each rounded once.
-// exact: the reference's coverage test with the top-left rule, in integers
-bool covers(ivec2 f[3], int sgn, ivec2 cf, out dvec3 w) {
-    for (int i = 0; i < 3; ++i) {
-        int s;
-        w[i] = fixed_edge(f[i], f[(i + 1) % 3], cf, s) * double(sgn);
-        s *= sgn;
-        if (!(s > 0 || (s == 0 && fixed_top_left(f, i, sgn)))) return false;
-    }
-    return true;
-}
 
 // The crossing's depth: the vertices' depths weighted by w, clamped to the triangle's
 // extent (outside it only by rounding).

@@ -18,7 +18,7 @@
 layout(triangles) in;
 layout(triangle_strip, max_vertices = 4) out;
 #include "view.glsl"
-#include "common/fixed.glsl"
+#include "depth/cover.glsl"
 in vec3 v_vox[];
 uniform ivec2 u_tile_origin;
 uniform ivec2 u_target_size;
@@ -35,6 +35,7 @@ flat out double g_inv_area2;  // 1 / twice its area, units^2 (the crossing's div
 flat out uint g_id;
 
 const double PROXY_MARGIN = 1.0 / 16.0;
+const int CULL_CENTERS = 4;
 // Miter factor (1 / sin of half the vertex angle) above which the pushed-out triangle is
 // replaced by the bounding box: its tips would reach 625 pixels out.
 const double MAX_MITER = 1.0e4;
@@ -83,6 +84,19 @@ void main() {
     ivec2 first = max(-((half_unit - flo) >> u_fix_bits) - u_tile_origin, ivec2(0));
     ivec2 last = min(((fhi - half_unit) >> u_fix_bits) - u_tile_origin, u_target_size - 1);
     if (any(greaterThan(first, last))) return;
+    // a box of at most CULL_CENTERS centers none of which the triangle covers (the
+    // fragments' own test): nothing to draw; a fine mesh has many such triangles
+    ivec2 span = last - first + 1;
+    if (span.x * span.y <= CULL_CENTERS) {
+        ivec2 fs[3] = ivec2[3](f0, f1, f2);
+        bool any_covered = false;
+        for (int k = 0; k < span.x * span.y; ++k) {
+            dvec3 w_unused;
+            ivec2 pix = first + ivec2(k % span.x, k / span.x) + u_tile_origin;
+            any_covered = any_covered || covers(fs, sgn, fixed_center(pix, u_fix_bits), w_unused);
+        }
+        if (!any_covered) return;
+    }
 
     t_p0 = p0;
     t_p1 = p1;
