@@ -170,7 +170,7 @@ MUTANTS: list[Mutant] = [
            (("    if (widen > 1.0) {", "    if (false) {"),),
            ("tests/test_ldi.py", "-k", "face_along_the_rays")),
     Mutant("depth-top-left-swapped", "depth layers' rasterization: the top-left rule inverted (the other "
-           "edges own the centers on them)", "shaders/depth/raster.frag",
+           "edges own the centers on them)", "shaders/depth/cover.glsl",
            (("        if (!(s > 0 || (s == 0 && fixed_top_left(f, i, sgn)))) return false;",
              "        if (!(s > 0 || (s == 0 && !fixed_top_left(f, i, sgn)))) return false;"),),
            (EXACT, "-k", "solid_methods and passalis-peel")),

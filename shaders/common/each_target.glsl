@@ -4,7 +4,7 @@
 // Why not a loop: GLSL has no portable unroll hint, and Mesa's llvmpipe (22.3) leaves
 // `for (int t = 0; t < N; ++t) o[t] = ...` rolled, turning the output array indexed by
 // the counter into a scalar store per lane and channel.  Measured on the
-// Eisemann-Decoret render (bunny, 512^3, 4 targets): 117 ms with the loop, 70 ms
+// Eisemann-Decoret render (bunny, 512^3, 4 targets): 117 ms with the loop, 61-70 ms
 // spelled out.  A constant index is what every compiler handles best.
 #if TARGETS_N == 1
 #define EACH_TARGET(M) M(0)
