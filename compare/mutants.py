@@ -383,6 +383,14 @@ MUTANTS: list[Mutant] = [
            "shaders/depth/raster.geom",
            (("fixed_center(pix, u_fix_bits), w_unused", "fixed_center(pix, u_fix_bits) + (1 << (u_fix_bits - 2)), w_unused"),),
            ("tests/test_depth.py", "-k", "culls or watertight or generated")),
+    Mutant("binvox-wire-owners-ignored", "binvox-solid -aw: the wireframe draws every copy of a shared edge",
+           "shaders/binvox/wire.geom",
+           (("        if ((own & (1u << uint(k))) == 0u) continue;\n", ""),),
+           ("tests/test_binvox.py", "-k", "each_shared_edge")),
+    Mutant("binvox-wire-owners-swapped", "binvox-solid -aw: the nearest z-buffer's copy of a shared edge is its last",
+           "glvox/methods/binvox/solid.py",
+           (("    bits[first] |= 1\n    bits[last] |= 8\n", "    bits[first] |= 8\n    bits[last] |= 1\n"),),
+           ("tests/test_binvox.py", "-k", "owners")),
 ]
 
 

@@ -21,7 +21,7 @@ from glvox.mesh import binvox_bounds, load_mesh
 from glvox.meshfiles import obj_vertex_bounds
 from glvox.methods import get_method, run_method
 from glvox.errors import SuspiciousResultWarning
-from glvox.methods.binvox.solid import BINVOX_DEFAULTS, gpu_cover_triangles, gpu_triangles
+from glvox.methods.binvox.solid import BINVOX_DEFAULTS, gpu_cover_triangles, gpu_triangles, wire_owners
 from glvox.metrics import tie_set
 from glvox.reference import binvox_ties
 from glvox.reference.binvox_ties import binvox_axis_ties
@@ -188,6 +188,35 @@ def test_wireframe_keeps_a_thin_plate():
             assert not run_method(name, mesh, spec, **opts, allow_open=True).dense().any()
         got = run_method(name, mesh, spec, **{**opts, "wire": True}, allow_open=True).dense()
         assert np.array_equal(got, expect), name
+
+
+def test_wire_owners_hand_worked():
+    """Edge k of a triangle joins its vertices k and k + 1.  Triangles 0 (0, 1, 2) and 1
+    (2, 1, 3) share the edge {1, 2}: triangle 0 draws it into the nearest z-buffer (its
+    first occurrence, bit 1), triangle 1 into the farthest (the last, bit 3 + 0); every
+    other edge is its triangle's alone.  A third triangle (1, 2, 4) on the same edge takes
+    the farthest copy from triangle 1."""
+    assert wire_owners(np.array([[0, 1, 2], [2, 1, 3]])).tolist() == [0b101111, 0b111110]
+    assert wire_owners(np.array([[0, 1, 2], [2, 1, 3], [1, 2, 4]])).tolist() == [0b101111, 0b110110, 0b111110]
+    assert wire_owners(np.zeros((0, 3), np.int64)).tolist() == []
+
+
+def test_the_wireframe_draws_each_shared_edge_once_and_ends_the_same(monkeypatch):
+    """binvox/wire.geom draws a line shared by several triangles once (wire_owners): the
+    nearest and farthest z-buffers keep the first and the last of equal keys, so the solid
+    equals the one with every copy drawn (all bits set).  With no bits set the wireframe
+    draws nothing: the solid of wire=False, so the shader does read the owners."""
+    from glvox.methods.binvox import solid as binvox_solid_module
+    mesh = load_mesh("gen:torus")
+    spec = glvox.grid_for(mesh, dims=(40, 36, 32))
+    opts = {**BINVOX_DEFAULTS, "mode": "carve", "surface": False, "wire": True, "dilated": True}
+    once = run_method("binvox-solid", mesh, spec, **opts).dense()
+    monkeypatch.setattr(binvox_solid_module, "wire_owners", lambda faces: np.full(len(faces), 63, np.uint8))
+    assert np.array_equal(run_method("binvox-solid", mesh, spec, **opts).dense(), once)
+    monkeypatch.setattr(binvox_solid_module, "wire_owners", lambda faces: np.zeros(len(faces), np.uint8))
+    nothing = run_method("binvox-solid", mesh, spec, **opts).dense()
+    assert np.array_equal(nothing, run_method("binvox-solid", mesh, spec, **{**opts, "wire": False}).dense())
+    assert not np.array_equal(nothing, once)
 
 
 def test_dilated_carving_adds_one_voxel_per_end():

@@ -124,32 +124,75 @@ def gpu_cover_triangles(mesh, spec: GridSpec, down: int) -> list[np.ndarray]:
     return out
 
 
+#: Texels per row of the wireframe's owner texture (GL guarantees 16384).
+_OWNERS_WIDTH = 16384
+_OWNERS_UNIT = 2  # texture unit of the owner texture (the raster pass's previous layer takes 0)
+
+
+def wire_owners(faces: np.ndarray) -> np.ndarray:
+    """(F,) uint8: which of its edges each triangle draws into the wireframe.
+
+    Edge k of triangle t joins its vertices k and (k + 1) % 3.  An edge that several
+    triangles share (the same two vertex indices) is one line, drawn by one of them:
+    bits 0-2 mark the first occurrence in primitive order (t, k), which the nearest
+    z-buffer keeps of equal keys (depth test LESS), bits 3-5 the last, which the farthest
+    keeps (LEQUAL).  ``binvox/wire.geom`` draws only the marked edges, and the z-buffers
+    end exactly as with every copy drawn.
+    """
+    f = np.asarray(faces, dtype=np.int64)
+    if len(f) == 0:
+        return np.zeros(0, np.uint8)
+    a, b = f, np.roll(f, -1, axis=1)
+    key = (np.minimum(a, b) * (int(f.max()) + 1) + np.maximum(a, b)).ravel()  # edges in (t, k) order
+    n = len(key)
+    first = np.unique(key, return_index=True)[1]
+    last = n - 1 - np.unique(key[::-1], return_index=True)[1]
+    bits = np.zeros(n, np.uint8)
+    bits[first] |= 1
+    bits[last] |= 8
+    bits = bits.reshape(-1, 3) << np.arange(3, dtype=np.uint8)
+    return np.bitwise_or.reduce(bits, axis=1).astype(np.uint8)
+
+
 class _BinvoxRun(RasterPass):
     """The raster pass with binvox's recording (``binvox/record.comp``) and, for ``-aw``,
     the wireframe (``binvox/wire.*``) drawn into the carving z-buffers."""
 
-    def __init__(self, ctx, bufs, uniforms, record: dict, bufs_out: dict, wire: bool, snap: dict):
+    def __init__(self, ctx, bufs, uniforms, record: dict, bufs_out: dict, wire: bool, snap: dict,
+                 faces: np.ndarray):
         super().__init__(ctx, bufs, uniforms, snap)
         #: binvox/record.comp by stencil mode (0, or 1: the tile's largest count too)
         self.record, self.out = record, bufs_out
         self.wire = None
         self.wire_vao = None
+        self.owners = None
+        self._faces = faces
         if wire:
             self.wire = render_program(ctx, "depth/raster.vert", "binvox/wire.frag", "binvox/wire.geom",
                                        defines=snap)
-            set_uniforms(self.wire, uniforms)
+            set_uniforms(self.wire, {**uniforms, "u_owners": _OWNERS_UNIT})
 
     def __enter__(self) -> "_BinvoxRun":
         super().__enter__()
         if self.wire is not None:
             self.wire_vao = self.ctx.mgl.vertex_array(self.wire, [(self.bufs.vertices, "3f", "in_pos")],
                                                       index_buffer=self.bufs.faces, index_element_size=4)
+            owners = wire_owners(self._faces)
+            width = max(1, min(len(owners), _OWNERS_WIDTH))
+            rows = -(-len(owners) // width)
+            data = np.zeros(width * max(rows, 1), np.uint8)
+            data[:len(owners)] = owners
+            self.owners = self.ctx.mgl.texture((width, max(rows, 1)), 1, data.tobytes(), dtype="u1")
+            self.owners.filter = (moderngl.NEAREST, moderngl.NEAREST)  # integer textures are incomplete otherwise
         return self
 
     def __exit__(self, *exc) -> None:
         if self.wire_vao is not None:
             self.wire_vao.release()
             self.wire_vao = None
+        if self.owners is not None:
+            self.owners.release()
+            self.owners = None
         super().__exit__(*exc)
 
     def set_view(self, spec, bounds, axis: int, size: tuple[int, int], fix_bits: int) -> None:
@@ -171,6 +214,7 @@ class _BinvoxRun(RasterPass):
         if self.wire is not None:
             target.fbos[layer].use()
             set_uniforms(self.wire, {"u_far": far})
+            self.owners.use(_OWNERS_UNIT)
             self.wire_vao.render(moderngl.TRIANGLES)
             self.passes += 1
 
@@ -236,7 +280,8 @@ class BinvoxSolid(Method):
         bounds = spec.world_to_voxel(mesh.bounds)
         layers: dict[str, int] = {}
         tiles: dict[str, int] = {}
-        with _BinvoxRun(ctx, bufs, uniforms, record, out, wire and carve, snap_defines(fine_snap_eps(down))) as run:
+        with _BinvoxRun(ctx, bufs, uniforms, record, out, wire and carve, snap_defines(fine_snap_eps(down)),
+                        mesh.faces) as run:
             for axis in range(3):
                 name = _AXIS_NAMES[axis]
                 n_u, n_v = spec.dims[(axis + 1) % 3], spec.dims[(axis + 2) % 3]
