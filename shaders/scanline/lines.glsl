@@ -271,10 +271,10 @@ Ilv ilv_base(ivec3 p, ivec3 q, int K) {
 // wins a tie iff the current best moves down (a total order: see above).
 int ilv_axis(Ilv it) {
     int best = -1;
-    int bl = 0;
-    if (it.left.x > 0) { best = 0; bl = it.L.x; }
-    if (it.left.y > 0 && (best < 0 || it.L.y < bl || (it.L.y == bl && it.stp[best] < 0))) { best = 1; bl = it.L.y; }
-    if (it.left.z > 0 && (best < 0 || it.L.z < bl || (it.L.z == bl && it.stp[best] < 0))) { best = 2; bl = it.L.z; }
+    int bl = 0, bs = 0;  // best's L and step
+    if (it.left.x > 0) { best = 0; bl = it.L.x; bs = it.stp.x; }
+    if (it.left.y > 0 && (best < 0 || it.L.y < bl || (it.L.y == bl && bs < 0))) { best = 1; bl = it.L.y; bs = it.stp.y; }
+    if (it.left.z > 0 && (best < 0 || it.L.z < bl || (it.L.z == bl && bs < 0))) { best = 2; bl = it.L.z; bs = it.stp.z; }
     if (it.base && best >= 0) {
         int o = -1;  // the other axis tied with best (a base edge moves along two axes at most)
         if (best != 0 && it.left.x > 0 && it.L.x == bl) o = 0;
@@ -291,11 +291,11 @@ int ilv_axis(Ilv it) {
 }
 
 void ilv_step(inout Ilv it, int ax) {
-    int lm = it.L[ax];
-    it.L -= ivec3(greaterThan(it.m2, ivec3(0))) * lm;
-    it.L[ax] = it.m2[ax];
-    it.p[ax] += it.stp[ax];
-    it.left[ax] -= 1;
+    ivec3 e = ivec3(equal(ivec3(ax), ivec3(0, 1, 2)));  // one-hot: no vector indexed by a variable
+    int lm = it.L.x * e.x + it.L.y * e.y + it.L.z * e.z;
+    it.L = mix(it.L - ivec3(greaterThan(it.m2, ivec3(0))) * lm, it.m2, bvec3(e));
+    it.p += it.stp * e;
+    it.left -= e;
 }
 
 // The ILV voxels from p to q, the exact reverse of q -> p (_path).
