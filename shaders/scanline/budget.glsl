@@ -22,7 +22,9 @@
 //           selection charge, the total job cost and the largest job cost;
 //   PASS 2  (one invocation per part of a triangle) draw the jobs whose
 //           running cost starts in [lo, hi); an invocation that still runs
-//           out of budget counts itself in out_words[0].
+//           out of budget counts itself in out_words[0];
+//   PASS 3  (ILV's small-triangle table, voxelize.comp) draw every job into
+//           the invocation's 3 x 3 x 3 block; out of budget marks the entry bad.
 
 uint g_ticks = 0u;     // iterations charged so far
 bool g_abort = false;  // out of budget: stop, draw nothing more
@@ -45,7 +47,7 @@ bool tick(uint w) {
 // A line of `cost` loop iterations: true when this invocation draws it now.
 bool job(uint cost) {
     if (g_abort) return false;
-#if PASS == 0
+#if PASS == 0 || PASS == 3
     return tick(cost);
 #else
     uint start = g_cost;
@@ -59,6 +61,21 @@ bool job(uint cost) {
 #endif
 }
 
+#if PASS == 3
+// Building the small-triangle table (voxelize.comp): marks go to this
+// invocation's block, bit x + 3 y + 9 z for voxel SMALL_BASE + (x, y, z).
+const ivec3 SMALL_BASE = ivec3(4);
+uint g_small = 0u;
+
+void mark(ivec3 v) {
+    ivec3 d = v - SMALL_BASE;
+    if (all(greaterThanEqual(d, ivec3(0))) && all(lessThan(d, ivec3(3))))
+        g_small |= 1u << uint(d.x + 3 * d.y + 9 * d.z);
+    else
+        g_small |= 0x80000000u;  // cannot happen: ILV paths stay in the triangle's lattice box
+}
+#else
 void mark(ivec3 v) {
     if (in_grid(v)) atomicOr(grid[word_index(v)], bit_of(uint(v.x)));
 }
+#endif

@@ -9,7 +9,10 @@
 //   LINE_MODE   0 RLV, 1 SLV (float path), 2 ILV (integer path)
 //   TUNNEL      26, 18 or 6
 //   PASS        0 all triangles, 1 measure, 2 draw parts (budget.glsl); in PASS 0
-//               out_words[1] counts ILV triangles refused for ILV_COORD_LIMIT
+//               out_words[1] counts ILV triangles refused for ILV_COORD_LIMIT;
+//               3 (ILV) builds the small-triangle table (below)
+//   SMALL_TABLE 1 (ILV, PASS 0): a triangle whose lattice points lie in a 3 x 3 x 3
+//               block takes its voxels from the table instead of the scan
 //   LOCAL_SIZE  work group size
 //   SCANLINE_SLACK, ILV_COORD_LIMIT, ILV_BOUNDARY_SNAP, RLV_BOUNDARY_SNAP
 //               (constants of the CPU module)
@@ -24,6 +27,11 @@ layout(std430, binding = 1) readonly buffer Faces { uint faces[]; };
 layout(std430, binding = 2) buffer Grid { uint grid[]; };
 layout(std430, binding = 3) buffer Out { uint out_words[]; };
 layout(std430, binding = 4) readonly buffer Items { uvec4 items[]; };  // PASS 1, 2: (triangle, lo, hi, -)
+#if PASS == 3 || SMALL_TABLE
+// Bit x + 3 y + 9 z of entry small_index(P0 - lo, P1 - lo, P2 - lo): voxel lo + (x, y, z)
+// of the ILV triangle P0 P1 P2 (lo its lattice box's low corner), as the scan below draws it.
+layout(std430, binding = 5) buffer Table { uint small_table[]; };
+#endif
 
 uniform uint u_count;   // triangles (PASS 0) or items (PASS 1, 2)
 uniform uint u_budget;  // loop iterations this invocation may charge (budget.glsl)
@@ -390,6 +398,58 @@ void ilv_slice(Chain ca, Chain cb, ivec3 A_last, ivec3 B_last, bool below, bool 
     }
 }
 
+// ---------------------------------------------------------------------------
+// Small triangles by table
+//
+// ILV is integer from the lattice points on, and nothing it decides depends on
+// where the triangle lies: moved by whole voxels, it draws the same voxels moved
+// alike (the grid only clips them).  So the voxels of every triangle whose lattice
+// points fit in a 3 x 3 x 3 block (27^3 ordered triples) are drawn once, by the
+// scan itself, into a table (PASS 3, once per context and tunnel), and such
+// triangles (most of a fine mesh's at 128^3 to 256^3) read their block from it:
+// no loops, and one atomicOr per word of each of its rows.
+
+const uint SMALL_ENTRIES = 19683u;   // 27^3
+const uint SMALL_BAD = 0x80000000u;  // PASS 3: a voxel outside the block, or out of budget
+
+uint small_corner(ivec3 d) { return uint(d.x + 3 * d.y + 9 * d.z); }
+
+uint small_index(ivec3 d0, ivec3 d1, ivec3 d2) {
+    return small_corner(d0) * 729u + small_corner(d1) * 27u + small_corner(d2);
+}
+
+#if SMALL_TABLE
+// Voxels v + (i, 0, 0) for the set bits i < 3 of `bits`, clipped to the grid.
+// A row of 3 voxels spans at most two words; v.x >= -2 (the block meets the grid).
+void mark_row3(ivec3 v, uint bits) {
+    if (v.y < 0 || v.y >= u_dims.y || v.z < 0 || v.z >= u_dims.z) return;
+    if (v.x < 0) bits &= ~((1u << uint(-v.x)) - 1u);
+    int over = v.x + 3 - u_dims.x;
+    if (over > 0) bits &= over >= 3 ? 0u : (1u << uint(3 - over)) - 1u;
+    if (bits == 0u) return;
+    // voxel x lies in word x >> 5 at bit x & 31 (for x < 0 too, in two's complement);
+    // the bits of voxels below 0 are cleared above, so word -1 never gets any
+    uint s = uint(v.x) & 31u;
+    uint row = word_index(ivec3(0, v.y, v.z));
+    int w = v.x >> 5;
+    uint first = bits << s, second = s == 0u ? 0u : bits >> (32u - s);
+    if (first != 0u) atomicOr(grid[row + uint(w)], first);
+    if (second != 0u) atomicOr(grid[row + uint(w + 1)], second);
+}
+
+#define SMALL_ROW(y, z) mark_row3(lo + ivec3(0, y, z), (m >> (3u * uint((y) + 3 * (z)))) & 7u);
+
+void mark_small(ivec3 lo, uint m) {
+    SMALL_ROW(0, 0) SMALL_ROW(1, 0) SMALL_ROW(2, 0)
+    SMALL_ROW(0, 1) SMALL_ROW(1, 1) SMALL_ROW(2, 1)
+    SMALL_ROW(0, 2) SMALL_ROW(1, 2) SMALL_ROW(2, 2)
+}
+#endif
+
+// ---------------------------------------------------------------------------
+
+void ilv_scan(ivec3 P0, ivec3 P1, ivec3 P2);
+
 void ilv_triangle(vec3 X0, vec3 X1, vec3 X2) {
     ivec3 P0 = lattice(X0), P1 = lattice(X1), P2 = lattice(X2);
     ivec3 lo = min(P0, min(P1, P2)), hi = max(P0, max(P1, P2));
@@ -401,6 +461,17 @@ void ilv_triangle(vec3 X0, vec3 X1, vec3 X2) {
 #endif
         return;
     }
+#if SMALL_TABLE
+    if (all(lessThanEqual(hi - lo, ivec3(2)))) {
+        mark_small(lo, small_table[small_index(P0 - lo, P1 - lo, P2 - lo)]);
+        return;
+    }
+#endif
+    ilv_scan(P0, P1, P2);
+}
+
+// The ILV voxels of the lattice triangle P0 P1 P2 (edges, then the slices' scans).
+void ilv_scan(ivec3 P0, ivec3 P1, ivec3 P2) {
     draw_ilv(P0, P1, 0, 0, false);
     draw_ilv(P1, P2, 0, 0, false);
     draw_ilv(P2, P0, 0, 0, false);
@@ -448,6 +519,22 @@ void ilv_triangle(vec3 X0, vec3 X1, vec3 X2) {
 
 // ---------------------------------------------------------------------------
 
+#if PASS == 3
+// Table entry gid: the triangle of corners gid / 729, gid / 27 % 27, gid % 27 of the
+// block at SMALL_BASE (u_dims holds the block with room around it).
+ivec3 small_offset(uint c) { return ivec3(int(c % 3u), int(c / 3u % 3u), int(c / 9u)); }
+
+void main() {
+    uint gid = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x;
+    if (gid >= SMALL_ENTRIES) return;
+    tick(16u);
+    ivec3 P0 = SMALL_BASE + small_offset(gid / 729u);
+    ivec3 P1 = SMALL_BASE + small_offset(gid / 27u % 27u);
+    ivec3 P2 = SMALL_BASE + small_offset(gid % 27u);
+    ilv_scan(P0, P1, P2);
+    small_table[gid] = g_abort ? SMALL_BAD : g_small;
+}
+#else
 void main() {
     uint gid = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x;
     if (gid >= u_count) return;
@@ -478,3 +565,4 @@ void main() {
     if (g_abort) atomicAdd(out_words[0], 1u);
 #endif
 }
+#endif

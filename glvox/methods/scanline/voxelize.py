@@ -51,7 +51,7 @@ import numpy as np
 
 from ...errors import LimitError
 from ...gl.shaders import compute_program
-from ...gpu.buffers import buffer_pool, mesh_buffers, read_grid_words
+from ...gpu.buffers import buffer_pool, mesh_buffers, object_cache, read_grid_words, release_object_cache
 from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
 from ...gpu.transform import SHADERS as TRANSFORM_SHADERS, SNAP_DEFINES, gpu_triangles_voxel
 from ...reference.scanline import (ILV_BOUNDARY_SNAP, ILV_COORD_LIMIT, RLV_BOUNDARY_SNAP, SCANLINE_SLACK,
@@ -62,8 +62,16 @@ from ..base import Method, MethodInfo, Option, Requirements, register
 _PAPER = "Zhang et al. 2018"
 _LOCAL = 64
 _MODES = {"rlv": 0, "slv": 1, "ilv": 2}
-_REQUIRES = Requirements(gl_version=450, limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 5},
-                         compute=(("scanline/voxelize.comp", {"LOCAL_SIZE": _LOCAL}),) + TRANSFORM_SHADERS)
+_REQUIRES = Requirements(gl_version=450,
+                         compute=tuple(("scanline/voxelize.comp", {"LOCAL_SIZE": _LOCAL, "PASS": pass_,
+                                                                   "SMALL_TABLE": int(pass_ == 0)})
+                                       for pass_ in (0, 3)) + TRANSFORM_SHADERS)
+
+#: Entries of ILV's small-triangle table: every ordered triple of lattice
+#: points in a 3 x 3 x 3 block (SMALL_ENTRIES in shaders/scanline/voxelize.comp).
+SMALL_ENTRIES = 27**3
+_SMALL_BAD = 0x80000000
+_TABLES = "scanline-ilv-small"
 
 #: Loop iterations kept back from LOOP_BUDGET per SIMD batch: the shader
 #: charges the entries of its outermost loops and its final partial loop
@@ -107,13 +115,42 @@ class _Scanline(Method):
 
     def _program(self, ctx, tunnel: int, pass_: int):
         defines = {"LINE_MODE": _MODES[self.mode], "TUNNEL": int(tunnel), "PASS": pass_,
-                   "LOCAL_SIZE": _LOCAL if pass_ == 0 else 1, "SCANLINE_SLACK": float(SCANLINE_SLACK),
+                   "SMALL_TABLE": int(self.mode == "ilv" and pass_ == 0),
+                   "LOCAL_SIZE": _LOCAL if pass_ in (0, 3) else 1, "SCANLINE_SLACK": float(SCANLINE_SLACK),
                    "ILV_COORD_LIMIT": int(ILV_COORD_LIMIT), "ILV_BOUNDARY_SNAP": float(ILV_BOUNDARY_SNAP),
                    "RLV_BOUNDARY_SNAP": float(RLV_BOUNDARY_SNAP), **SNAP_DEFINES}
         return compute_program(ctx, "scanline/voxelize.comp", defines)
 
     def release(self, ctx) -> None:
         buffer_pool(ctx, "scanline").release()  # the three line modes share one pool
+        release_object_cache(ctx, _TABLES)
+
+    def small_table(self, ctx, tunnel: int):
+        """ILV's small-triangle table for ``tunnel``, built on first use in ``ctx``.
+
+        Entry ``i0 * 729 + i1 * 27 + i2`` holds, as bit ``x + 3 y + 9 z``, the
+        voxels the scan draws for the lattice triangle whose points are the
+        corners ``i0``, ``i1``, ``i2`` (corner ``x + 3 y + 9 z``) of a 3 x 3 x 3
+        block: one dispatch of the scan itself over every triple
+        (``PASS 3``).  It is read back once to check that no triple ran out of
+        loop budget or drew outside its block (neither can happen).
+        """
+        cache = object_cache(ctx, _TABLES, lambda c: [c.pop(k).release() for k in list(c)])
+        table = cache.get(tunnel)
+        if table is None:
+            table = ctx.mgl.buffer(reserve=4 * SMALL_ENTRIES)
+            prog = self._program(ctx, tunnel, 3)
+            set_uniforms(prog, {"u_dims": (16, 16, 16), "u_budget": loop_budgets(ctx)[0]})
+            bind(prog, Table=table)
+            dispatch_1d(ctx, prog, SMALL_ENTRIES, _LOCAL)
+            barrier(ctx)
+            bad = np.flatnonzero(np.frombuffer(table.read(), dtype="<u4") & _SMALL_BAD)
+            if len(bad):
+                table.release()
+                raise RuntimeError(f"scanline-ilv: {len(bad)} entries of the small-triangle table "
+                                   f"failed to build on {ctx.renderer} (first: {int(bad[0])})")
+            cache[tunnel] = table
+        return table
 
     def run(self, mesh, spec, *, ctx, timer, tunnel):
         n = mesh.n_triangles
@@ -129,6 +166,8 @@ class _Scanline(Method):
         with timer.stage("voxelize"):
             # Items is never read in this pass, but a block the shader declares gets a buffer
             bind(prog, Vertices=bufs.vertices, Faces=bufs.faces, Grid=grid, Out=out, Items=out)
+            if self.mode == "ilv":
+                bind(prog, Table=self.small_table(ctx, tunnel))
             dispatch_1d(ctx, prog, n, _LOCAL)
             barrier(ctx)
         n_over, refused = (int(x) for x in np.frombuffer(out.read(size=8), dtype="<u4"))
