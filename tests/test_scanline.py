@@ -641,40 +641,47 @@ def test_slivers_and_collinear_lattice_triangles(gl_context):
 
 
 def _small_triangles(lattice_lo, corners, rng):
-    """Triangles whose lattice points are lattice_lo + corner (corner x + 3 y + 9 z of a
-    3 x 3 x 3 block), each vertex jittered inside its voxel, away from its faces."""
-    offs = np.array([(c % 3, c // 3 % 3, c // 9) for c in range(27)], dtype=np.float64)
+    """Triangles whose lattice points are lattice_lo + corner (corner x + 4 y + 16 z of a
+    4 x 4 x 4 block), each vertex jittered inside its voxel, away from its faces."""
+    offs = np.array([(c % 4, c // 4 % 4, c // 16) for c in range(64)], dtype=np.float64)
     pts = np.asarray(lattice_lo, dtype=np.float64)[:, None, :] + offs[np.asarray(corners)]
     v = (pts + rng.uniform(0.2, 0.8, pts.shape)).reshape(-1, 3)
     return load_mesh((v, np.arange(len(v)).reshape(-1, 3)))
 
 
 @pytest.mark.parametrize("tunnel", TUNNELS)
-def test_ilv_small_triangles_every_triple_in_a_block(tunnel, gl_context):
-    """ILV draws a triangle whose lattice points fit in a 3 x 3 x 3 block from a table
-    the GPU's own scan builds.  Every one of the 27^3 ordered triples, each in its own
-    block (the x offset 2 puts a block across the word boundary 31 | 32), equals the
+def test_ilv_small_triangles_in_a_block(tunnel, gl_context):
+    """ILV draws a triangle whose lattice points fit in a 4 x 4 x 4 block from a table
+    the GPU's own scan builds.  Every set of three corners of the block (45,760; a
+    sample of 8,000 for the thin variants), its vertices in a random order, each in
+    its own block of a grid (one block across x's word boundary 31 | 32), equals the
     CPU scan voxel for voxel: the table, its index and its row writes."""
-    triples = np.array(list(itertools.product(range(27), repeat=3)))
-    mesh = _small_triangles(triples * 4 + (2, 1, 1), triples, np.random.default_rng(3))
-    spec = GridSpec((110, 109, 109), (0, 0, 0), 1.0)
+    rng = np.random.default_rng(3)
+    sets = np.array([t for t in itertools.combinations_with_replacement(range(64), 3)])
+    if tunnel != 26:
+        sets = sets[rng.choice(len(sets), 8000, replace=False)]
+    sets = rng.permuted(sets, axis=1)
+    k = np.arange(len(sets))
+    blocks = np.stack([k % 36, k // 36 % 36, k // 1296], axis=1)
+    mesh = _small_triangles(blocks * 5, sets, rng)
+    spec = GridSpec((180, 180, 180), (0, 0, 0), 1.0)
     gpu = run_method("scanline-ilv", mesh, spec, tunnel=tunnel).dense()
     cpu = scanline_surface(gpu_voxel_coords(mesh, spec), spec.dims, "ilv", tunnel)
     assert (gpu == cpu).all(), f"{int((gpu != cpu).sum())} voxels differ"
 
 
 def test_ilv_small_triangles_clipped_at_every_face_of_the_grid(gl_context):
-    """Small triangles whose block sticks out of the grid by 0 to 2 voxels on either
+    """Small triangles whose block sticks out of the grid by 0 to 3 voxels on either
     side of every axis (and straddles x's word boundary 31 | 32): the table's rows are
     clipped to the grid exactly as the scan's voxels are.  nx = 64 fills its rows'
     words, so a bit past either end would land in a voxel of the row before or after."""
     rng = np.random.default_rng(11)
-    dims = np.array([64, 6, 5])
+    dims = np.array([64, 7, 6])
     n = 200
-    choices = [np.array([-2, -1, 0, 29, 30, 31, d - 3, d - 2, d - 1]) if i == 0 else
-               np.array([-2, -1, 0, 1, d - 3, d - 2, d - 1]) for i, d in enumerate(dims)]
+    choices = [np.array([-3, -2, -1, 0, 28, 29, 30, 31, d - 4, d - 3, d - 2, d - 1]) if i == 0 else
+               np.array([-3, -2, -1, 0, d - 4, d - 3, d - 2, d - 1]) for i, d in enumerate(dims)]
     lo = np.stack([rng.choice(c, n) for c in choices], axis=1)
-    mesh = _small_triangles(lo, rng.integers(0, 27, (n, 3)), rng)
+    mesh = _small_triangles(lo, rng.integers(0, 64, (n, 3)), rng)
     spec = GridSpec(tuple(int(d) for d in dims), (0, 0, 0), 1.0)
     for tunnel in TUNNELS:
         gpu = run_method("scanline-ilv", mesh, spec, tunnel=tunnel)

@@ -24,7 +24,7 @@
 //           running cost starts in [lo, hi); an invocation that still runs
 //           out of budget counts itself in out_words[0];
 //   PASS 3  (ILV's small-triangle table, voxelize.comp) draw every job into
-//           the invocation's 3 x 3 x 3 block; out of budget marks the entry bad.
+//           the invocation's 4 x 4 x 4 block; out of budget counts the entry bad.
 
 uint g_ticks = 0u;     // iterations charged so far
 bool g_abort = false;  // out of budget: stop, draw nothing more
@@ -63,16 +63,20 @@ bool job(uint cost) {
 
 #if PASS == 3
 // Building the small-triangle table (voxelize.comp): marks go to this
-// invocation's block, bit x + 3 y + 9 z for voxel SMALL_BASE + (x, y, z).
+// invocation's block, bit x + 4 y + 16 z for voxel SMALL_BASE + (x, y, z).
 const ivec3 SMALL_BASE = ivec3(4);
-uint g_small = 0u;
+uvec2 g_small = uvec2(0u);
+bool g_small_bad = false;
 
 void mark(ivec3 v) {
     ivec3 d = v - SMALL_BASE;
-    if (all(greaterThanEqual(d, ivec3(0))) && all(lessThan(d, ivec3(3))))
-        g_small |= 1u << uint(d.x + 3 * d.y + 9 * d.z);
-    else
-        g_small |= 0x80000000u;  // cannot happen: ILV paths stay in the triangle's lattice box
+    if (all(greaterThanEqual(d, ivec3(0))) && all(lessThan(d, ivec3(4)))) {
+        uint bit = uint(d.x + 4 * d.y + 16 * d.z);
+        if (bit < 32u) g_small.x |= 1u << bit;
+        else g_small.y |= 1u << (bit - 32u);
+    } else {
+        g_small_bad = true;  // cannot happen: ILV paths stay in the triangle's lattice box
+    }
 }
 #else
 void mark(ivec3 v) {

@@ -11,7 +11,7 @@
 //   PASS        0 all triangles, 1 measure, 2 draw parts (budget.glsl); in PASS 0
 //               out_words[1] counts ILV triangles refused for ILV_COORD_LIMIT;
 //               3 (ILV) builds the small-triangle table (below)
-//   SMALL_TABLE 1 (ILV, PASS 0): a triangle whose lattice points lie in a 3 x 3 x 3
+//   SMALL_TABLE 1 (ILV, PASS 0): a triangle whose lattice points lie in a 4 x 4 x 4
 //               block takes its voxels from the table instead of the scan
 //   LOCAL_SIZE  work group size
 //   SCANLINE_SLACK, ILV_COORD_LIMIT, ILV_BOUNDARY_SNAP, RLV_BOUNDARY_SNAP
@@ -28,9 +28,10 @@ layout(std430, binding = 2) buffer Grid { uint grid[]; };
 layout(std430, binding = 3) buffer Out { uint out_words[]; };
 layout(std430, binding = 4) readonly buffer Items { uvec4 items[]; };  // PASS 1, 2: (triangle, lo, hi, -)
 #if PASS == 3 || SMALL_TABLE
-// Bit x + 3 y + 9 z of entry small_index(P0 - lo, P1 - lo, P2 - lo): voxel lo + (x, y, z)
-// of the ILV triangle P0 P1 P2 (lo its lattice box's low corner), as the scan below draws it.
-layout(std430, binding = 5) buffer Table { uint small_table[]; };
+// Bit x + 4 y + 16 z (of .x below 32, else of .y) of the entry of the ILV triangle
+// P0 P1 P2 (small_index): voxel lo + (x, y, z), lo its lattice box's low corner, as the
+// scan below draws it.
+layout(std430, binding = 5) buffer Table { uvec2 small_table[]; };
 #endif
 
 uniform uint u_count;   // triangles (PASS 0) or items (PASS 1, 2)
@@ -402,30 +403,33 @@ void ilv_slice(Chain ca, Chain cb, ivec3 A_last, ivec3 B_last, bool below, bool 
 // Small triangles by table
 //
 // ILV is integer from the lattice points on, and nothing it decides depends on
-// where the triangle lies: moved by whole voxels, it draws the same voxels moved
-// alike (the grid only clips them).  So the voxels of every triangle whose lattice
-// points fit in a 3 x 3 x 3 block (27^3 ordered triples) are drawn once, by the
-// scan itself, into a table (PASS 3, once per context and tunnel), and such
-// triangles (most of a fine mesh's at 128^3 to 256^3) read their block from it:
+// where the triangle lies or on the order of its vertices: moved by whole
+// voxels, it draws the same voxels moved alike (the grid only clips them), and
+// its edges, normal axis and sorted slices are the same in any vertex order.  So
+// the voxels of every triangle whose lattice points fit in a 4 x 4 x 4 block
+// (C(66, 3) = 45,760 sets of three corners, repeats allowed) are drawn once, by
+// the scan itself, into a table (PASS 3, once per context and tunnel), and such
+// triangles (nearly all of a fine mesh's up to 256^3) read their block from it:
 // no loops, and one atomicOr per word of each of its rows.
 
-const uint SMALL_ENTRIES = 19683u;   // 27^3
-const uint SMALL_BAD = 0x80000000u;  // PASS 3: a voxel outside the block, or out of budget
+uint small_corner(ivec3 d) { return uint(d.x + 4 * d.y + 16 * d.z); }
 
-uint small_corner(ivec3 d) { return uint(d.x + 3 * d.y + 9 * d.z); }
-
-uint small_index(ivec3 d0, ivec3 d1, ivec3 d2) {
-    return small_corner(d0) * 729u + small_corner(d1) * 27u + small_corner(d2);
+// The entry of corners c0, c1, c2 in any order: sorted, their rank among the
+// sorted triples (the combinatorial number system with repeats).
+uint small_index(uint c0, uint c1, uint c2) {
+    uint lo = min(c0, min(c1, c2)), hi = max(c0, max(c1, c2));
+    uint mid = c0 + c1 + c2 - lo - hi;
+    return hi * (hi + 1u) * (hi + 2u) / 6u + mid * (mid + 1u) / 2u + lo;
 }
 
 #if SMALL_TABLE
-// Voxels v + (i, 0, 0) for the set bits i < 3 of `bits`, clipped to the grid.
-// A row of 3 voxels spans at most two words; v.x >= -2 (the block meets the grid).
-void mark_row3(ivec3 v, uint bits) {
-    if (v.y < 0 || v.y >= u_dims.y || v.z < 0 || v.z >= u_dims.z) return;
+// Voxels v + (i, 0, 0) for the set bits i < 4 of `bits`, clipped to the grid.
+// A row of 4 voxels spans at most two words; v.x >= -3 (the block meets the grid).
+void mark_row4(ivec3 v, uint bits) {
+    if (bits == 0u || v.y < 0 || v.y >= u_dims.y || v.z < 0 || v.z >= u_dims.z) return;
     if (v.x < 0) bits &= ~((1u << uint(-v.x)) - 1u);
-    int over = v.x + 3 - u_dims.x;
-    if (over > 0) bits &= over >= 3 ? 0u : (1u << uint(3 - over)) - 1u;
+    int over = v.x + 4 - u_dims.x;
+    if (over > 0) bits &= over >= 4 ? 0u : (1u << uint(4 - over)) - 1u;
     if (bits == 0u) return;
     // voxel x lies in word x >> 5 at bit x & 31 (for x < 0 too, in two's complement);
     // the bits of voxels below 0 are cleared above, so word -1 never gets any
@@ -437,12 +441,14 @@ void mark_row3(ivec3 v, uint bits) {
     if (second != 0u) atomicOr(grid[row + uint(w + 1)], second);
 }
 
-#define SMALL_ROW(y, z) mark_row3(lo + ivec3(0, y, z), (m >> (3u * uint((y) + 3 * (z)))) & 7u);
+// Row (y, z) of the block: bits 4 (y + 4 z) ... + 3 of the entry, in .x for z < 2.
+#define SMALL_ROW(Y, Z) mark_row4(lo + ivec3(0, Y, Z), (((Z) < 2 ? m.x : m.y) >> (4u * uint((Y) + 4 * ((Z) & 1)))) & 15u);
 
-void mark_small(ivec3 lo, uint m) {
-    SMALL_ROW(0, 0) SMALL_ROW(1, 0) SMALL_ROW(2, 0)
-    SMALL_ROW(0, 1) SMALL_ROW(1, 1) SMALL_ROW(2, 1)
-    SMALL_ROW(0, 2) SMALL_ROW(1, 2) SMALL_ROW(2, 2)
+void mark_small(ivec3 lo, uvec2 m) {
+    SMALL_ROW(0, 0) SMALL_ROW(1, 0) SMALL_ROW(2, 0) SMALL_ROW(3, 0)
+    SMALL_ROW(0, 1) SMALL_ROW(1, 1) SMALL_ROW(2, 1) SMALL_ROW(3, 1)
+    SMALL_ROW(0, 2) SMALL_ROW(1, 2) SMALL_ROW(2, 2) SMALL_ROW(3, 2)
+    SMALL_ROW(0, 3) SMALL_ROW(1, 3) SMALL_ROW(2, 3) SMALL_ROW(3, 3)
 }
 #endif
 
@@ -462,8 +468,8 @@ void ilv_triangle(vec3 X0, vec3 X1, vec3 X2) {
         return;
     }
 #if SMALL_TABLE
-    if (all(lessThanEqual(hi - lo, ivec3(2)))) {
-        mark_small(lo, small_table[small_index(P0 - lo, P1 - lo, P2 - lo)]);
+    if (all(lessThanEqual(hi - lo, ivec3(3)))) {
+        mark_small(lo, small_table[small_index(small_corner(P0 - lo), small_corner(P1 - lo), small_corner(P2 - lo))]);
         return;
     }
 #endif
@@ -520,19 +526,18 @@ void ilv_scan(ivec3 P0, ivec3 P1, ivec3 P2) {
 // ---------------------------------------------------------------------------
 
 #if PASS == 3
-// Table entry gid: the triangle of corners gid / 729, gid / 27 % 27, gid % 27 of the
-// block at SMALL_BASE (u_dims holds the block with room around it).
-ivec3 small_offset(uint c) { return ivec3(int(c % 3u), int(c / 3u % 3u), int(c / 9u)); }
+// Item gid holds three corners (x + 4 y + 16 z) of the block at SMALL_BASE (u_dims
+// holds the block with room around it); their entry is written, or counted bad.
+ivec3 small_offset(uint c) { return ivec3(int(c & 3u), int(c >> 2 & 3u), int(c >> 4)); }
 
 void main() {
     uint gid = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x;
-    if (gid >= SMALL_ENTRIES) return;
+    if (gid >= u_count) return;
     tick(16u);
-    ivec3 P0 = SMALL_BASE + small_offset(gid / 729u);
-    ivec3 P1 = SMALL_BASE + small_offset(gid / 27u % 27u);
-    ivec3 P2 = SMALL_BASE + small_offset(gid % 27u);
-    ilv_scan(P0, P1, P2);
-    small_table[gid] = g_abort ? SMALL_BAD : g_small;
+    uvec4 c = items[gid];
+    ilv_scan(SMALL_BASE + small_offset(c.x), SMALL_BASE + small_offset(c.y), SMALL_BASE + small_offset(c.z));
+    small_table[small_index(c.x, c.y, c.z)] = g_small;
+    if (g_abort || g_small_bad) atomicAdd(out_words[0], 1u);
 }
 #else
 void main() {

@@ -45,6 +45,7 @@ is no such limit and the overflow stage never runs.
 
 from __future__ import annotations
 
+import math
 import re
 
 import numpy as np
@@ -67,11 +68,30 @@ _REQUIRES = Requirements(gl_version=450,
                                                                    "SMALL_TABLE": int(pass_ == 0)})
                                        for pass_ in (0, 3)) + TRANSFORM_SHADERS)
 
-#: Entries of ILV's small-triangle table: every ordered triple of lattice
-#: points in a 3 x 3 x 3 block (SMALL_ENTRIES in shaders/scanline/voxelize.comp).
-SMALL_ENTRIES = 27**3
-_SMALL_BAD = 0x80000000
+#: ILV's small-triangle table: a triangle whose lattice points fit in a block of
+#: SMALL_BLOCK^3 voxels reads its voxels from it (shaders/scanline/voxelize.comp).
+SMALL_BLOCK = 4
+#: Its entries: one per set of three of the block's corners (repeats allowed).
+SMALL_SLOTS = math.comb(SMALL_BLOCK**3 + 2, 3)
 _TABLES = "scanline-ilv-small"
+
+
+def small_triples() -> np.ndarray:
+    """The triangles ILV's small-triangle table holds, as (n, 4) uint32 ``(c0, c1,
+    c2, 0)``: corners ``x + 4 y + 16 z`` of the 4 x 4 x 4 block, ``c0 <= c1 <= c2``
+    (the scan does not depend on the vertices' order), whose lowest x, y and z
+    are all 0 (a triangle is looked up relative to the low corner of its lattice
+    box): 8,614 of the C(66, 3) = 45,760 sets of three corners."""
+    c = np.arange(SMALL_BLOCK**3)
+    c0, c1, c2 = (a.ravel() for a in np.meshgrid(c, c, c, indexing="ij"))
+    keep = (c0 <= c1) & (c1 <= c2)
+    xyz = [np.stack([k % SMALL_BLOCK, k // SMALL_BLOCK % SMALL_BLOCK, k // SMALL_BLOCK**2], axis=1)
+           for k in (c0, c1, c2)]
+    keep &= (np.minimum(np.minimum(xyz[0], xyz[1]), xyz[2]) == 0).all(axis=1)
+    out = np.zeros((int(keep.sum()), 4), dtype=np.uint32)
+    out[:, 0], out[:, 1], out[:, 2] = c0[keep], c1[keep], c2[keep]
+    return out
+
 
 #: Loop iterations kept back from LOOP_BUDGET per SIMD batch: the shader
 #: charges the entries of its outermost loops and its final partial loop
@@ -128,27 +148,36 @@ class _Scanline(Method):
     def small_table(self, ctx, tunnel: int):
         """ILV's small-triangle table for ``tunnel``, built on first use in ``ctx``.
 
-        Entry ``i0 * 729 + i1 * 27 + i2`` holds, as bit ``x + 3 y + 9 z``, the
-        voxels the scan draws for the lattice triangle whose points are the
-        corners ``i0``, ``i1``, ``i2`` (corner ``x + 3 y + 9 z``) of a 3 x 3 x 3
-        block: one dispatch of the scan itself over every triple
-        (``PASS 3``).  It is read back once to check that no triple ran out of
-        loop budget or drew outside its block (neither can happen).
+        One entry (a uvec2) per set of three corners of a 4 x 4 x 4 block, at
+        their rank among all such sets (``small_index`` in the shader): bit
+        ``x + 4 y + 16 z`` is set where the scan draws voxel ``(x, y, z)`` of
+        the block for that lattice triangle.  Built by one dispatch of the scan
+        itself over :func:`small_triples` (``PASS 3``), which counts any triple
+        that ran out of loop budget or drew outside its block (neither can
+        happen); the entries no lookup reaches stay 0.
         """
         cache = object_cache(ctx, _TABLES, lambda c: [c.pop(k).release() for k in list(c)])
         table = cache.get(tunnel)
         if table is None:
-            table = ctx.mgl.buffer(reserve=4 * SMALL_ENTRIES)
-            prog = self._program(ctx, tunnel, 3)
-            set_uniforms(prog, {"u_dims": (16, 16, 16), "u_budget": loop_budgets(ctx)[0]})
-            bind(prog, Table=table)
-            dispatch_1d(ctx, prog, SMALL_ENTRIES, _LOCAL)
-            barrier(ctx)
-            bad = np.flatnonzero(np.frombuffer(table.read(), dtype="<u4") & _SMALL_BAD)
-            if len(bad):
+            triples = small_triples()
+            items = ctx.mgl.buffer(triples.tobytes())
+            bad = ctx.mgl.buffer(bytes(4))
+            table = ctx.mgl.buffer(bytes(8 * SMALL_SLOTS))
+            try:
+                prog = self._program(ctx, tunnel, 3)
+                set_uniforms(prog, {"u_dims": (16, 16, 16), "u_count": len(triples),
+                                    "u_budget": loop_budgets(ctx)[0]})
+                bind(prog, Items=items, Table=table, Out=bad)
+                dispatch_1d(ctx, prog, len(triples), _LOCAL)
+                barrier(ctx)
+                n_bad = int(np.frombuffer(bad.read(), dtype="<u4")[0])
+            finally:
+                items.release()
+                bad.release()
+            if n_bad:
                 table.release()
-                raise RuntimeError(f"scanline-ilv: {len(bad)} entries of the small-triangle table "
-                                   f"failed to build on {ctx.renderer} (first: {int(bad[0])})")
+                raise RuntimeError(f"scanline-ilv: {n_bad} entries of the small-triangle table "
+                                   f"failed to build on {ctx.renderer}")
             cache[tunnel] = table
         return table
 
