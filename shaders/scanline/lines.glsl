@@ -269,13 +269,21 @@ Ilv ilv_base(ivec3 p, ivec3 q, int K) {
 
 // The axis of the next step, -1 at the end.  Scanning x, y, z, a later axis
 // wins a tie iff the current best moves down (a total order: see above).
-int ilv_axis(Ilv it) {
+// Without the base edges' tie: for the paths that are never base edges.
+int ilv_axis_plain(Ilv it) {
     int best = -1;
     int bl = 0, bs = 0;  // best's L and step
     if (it.left.x > 0) { best = 0; bl = it.L.x; bs = it.stp.x; }
     if (it.left.y > 0 && (best < 0 || it.L.y < bl || (it.L.y == bl && bs < 0))) { best = 1; bl = it.L.y; bs = it.stp.y; }
     if (it.left.z > 0 && (best < 0 || it.L.z < bl || (it.L.z == bl && bs < 0))) { best = 2; bl = it.L.z; bs = it.stp.z; }
+    return best;
+}
+
+// The same, and a base edge's tie of two axes decided by base_tie().
+int ilv_axis(Ilv it) {
+    int best = ilv_axis_plain(it);
     if (it.base && best >= 0) {
+        int bl = it.L[best];
         int o = -1;  // the other axis tied with best (a base edge moves along two axes at most)
         if (best != 0 && it.left.x > 0 && it.L.x == bl) o = 0;
         if (best != 1 && it.left.y > 0 && it.L.y == bl) o = 1;

@@ -202,58 +202,67 @@ ivec3 icross(ivec3 u, ivec3 v) {
     return r;
 }
 
-// A side-edge voxel chain: the ILV path p -> m, then m -> q.
+// A side-edge voxel chain: the ILV path p -> m, then m -> q, one path at a time
+// (the second begins where the first ends, so it is set up on reaching m and
+// each step takes one axis choice).  seg 0: on p -> m with steps left; 1: at m,
+// on m -> q and not moved on it yet; 2: past m.
 struct Chain {
-    Ilv s0;
-    Ilv s1;
-    bool on1;
+    Ilv cur;
+    ivec3 q;
+    int seg;
 };
+
+// After a step: past m, or on reaching m the second path set up.
+void chain_stepped(inout Chain c) {
+    if (c.seg == 1) c.seg = 2;
+    if (c.seg == 0 && c.cur.left == ivec3(0)) {
+        c.cur = ilv_path(c.cur.p, c.q);
+        c.seg = 1;
+    }
+}
 
 Chain chain_begin(ivec3 p, ivec3 m, ivec3 q) {
     Chain c;
-    c.s0 = ilv_path(p, m);
-    c.s1 = ilv_path(m, q);
-    c.on1 = false;
+    c.cur = ilv_path(p, m);
+    c.q = q;
+    c.seg = 0;
+    if (p == m) {
+        c.cur = ilv_path(m, q);
+        c.seg = 1;
+    }
     return c;
 }
 
-ivec3 chain_pos(Chain c) { return c.on1 ? c.s1.p : c.s0.p; }
+ivec3 chain_pos(Chain c) { return c.cur.p; }
 
 bool chain_next(inout Chain c) {
-    if (!c.on1) {
-        int ax = ilv_axis(c.s0);
-        if (ax >= 0) {
-            ilv_step(c.s0, ax);
-            return true;
-        }
-        c.on1 = true;
-    }
-    int ax = ilv_axis(c.s1);
+    int ax = ilv_axis_plain(c.cur);
     if (ax < 0) return false;
-    ilv_step(c.s1, ax);
+    ilv_step(c.cur, ax);
+    chain_stepped(c);
     return true;
 }
 
 // One side of a slice's scan: its chain within layer Z, or, once the chain
-// ran out first, the slice's top base edge towards the other chain's end.
+// ran out first (ext), the slice's top base edge towards the other chain's
+// end, in c.cur.
 struct Side {
     Chain c;
-    Ilv e;
     bool ext;
 };
 
-ivec3 side_pos(Side s) { return s.ext ? s.e.p : chain_pos(s.c); }
+ivec3 side_pos(Side s) { return s.c.cur.p; }
 
+// One step within layer Z (a base edge never leaves it); false, and s as it
+// was, where there is none.
 bool side_advance(inout Side s, int w, int Z) {
-    if (s.ext) {
-        int ax = ilv_axis(s.e);
-        if (ax < 0) return false;
-        ilv_step(s.e, ax);
-        return true;
-    }
-    Chain t = s.c;
-    if (!chain_next(t) || chain_pos(t)[w] != Z) return false;
-    s.c = t;
+    Ilv t = s.c.cur;
+    int ax = ilv_axis(t);  // the base edge's tie where it is one (a chain's path never is)
+    if (ax < 0) return false;
+    ilv_step(t, ax);
+    if (t.p[w] != Z) return false;
+    s.c.cur = t;
+    if (!s.ext) chain_stepped(s.c);
     return true;
 }
 
@@ -263,13 +272,13 @@ bool side_has_next(Side s, int w, int Z) { return side_advance(s, w, Z); }
 // A and B, the first entry always taken; a chain may stop at its bend P1
 // (the end of its first edge) but not pass it (see the CPU module docstring).
 void side_select(inout Side s, int w, int Z, int a, int b, int dX, int dY, int c0, int tol) {
-    bool before_bend = !s.ext && !s.c.on1 && ilv_axis(s.c.s0) >= 0;
+    bool before_bend = !s.ext && s.c.seg == 0;
     bool first = true;
     for (;;) {
         if (!tick(1u)) break;
         Side t = s;
         if (!side_advance(t, w, Z)) break;
-        if (before_bend && !t.ext && t.c.on1) break;
+        if (before_bend && t.c.seg == 2) break;
         ivec3 c = side_pos(t);
         if (!first && abs(dY * c[a] - dX * c[b] - c0) >= tol) break;
         s = t;
@@ -330,8 +339,8 @@ void scan_draw(ivec3 L0, ivec3 L1, int keep, int K, bool base, int a, int b) {
 void ilv_slice(Chain ca, Chain cb, ivec3 A_last, ivec3 B_last, bool below, bool above, int w, int Z,
                int a, int b) {
     Side sa, sb;
-    sa.c = ca; sa.ext = false; sa.e = ilv_path(A_last, A_last);
-    sb.c = cb; sb.ext = false; sb.e = sa.e;
+    sa.c = ca; sa.ext = false;
+    sb.c = cb; sb.ext = false;
     ivec3 lastA = chain_pos(ca), lastB = chain_pos(cb);  // the last scanline drawn
     int phase = 0;  // 0 bottom base, 1 scanning, 2 top base drawn: done
     for (;;) {
@@ -354,12 +363,12 @@ void ilv_slice(Chain ca, Chain cb, ivec3 A_last, ivec3 B_last, bool below, bool 
                 // where both sides end in the same voxel, the exhausted side stays (a fan)
                 if (a_done && b_done) {
                     stop = true;
-                } else if (a_done && ea != eb) {
+                } else if (a_done && ea != eb) {  // the side stands at A_last
                     sa.ext = true;
-                    sa.e = ilv_base(A_last, B_last, Z + 1);
+                    sa.c.cur = ilv_base(A_last, B_last, Z + 1);
                 } else if (b_done && ea != eb) {
                     sb.ext = true;
-                    sb.e = ilv_base(B_last, A_last, Z + 1);
+                    sb.c.cur = ilv_base(B_last, A_last, Z + 1);
                 }
             }
             if (stop) {
