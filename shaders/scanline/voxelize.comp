@@ -380,18 +380,13 @@ void ilv_slice(Chain ca, Chain cb, ivec3 A_last, ivec3 B_last, bool below, bool 
                 K = Z + 1;
             } else {
                 ivec3 A = side_pos(sa), B = side_pos(sb);
-                if (A == B) {  // Eq. 6 is 0/0: one entry each
-                    Side t = sa;
-                    if (side_advance(t, w, Z)) sa = t;
-                    t = sb;
-                    if (side_advance(t, w, Z)) sb = t;
-                } else {
-                    int dX = A[a] - B[a], dY = A[b] - B[b];
-                    int c0 = dY * A[a] - dX * A[b];
-                    int tol = abs(dX) + abs(dY);
-                    side_select(sa, w, Z, a, b, dX, dY, c0, tol);
-                    side_select(sb, w, Z, a, b, dX, dY, c0, tol);
-                }
+                // where A == B (Eq. 6 is 0/0) dX = dY = tol = 0: each side takes its
+                // next entry alone, the second failing |0| < 0
+                int dX = A[a] - B[a], dY = A[b] - B[b];
+                int c0 = dY * A[a] - dX * A[b];
+                int tol = abs(dX) + abs(dY);
+                side_select(sa, w, Z, a, b, dX, dY, c0, tol);
+                side_select(sb, w, Z, a, b, dX, dY, c0, tol);
                 L0 = side_pos(sa);
                 L1 = side_pos(sb);
                 lastA = L0;
