@@ -243,12 +243,13 @@ bool chain_next(inout Chain c) {
     return true;
 }
 
-// One side of a slice's scan: its chain within layer Z, or, once the chain
-// ran out first (ext), the slice's top base edge towards the other chain's
-// end, in c.cur.
+// One side of a slice's scan: its chain within layer Z, `left` more entries
+// of it in the layer (counted by the look-ahead), or, once the chain ran out
+// first (ext), the slice's top base edge towards the other chain's end, in c.cur.
 struct Side {
     Chain c;
     bool ext;
+    int left;
 };
 
 ivec3 side_pos(Side s) { return s.c.cur.p; }
@@ -262,11 +263,15 @@ bool side_advance(inout Side s, int w, int Z) {
     ilv_step(t, ax);
     if (t.p[w] != Z) return false;
     s.c.cur = t;
-    if (!s.ext) chain_stepped(s.c);
+    if (!s.ext) {
+        chain_stepped(s.c);
+        s.left -= 1;
+    }
     return true;
 }
 
-bool side_has_next(Side s, int w, int Z) { return side_advance(s, w, Z); }
+// side_advance would fail: the chain's last entry in the layer, the base edge's end.
+bool side_done(Side s) { return s.ext ? s.c.cur.left == ivec3(0) : s.left == 0; }
 
 // Eq. 8-9: the farthest next entry strictly within d^ of the scanline through
 // A and B, the first entry always taken; a chain may stop at its bend P1
@@ -336,11 +341,11 @@ void scan_draw(ivec3 L0, ivec3 L1, int keep, int K, bool base, int a, int b) {
 
 // Scan one slice (layer Z): bottom base edge, Eq. 8-9 scanlines, top base edge.
 // One loop with a single draw call (each draw call is a loop to charge).
-void ilv_slice(Chain ca, Chain cb, ivec3 A_last, ivec3 B_last, bool below, bool above, int w, int Z,
-               int a, int b) {
+void ilv_slice(Chain ca, Chain cb, int na, int nb, ivec3 A_last, ivec3 B_last, bool below, bool above,
+               int w, int Z, int a, int b) {
     Side sa, sb;
-    sa.c = ca; sa.ext = false;
-    sb.c = cb; sb.ext = false;
+    sa.c = ca; sa.ext = false; sa.left = na;
+    sb.c = cb; sb.ext = false; sb.left = nb;
     ivec3 lastA = chain_pos(ca), lastB = chain_pos(cb);  // the last scanline drawn
     int phase = 0;  // 0 bottom base, 1 scanning, 2 top base drawn: done
     for (;;) {
@@ -353,8 +358,8 @@ void ilv_slice(Chain ca, Chain cb, ivec3 A_last, ivec3 B_last, bool below, bool 
             keep = below && TUNNEL != 26 ? 1 : 0;
             phase = 1;
         } else {
-            bool a_done = !side_has_next(sa, w, Z);
-            bool b_done = !side_has_next(sb, w, Z);
+            bool a_done = side_done(sa);
+            bool b_done = side_done(sb);
             bool stop = false;
             if (a_done || b_done) {
                 ivec3 ea = sa.ext ? B_last : A_last;
@@ -504,22 +509,25 @@ void ilv_scan(ivec3 P0, ivec3 P1, ivec3 P2) {
     int first = Q0[w];
     for (int Z = first; Z <= Q2[w]; ++Z) {
         if (!tick(7u)) break;  // 1 + the two look-ahead loops, the scan loop and its three
-        Chain la = ca, lb = cb;  // -> the chains' last entries in layer Z
+        Chain la = ca, lb = cb;  // -> the chains' last entries in layer Z, na and nb steps on
+        int na = 0, nb = 0;
         for (;;) {
             if (!tick(1u)) break;
             Chain c = la;
             if (!chain_next(c) || chain_pos(c)[w] != Z) break;
             la = c;
+            ++na;
         }
         for (;;) {
             if (!tick(1u)) break;
             Chain c = lb;
             if (!chain_next(c) || chain_pos(c)[w] != Z) break;
             lb = c;
+            ++nb;
         }
         if (g_abort) break;
         if (Z >= 0 && Z < u_dims[w])
-            ilv_slice(ca, cb, chain_pos(la), chain_pos(lb), Z > first, Z < Q2[w], w, Z, a, b);
+            ilv_slice(ca, cb, na, nb, chain_pos(la), chain_pos(lb), Z > first, Z < Q2[w], w, Z, a, b);
         ca = la;
         cb = lb;
         chain_next(ca);  // the step along w into layer Z + 1
