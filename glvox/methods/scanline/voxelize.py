@@ -192,11 +192,11 @@ class _Scanline(Method):
             prog = self._program(ctx, tunnel, 0)
             uniforms = {**grid_uniforms(spec, bufs.anchor), "u_count": n, "u_budget": main_budget}
             set_uniforms(prog, uniforms)
+            # built on first use by a pass of its own, so before this pass's bindings
+            table = {"Table": self.small_table(ctx, tunnel)} if self.mode == "ilv" else {}
         with timer.stage("voxelize"):
             # Items is never read in this pass, but a block the shader declares gets a buffer
-            bind(prog, Vertices=bufs.vertices, Faces=bufs.faces, Grid=grid, Out=out, Items=out)
-            if self.mode == "ilv":
-                bind(prog, Table=self.small_table(ctx, tunnel))
+            bind(prog, Vertices=bufs.vertices, Faces=bufs.faces, Grid=grid, Out=out, Items=out, **table)
             dispatch_1d(ctx, prog, n, _LOCAL)
             barrier(ctx)
         n_over, refused = (int(x) for x in np.frombuffer(out.read(size=8), dtype="<u4"))
