@@ -415,11 +415,13 @@ void ilv_slice(Chain ca, Chain cb, int na, int nb, ivec3 A_last, ivec3 B_last, b
 // where the triangle lies or on the order of its vertices: moved by whole
 // voxels, it draws the same voxels moved alike (the grid only clips them), and
 // its edges, normal axis and sorted slices are the same in any vertex order.  So
-// the voxels of every triangle whose lattice points fit in a 4 x 4 x 4 block
-// (C(66, 3) = 45,760 sets of three corners, repeats allowed) are drawn once, by
-// the scan itself, into a table (PASS 3, once per context and tunnel), and such
-// triangles (nearly all of a fine mesh's up to 256^3) read their block from it:
-// no loops, and one atomicOr per word of each of its rows.
+// the voxels of every set of three corners of a 4 x 4 x 4 block whose lowest x,
+// y and z are 0 (8,614 sets; a lookup is relative to the low corner of the
+// triangle's lattice box) are drawn once, by the scan itself, into a table of
+// C(66, 3) = 45,760 slots, one per sorted triple (PASS 3, once per context and
+// tunnel).  A triangle whose lattice points fit in such a block (nearly all of
+// a fine mesh's up to 256^3) reads its block from it: no loops, and one
+// atomicOr per word of each of its rows.
 
 uint small_corner(ivec3 d) { return uint(d.x + 4 * d.y + 16 * d.z); }
 
