@@ -135,7 +135,7 @@ def main(argv=None) -> int:
     ap.add_argument("--bench-sizes", nargs="+", default=["128", "256", "512", "1024"])
     ap.add_argument("--bench-methods", nargs="+",
                     default=["ss-conservative", "ss-solid", "eisemann-solid", "gwn-solid", "ss-octree",
-                             "scanline-rlv"])
+                             "scanline-rlv", "scanline-ilv"])
     ap.add_argument("--readback-sizes", nargs="+", default=["512", "1024"])
     ap.add_argument("--cuda-voxelizer", default=os.environ.get("GLVOX_CUDA_VOXELIZER"),
                     help="a cuda_voxelizer binary to bench beside glvox (default: $GLVOX_CUDA_VOXELIZER)")
