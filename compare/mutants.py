@@ -332,6 +332,15 @@ MUTANTS: list[Mutant] = [
            (("        uint bit = uint(d.x + 4 * d.y + 16 * d.z);",
              "        uint bit = uint(d.y + 4 * d.x + 16 * d.z);"),),
            ("tests/test_scanline.py", "-k", "in_a_block")),
+    Mutant("scanline-ilv-scan-list-lost", "scanline-ilv: the table pass does not list the triangles "
+           "it leaves to the scan", "shaders/scanline/voxelize.comp",
+           (("    if (listed) scan_list[atomicAdd(scan_n, 1u)] = tri;", "    if (listed && tri == 0xFFFFFFFFu) scan_list[atomicAdd(scan_n, 1u)] = tri;"),),
+           ("tests/test_scanline.py", "-k", "scans_only")),
+    Mutant("scanline-ilv-scan-groups-rounded-down", "scanline-ilv: the scan's indirect dispatch leaves out "
+           "the last, partial work group of listed triangles", "shaders/scanline/scan_args.comp",
+           (("    uint groups = (scan_n + u_local_size - 1u) / u_local_size;",
+             "    uint groups = scan_n / u_local_size;"),),
+           ("tests/test_scanline.py", "-k", "scans_only or equals_cpu")),
     Mutant("carve-runs-not-joined", "carve-solid: a free run no longer carries into the next word of its row",
            "shaders/carve/sweep.comp", (("            if (carry != 0u) AT(g, c) |= (~fc & (fc + 1u)) - 1u;\n", ""),),
            ("tests/test_carve.py", "-k", "corridor or random_blockers")),

@@ -673,6 +673,25 @@ def test_ilv_small_triangles_in_a_block(tunnel, gl_context):
     assert (gpu == cpu).all(), f"{int((gpu != cpu).sum())} voxels differ"
 
 
+@pytest.mark.parametrize("res", [64, 128])
+def test_ilv_scans_only_the_triangles_the_table_does_not_hold(res, gl_context, shared_mesh):
+    """The table pass lists the triangles it cannot draw and a second dispatch scans
+    those alone: on the teapot (large and small triangles) the scanned ones are the
+    lattice triangles wider than 3 that meet the grid, counted here from the lattice
+    points, and the voxels are the CPU scan's."""
+    mesh = load_mesh(shared_mesh("messy_teapot_newell.obj"))
+    spec = glvox.grid_for(mesh, res)
+    tris32 = gpu_voxel_coords(mesh, spec)
+    P = lattice_points(tris32, spec.dims)
+    lo, hi = P.min(axis=1), P.max(axis=1)
+    meets = np.all((hi >= 0) & (lo < np.asarray(spec.dims)), axis=1)
+    wide = meets & ((hi - lo).max(axis=1) > 3)
+    assert 0 < wide.sum() < meets.sum()
+    g = run_method("scanline-ilv", mesh, spec)
+    assert g.run.stats["scanned_triangles"] == wide.sum()
+    assert (g.dense() == scanline_surface(tris32, spec.dims, "ilv")).all()
+
+
 def test_ilv_small_triangles_clipped_at_every_face_of_the_grid(gl_context):
     """Small triangles whose block sticks out of the grid by 0 to 3 voxels on either
     side of every axis (and straddles x's word boundary 31 | 32): the table's rows are

@@ -12,7 +12,9 @@
 //               out_words[1] counts ILV triangles refused for ILV_COORD_LIMIT;
 //               3 (ILV) builds the small-triangle table (below)
 //   SMALL_TABLE 1 (ILV, PASS 0): a triangle whose lattice points lie in a 4 x 4 x 4
-//               block takes its voxels from the table instead of the scan
+//               block takes its voxels from the table; the others are listed
+//               in Scan for the scan, which a second dispatch of PASS 0 with
+//               FROM_LIST 1 runs over them (scanline/scan_args.comp sizes it)
 //   LOCAL_SIZE  work group size
 //   SCANLINE_SLACK, ILV_COORD_LIMIT, ILV_BOUNDARY_SNAP, RLV_BOUNDARY_SNAP
 //               (constants of the CPU module)
@@ -32,6 +34,12 @@ layout(std430, binding = 4) readonly buffer Items { uvec4 items[]; };  // PASS 1
 // P0 P1 P2 (small_index): voxel lo + (x, y, z), lo its lattice box's low corner, as the
 // scan below draws it.
 layout(std430, binding = 5) buffer Table { uvec2 small_table[]; };
+#endif
+#if SMALL_TABLE || FROM_LIST
+// The triangles the table pass leaves to the scan, so that the scan's long loops
+// run in batches (warps) of such triangles only; scan_args: the scan's indirect
+// dispatch.
+layout(std430, binding = 6) buffer Scan { uint scan_n; uint scan_args[3]; uint scan_list[]; };
 #endif
 
 uniform uint u_count;   // triangles (PASS 0) or items (PASS 1, 2)
@@ -467,24 +475,30 @@ void mark_small(ivec3 lo, uvec2 m) {
 
 void ilv_scan(ivec3 P0, ivec3 P1, ivec3 P2);
 
-void ilv_triangle(vec3 X0, vec3 X1, vec3 X2) {
+// The ILV voxels of the triangle X0 X1 X2, or nothing where it is refused or
+// outside the grid.  With SMALL_TABLE a small one is drawn from the table and
+// the others are not drawn: true, they are left to the scan.
+bool ilv_triangle(vec3 X0, vec3 X1, vec3 X2) {
     ivec3 P0 = lattice(X0), P1 = lattice(X1), P2 = lattice(X2);
     ivec3 lo = min(P0, min(P1, P2)), hi = max(P0, max(P1, P2));
-    if (any(lessThan(hi, ivec3(0))) || any(greaterThanEqual(lo, u_dims))) return;
+    if (any(lessThan(hi, ivec3(0))) || any(greaterThanEqual(lo, u_dims))) return false;
     ivec3 big = max(abs(lo), abs(hi));
     if (max(big.x, max(big.y, big.z)) > ILV_COORD_LIMIT) {  // int32 would overflow: refused
 #if PASS == 0
         atomicAdd(out_words[1], 1u);
 #endif
-        return;
+        return false;
     }
 #if SMALL_TABLE
     if (all(lessThanEqual(hi - lo, ivec3(3)))) {
         mark_small(lo, small_table[small_index(small_corner(P0 - lo), small_corner(P1 - lo), small_corner(P2 - lo))]);
-        return;
+        return false;
     }
-#endif
+    return true;
+#else
     ilv_scan(P0, P1, P2);
+    return false;
+#endif
 }
 
 // The ILV voxels of the lattice triangle P0 P1 P2 (edges, then the slices' scans).
@@ -556,10 +570,14 @@ void main() {
 #else
 void main() {
     uint gid = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x;
+#if FROM_LIST
+    if (gid >= scan_n) return;
+    uint tri = scan_list[gid];
+#elif PASS == 0
     if (gid >= u_count) return;
-#if PASS == 0
     uint tri = gid;
 #else
+    if (gid >= u_count) return;
     uvec4 item = items[gid];
     uint tri = item.x;
     g_lo = item.y;
@@ -570,7 +588,10 @@ void main() {
     vec3 X1 = vertex(faces[3u * tri + 1u]);
     vec3 X2 = vertex(faces[3u * tri + 2u]);
 #if LINE_MODE == 2
-    ilv_triangle(X0, X1, X2);
+    bool listed = ilv_triangle(X0, X1, X2);
+#if SMALL_TABLE
+    if (listed) scan_list[atomicAdd(scan_n, 1u)] = tri;
+#endif
 #else
     float_triangle(X0, X1, X2);
 #endif

@@ -52,7 +52,8 @@ import numpy as np
 
 from ...errors import LimitError
 from ...gl.shaders import compute_program
-from ...gpu.buffers import buffer_pool, mesh_buffers, object_cache, read_grid_words, release_object_cache
+from ...gpu.buffers import (buffer_pool, clear_buffer, mesh_buffers, object_cache, read_grid_words,
+                            release_object_cache)
 from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
 from ...gpu.transform import SHADERS as TRANSFORM_SHADERS, SNAP_DEFINES, gpu_triangles_voxel
 from ...reference.scanline import (ILV_BOUNDARY_SNAP, ILV_COORD_LIMIT, RLV_BOUNDARY_SNAP, SCANLINE_SLACK,
@@ -65,8 +66,9 @@ _LOCAL = 64
 _MODES = {"rlv": 0, "slv": 1, "ilv": 2}
 _REQUIRES = Requirements(gl_version=450,
                          compute=tuple(("scanline/voxelize.comp", {"LOCAL_SIZE": _LOCAL, "PASS": pass_,
-                                                                   "SMALL_TABLE": int(pass_ == 0)})
-                                       for pass_ in (0, 3)) + TRANSFORM_SHADERS)
+                                                                   "SMALL_TABLE": table, "FROM_LIST": listed})
+                                       for pass_, table, listed in ((0, 1, 0), (0, 0, 1), (3, 0, 0)))
+                         + (("scanline/scan_args.comp", {}),) + TRANSFORM_SHADERS)
 
 #: ILV's small-triangle table: a triangle whose lattice points fit in a block of
 #: SMALL_BLOCK^3 voxels reads its voxels from it (shaders/scanline/voxelize.comp).
@@ -133,9 +135,12 @@ def loop_budgets(ctx) -> tuple[int, int]:
 class _Scanline(Method):
     mode = "ilv"
 
-    def _program(self, ctx, tunnel: int, pass_: int):
+    def _program(self, ctx, tunnel: int, pass_: int, from_list: bool = False):
+        """voxelize.comp for ``pass_``; ILV's PASS 0 is two programs: the table pass, which
+        lists the triangles it cannot draw, and the scan over that list (``from_list``)."""
+        table = self.mode == "ilv" and pass_ == 0 and not from_list
         defines = {"LINE_MODE": _MODES[self.mode], "TUNNEL": int(tunnel), "PASS": pass_,
-                   "SMALL_TABLE": int(self.mode == "ilv" and pass_ == 0),
+                   "SMALL_TABLE": int(table), "FROM_LIST": int(from_list),
                    "LOCAL_SIZE": _LOCAL if pass_ in (0, 3) else 1, "SCANLINE_SLACK": float(SCANLINE_SLACK),
                    "ILV_COORD_LIMIT": int(ILV_COORD_LIMIT), "ILV_BOUNDARY_SNAP": float(ILV_BOUNDARY_SNAP),
                    "RLV_BOUNDARY_SNAP": float(RLV_BOUNDARY_SNAP), **SNAP_DEFINES}
@@ -192,13 +197,30 @@ class _Scanline(Method):
             prog = self._program(ctx, tunnel, 0)
             uniforms = {**grid_uniforms(spec, bufs.anchor), "u_count": n, "u_budget": main_budget}
             set_uniforms(prog, uniforms)
-            # built on first use by a pass of its own, so before this pass's bindings
-            table = {"Table": self.small_table(ctx, tunnel)} if self.mode == "ilv" else {}
+            ilv = self.mode == "ilv"
+            if ilv:
+                # built on first use by a pass of its own, so before this pass's bindings
+                table = self.small_table(ctx, tunnel)
+                scan = pool.get("scan", 16 + 4 * n, what="the list of triangles to scan", clear=False)
+                clear_buffer(ctx, scan, 16)
+                scan_prog = self._program(ctx, tunnel, 0, from_list=True)
+                set_uniforms(scan_prog, uniforms)
+                args_prog = compute_program(ctx, "scanline/scan_args.comp")
+                set_uniforms(args_prog, {"u_local_size": _LOCAL,
+                                         "u_max_groups": int(ctx.limits()["GL_MAX_COMPUTE_WORK_GROUP_COUNT"][0])})
         with timer.stage("voxelize"):
             # Items is never read in this pass, but a block the shader declares gets a buffer
-            bind(prog, Vertices=bufs.vertices, Faces=bufs.faces, Grid=grid, Out=out, Items=out, **table)
+            common = {"Vertices": bufs.vertices, "Faces": bufs.faces, "Grid": grid, "Out": out, "Items": out}
+            bind(prog, **common, **({"Table": table, "Scan": scan} if ilv else {}))
             dispatch_1d(ctx, prog, n, _LOCAL)
             barrier(ctx)
+            if ilv:  # the triangles the table does not hold, scanned in batches of their own
+                bind(args_prog, Scan=scan)
+                args_prog.run(1)
+                barrier(ctx)
+                bind(scan_prog, **common, Scan=scan)
+                scan_prog.run_indirect(scan, offset=4)
+                barrier(ctx)
         n_over, refused = (int(x) for x in np.frombuffer(out.read(size=8), dtype="<u4"))
         if refused:
             raise LimitError(
@@ -215,6 +237,8 @@ class _Scanline(Method):
             words = read_grid_words(ctx, grid, spec)
         timer.stats["overflow_triangles"] = n_over
         timer.stats["overflow_parts"] = parts
+        if self.mode == "ilv":
+            timer.stats["scanned_triangles"] = int(np.frombuffer(scan.read(size=4), dtype="<u4")[0])
         return VoxelGrid(words=words, spec=spec)
 
     def _overflow(self, ctx, pool, spec, bufs, grid, tunnel, ids, budget) -> int:
