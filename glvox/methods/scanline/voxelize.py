@@ -27,11 +27,15 @@ Agreement with the CPU implementation (tests/test_scanline.py):
   slicing enough to draw scanlines in the wrong layer.
 
 Pipeline: ``setup`` (grid and scratch buffers from the pool, the mesh uploaded
-once per context), ``voxelize`` (one dispatch over the triangles),
+once per context; ILV's table of small triangles built on its first call in a
+context, :meth:`_Scanline.small_table`), ``voxelize`` (one dispatch over the
+triangles; for ILV the table pass, which draws the triangles the table holds
+and lists the others, then the scan over that list by an indirect dispatch),
 ``overflow`` (only where needed, see below), ``readback`` (the grid words;
-besides them only two counters are read: triangles listed for the overflow
-stage, and ILV triangles refused for :data:`~glvox.reference.scanline.ILV_COORD_LIMIT`,
-which raise :class:`~glvox.errors.LimitError` after the dispatch).
+besides them only a few counters are read: triangles listed for the overflow
+stage, ILV triangles refused for :data:`~glvox.reference.scanline.ILV_COORD_LIMIT`,
+which raise :class:`~glvox.errors.LimitError` after the dispatch, and ILV's
+scanned triangles, ``run.stats["scanned_triangles"]``).
 
 Mesa's llvmpipe ends all loops of a SIMD batch after 65535 iterations in
 total (:data:`glvox.gpu.dispatch.LOOP_BUDGET`), silently.  Each invocation
@@ -237,7 +241,7 @@ class _Scanline(Method):
             words = read_grid_words(ctx, grid, spec)
         timer.stats["overflow_triangles"] = n_over
         timer.stats["overflow_parts"] = parts
-        if self.mode == "ilv":
+        if ilv:
             timer.stats["scanned_triangles"] = int(np.frombuffer(scan.read(size=4), dtype="<u4")[0])
         return VoxelGrid(words=words, spec=spec)
 
