@@ -336,10 +336,10 @@ MUTANTS: list[Mutant] = [
            "it leaves to the scan", "shaders/scanline/voxelize.comp",
            (("    if (listed) scan_list[atomicAdd(scan_n, 1u)] = tri;", "    if (listed && tri == 0xFFFFFFFFu) scan_list[atomicAdd(scan_n, 1u)] = tri;"),),
            ("tests/test_scanline.py", "-k", "scans_only")),
-    Mutant("scanline-ilv-scan-groups-rounded-down", "scanline-ilv: the scan's indirect dispatch leaves out "
-           "the last, partial work group of listed triangles", "shaders/scanline/scan_args.comp",
-           (("    uint groups = (scan_n + u_local_size - 1u) / u_local_size;",
-             "    uint groups = scan_n / u_local_size;"),),
+    Mutant("indirect-groups-rounded-down", "an indirect dispatch over a counted list (scanline-ilv's "
+           "scan, gwn-solid's segments, ss-octree's chunks) leaves out the last, partial work group",
+           "shaders/common/dispatch.glsl",
+           (("    uint groups = (n + local_size - 1u) / local_size;", "    uint groups = n / local_size;"),),
            ("tests/test_scanline.py", "-k", "scans_only or equals_cpu")),
     Mutant("carve-runs-not-joined", "carve-solid: a free run no longer carries into the next word of its row",
            "shaders/carve/sweep.comp", (("            if (carry != 0u) AT(g, c) |= (~fc & (fc + 1u)) - 1u;\n", ""),),

@@ -4,16 +4,16 @@
 // u_max_groups groups are split along y, as glvox.gpu.dispatch.dispatch_1d does).
 // One invocation.
 layout(local_size_x = 1) in;
+#include "common/dispatch.glsl"
 layout(std430, binding = 8) buffer Count { uint voxel_count; uint refine_count; uint todo_count; uint todo_total; };
 layout(std430, binding = 4) writeonly buffer Args { uint args[]; };
 uniform uint u_local_size;
 uniform uint u_max_groups;
 
 void main() {
-    uint groups = (todo_count + u_local_size - 1u) / u_local_size;
-    uint x = min(groups, u_max_groups);
-    args[0] = x;
-    args[1] = x == 0u ? 0u : (groups + x - 1u) / x;
-    args[2] = 1u;
+    uvec3 a = dispatch_args_1d(todo_count, u_local_size, u_max_groups);
+    args[0] = a.x;
+    args[1] = a.y;
+    args[2] = a.z;
     todo_total += todo_count;  // over the slabs: run.stats["field_segments"]
 }
