@@ -306,7 +306,7 @@ MUTANTS: list[Mutant] = [
            ("tests/test_scanline.py", "-k", "in_a_block")),
     Mutant("scanline-ilv-small-left-unclipped", "scanline-ilv: a small triangle's row keeps the voxels "
            "left of the grid", "shaders/scanline/voxelize.comp",
-           (("    if (v.x < 0) bits &= ~((1u << uint(-v.x)) - 1u);\n", ""),),
+           (("    if (v.x < 0) bits &= mask_from(uint(-v.x));", "    if (v.x < -3) bits &= mask_from(uint(-v.x));"),),
            ("tests/test_scanline.py", "-k", "clipped_at_every_face")),
     Mutant("scanline-ilv-small-right-unclipped", "scanline-ilv: a small triangle's row keeps the voxels "
            "right of the grid", "shaders/scanline/voxelize.comp",

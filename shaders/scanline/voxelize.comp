@@ -446,9 +446,9 @@ uint small_index(uint c0, uint c1, uint c2) {
 // A row of 4 voxels spans at most two words; v.x >= -3 (the block meets the grid).
 void mark_row4(ivec3 v, uint bits) {
     if (bits == 0u || v.y < 0 || v.y >= u_dims.y || v.z < 0 || v.z >= u_dims.z) return;
-    if (v.x < 0) bits &= ~((1u << uint(-v.x)) - 1u);
+    if (v.x < 0) bits &= mask_from(uint(-v.x));                   // voxels from x = 0 on
     int over = v.x + 4 - u_dims.x;
-    if (over > 0) bits &= over >= 4 ? 0u : (1u << uint(4 - over)) - 1u;
+    if (over > 0) bits &= ~mask_from(uint(max(4 - over, 0)));     // voxels before x = nx
     if (bits == 0u) return;
     // voxel x lies in word x >> 5 at bit x & 31 (for x < 0 too, in two's complement);
     // the bits of voxels below 0 are cleared above, so word -1 never gets any
