@@ -162,17 +162,20 @@ ivec2 slv_range(float p, int cur, int stp, bool crossing) {
     return ivec2(cur, cur);
 }
 
-// Voxelize segment p-q.  super_cover: SLV; else RLV, and with `reduce` the
+// Voxelize segment p-q.  super_cover: SLV (with `ends`, the voxels incident to
+// p and q too; without, the caller marks them); else RLV, and with `reduce` the
 // tunnel=18 base edge: a voxel is dropped when the path arrives by a step of
 // negative value and leaves by one of positive value, a step along axis a
 // (b) with sign s being worth pa * s (pb * s); the end voxels stay.
-void draw_float(vec3 p, vec3 q, bool super_cover, bool reduce, int a, int b, float pa, float pb) {
+void draw_float(vec3 p, vec3 q, bool super_cover, bool ends, bool reduce, int a, int b, float pa, float pb) {
     FLine l = fline_begin(p, q, super_cover);
     int n = l.left.x + l.left.y + l.left.z;
     if (!job(uint(n) + 1u)) return;
     if (super_cover) {
-        mark_incident(p);
-        mark_incident(q);
+        if (ends) {
+            mark_incident(p);
+            mark_incident(q);
+        }
     } else {
         mark(l.cur);
     }
@@ -189,9 +192,10 @@ void draw_float(vec3 p, vec3 q, bool super_cover, bool reduce, int a, int b, flo
             ivec3 lo = ivec3(rx.x, ry.x, rz.x), hi = ivec3(rx.y, ry.y, rz.y);
             // the box holds l.cur (both sides of a crossed plane, cur itself on the
             // other axes, incident(p) with cur = floor(p) where the line lies in a
-            // plane), and l.cur is marked: by mark_incident(p) first, then as the
-            // new voxel of the event before.  Marks are idempotent ORs, so leaving
-            // it out changes nothing but the count of atomics.
+            // plane), and l.cur is marked: by mark_incident(p) first (here or by
+            // the caller), then as the new voxel of the event before.  Marks are
+            // idempotent ORs, so leaving it out changes nothing but the count of
+            // atomics.
             mark_box_but(lo, hi, l.cur);
             ivec3 xs = ivec3(x);
             l.cur += xs * l.stp;
