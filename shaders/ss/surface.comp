@@ -192,8 +192,10 @@ void main() {
 #elif SS_VARIANT == 0
     voxelize_voxels(T, q0, q1, true);
 #else
-    if (degenerate(T)) voxelize_voxels(T, q0, q1, type != 0);
-    else if (type == 0) voxelize_voxels(T, q0, q1, false);
+    // one call of voxelize_voxels for both of its cases: a SIMD batch (a warp)
+    // that holds both would run two calls' code one after the other
+    bool deg = degenerate(T);
+    if (deg || type == 0) voxelize_voxels(T, q0, q1, deg && type != 0);
     else if (type == 1) voxelize_2d(T, q0, q1);
     else voxelize_columns(T, q0, q1);
 #endif
