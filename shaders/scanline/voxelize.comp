@@ -155,50 +155,61 @@ void float_triangle(vec3 P0, vec3 P1, vec3 P2) {
     precise float r_lo = min(ga * ra0, ga * ra1) + min(gb * rb0, gb * rb1);
     precise float r_hi = max(ga * ra0, ga * ra1) + max(gb * rb0, gb * rb1);
     precise float s_prev = level_plane ? s0 : clamp(-nw * (float(k0) - w0), s0, s2);
-    for (int k = k0; k <= k1; ++k) {
-        if (!tick(3u)) break;  // 1 + the level and draw loops inside
-        float s_start = level_plane ? s0 : s_prev;
-        precise float s_end = level_plane ? s2 : clamp(-nw * (float(k + 1) - w0), s0, s2);
-        s_prev = s_end;
-        float span = s_end - s_start;
-        float N = span == 0.0 ? 0.0 : ceil(abs(span) / ds_max);
-        float m_lo = 0.0, m_hi = N;
-        if (N > 0.0) {
-            precise float u0 = (r_lo - s_start) / span * N, u1 = (r_hi - s_start) / span * N;
-            m_lo = clamp(floor(min(u0, u1)) - 1.0, 0.0, N);
-            m_hi = clamp(ceil(max(u0, u1)) + 1.0, 0.0, N);
-        }
-        float wk = float(k) + 0.5;
-        bool below = k > kfirst && !level_plane;
-        int count = int(m_hi - m_lo);
-        for (int i = 0; i <= count; ++i) {
-            if (!tick(2u)) break;  // 1 + the draw loop inside
-            float m = m_lo + float(i);
-            bool base = m == 0.0 && below;  // the bottom copy of the base edge shared with layer k - 1
-            if (base && TUNNEL == 6) continue;
-            precise float s = m == 0.0 ? s_start : (m == N ? s_end : s_start + span * m / N);
-            float ta = clamp((s - s0) / (s2 - s0), 0.0, 1.0);
-            precise vec2 A = vec2(q0[a] + ta * (q2[a] - q0[a]), q0[b] + ta * (q2[b] - q0[b]));
-            precise vec2 B;
-            if (s < s1) {
-                float tb = clamp((s - s0) / (s1 - s0), 0.0, 1.0);
-                B = vec2(q0[a] + tb * (q1[a] - q0[a]), q0[b] + tb * (q1[b] - q0[b]));
-            } else {
-                float tb = s2 == s1 ? 0.0 : clamp((s - s1) / (s2 - s1), 0.0, 1.0);
-                B = vec2(q1[a] + tb * (q2[a] - q1[a]), q1[b] + tb * (q2[b] - q1[b]));
+    // Every layer's scanlines in one loop, not a loop per layer: a SIMD batch
+    // (a warp) then runs the most scanlines any of its triangles has, not the
+    // sum over the layers of the most any has in the layer.
+    int k = k0 - 1, i = 0, count = -1;
+    float s_start = 0.0, s_end = 0.0, span = 0.0, N = 0.0, m_lo = 0.0, wk = 0.0;
+    bool below = false;
+    for (;;) {
+        if (i > count) {  // layer k done: set up the next one
+            k += 1;
+            if (k > k1) break;
+            s_start = level_plane ? s0 : s_prev;
+            precise float s_k = level_plane ? s2 : clamp(-nw * (float(k + 1) - w0), s0, s2);
+            s_end = s_k;
+            s_prev = s_end;
+            span = s_end - s_start;
+            N = span == 0.0 ? 0.0 : ceil(abs(span) / ds_max);
+            m_lo = 0.0;
+            float m_hi = N;
+            if (N > 0.0) {
+                precise float u0 = (r_lo - s_start) / span * N, u1 = (r_hi - s_start) / span * N;
+                m_lo = clamp(floor(min(u0, u1)) - 1.0, 0.0, N);
+                m_hi = clamp(ceil(max(u0, u1)) + 1.0, 0.0, N);
             }
-            vec3 p, q;
-            p[a] = A.x; p[b] = A.y; p[w] = wk;
-            q[a] = B.x; q[b] = B.y; q[w] = wk;
-            bool reduce = base && TUNNEL == 18;
-            vec2 side = vec2(0.0);
-            if (reduce) {
-                side = vec2(-(B.y - A.y), B.x - A.x);
-                precise float sh = side.x * h.x + side.y * h.y;
-                if (sh < 0.0) side = -side;
-            }
-            float_line(p, q, true, reduce, a, b, side.x, side.y);
+            wk = float(k) + 0.5;
+            below = k > kfirst && !level_plane;
+            count = int(m_hi - m_lo);
+            i = 0;
         }
+        if (!tick(2u)) break;  // 1 + the draw loop inside
+        float m = m_lo + float(i);
+        i += 1;
+        bool base = m == 0.0 && below;  // the bottom copy of the base edge shared with layer k - 1
+        if (base && TUNNEL == 6) continue;
+        precise float s = m == 0.0 ? s_start : (m == N ? s_end : s_start + span * m / N);
+        float ta = clamp((s - s0) / (s2 - s0), 0.0, 1.0);
+        precise vec2 A = vec2(q0[a] + ta * (q2[a] - q0[a]), q0[b] + ta * (q2[b] - q0[b]));
+        precise vec2 B;
+        if (s < s1) {
+            float tb = clamp((s - s0) / (s1 - s0), 0.0, 1.0);
+            B = vec2(q0[a] + tb * (q1[a] - q0[a]), q0[b] + tb * (q1[b] - q0[b]));
+        } else {
+            float tb = s2 == s1 ? 0.0 : clamp((s - s1) / (s2 - s1), 0.0, 1.0);
+            B = vec2(q1[a] + tb * (q2[a] - q1[a]), q1[b] + tb * (q2[b] - q1[b]));
+        }
+        vec3 p, q;
+        p[a] = A.x; p[b] = A.y; p[w] = wk;
+        q[a] = B.x; q[b] = B.y; q[w] = wk;
+        bool reduce = base && TUNNEL == 18;
+        vec2 side = vec2(0.0);
+        if (reduce) {
+            side = vec2(-(B.y - A.y), B.x - A.x);
+            precise float sh = side.x * h.x + side.y * h.y;
+            if (sh < 0.0) side = -side;
+        }
+        float_line(p, q, true, reduce, a, b, side.x, side.y);
     }
 }
 
