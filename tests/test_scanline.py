@@ -392,6 +392,26 @@ def test_large_triangles_go_through_the_overflow_passes(gl_context):
             assert not (diff & ~_ties_for(mesh, spec, mode, 26, tris32)).any()
 
 
+def test_slv_singular_events_on_a_box_on_voxel_planes(gl_context):
+    """An axis-aligned box with its faces and edges on voxel planes, 128 voxels
+    wide: nearly every event of SLV's lines is singular (a line lying in a face
+    plane, an edge in two), so each marks the rest of its box in the corner
+    loop (lines.glsl, mark_box_but), and on llvmpipe its large triangles go
+    through the overflow passes, which charge those loops.  Dyadic geometry
+    (pitch 2^-7): the GPU equals the exact CPU result, the conservative set."""
+    b = trimesh.creation.box(bounds=[[0.25, 0.25, 0.25], [1.25, 1.25, 1.25]])
+    mesh = load_mesh((b.vertices, b.faces), name="box on voxel planes")
+    spec = GridSpec(dims=(192, 192, 192), origin=np.zeros(3), voxel_size=2.0 ** -7)
+    tris = spec.vertices_to_voxel(mesh.vertices[mesh.faces])
+    assert np.array_equal(tris, np.round(tris)) and tris.min() == 32 and tris.max() == 160
+    g = run_method("scanline-slv", mesh, spec)
+    if gl_context.is_software:
+        assert g.run.stats["overflow_triangles"] > 0
+    cpu = scanline_surface(tris, spec.dims, "slv", exact=True)
+    assert np.array_equal(g.dense(), cpu)
+    assert np.array_equal(cpu, conservative_surface(tris, spec.dims))
+
+
 def test_stage_timings_and_statistics(gl_context):
     mesh = load_mesh("gen:torus")
     g = run_method("scanline-ilv", mesh, glvox.grid_for(mesh, 32))

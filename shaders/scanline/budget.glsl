@@ -11,7 +11,8 @@
 //     even where no lane is active, because gallivm runs both sides of a
 //     branch under masks);
 //   - a line is a job charged up front with its step count + 1 (its last,
-//     failing test).
+//     failing test); an SLV line also with MARK_BOX_COST per step and per end
+//     point box (lines.glsl: the corner loop of a box, up to 1 + 7).
 // The sum of the charges of the lanes of a batch bounds the iterations the
 // batch runs, so u_budget = (65535 - margin) / lanes keeps every batch safe.
 // Jobs are drawn whole or not at all, so a stopped invocation leaves a valid

@@ -2,9 +2,10 @@
 // glvox/reference/scanline.py (rlv_line, slv_line, ilv_line, drop_corners).
 // Voxel space: voxel v is the unit cube at v; a point lies in voxel floor(p).
 // Needs mark(), job() and tick() (budget.glsl).  No loop here other than the
-// one stepping loop of each draw function: every loop must be charged (see
-// budget.glsl), and a per-axis loop the compiler did not unroll would not
-// be, so per-axis work is written out.
+// one stepping loop of each draw function and the corner loop of
+// mark_box_but: every loop must be charged (see budget.glsl), and a per-axis
+// loop the compiler did not unroll would not be, so per-axis work is written
+// out.
 
 const float T_NONE = 3.0e38;
 
@@ -55,32 +56,38 @@ ivec2 incident(float c) {
     return c == f ? ivec2(i - 1, i) : ivec2(i, i);
 }
 
-// Every voxel of the box [lo, hi] (at most 2 x 2 x 2) but `done`, written
-// out; `done` is one the caller marked already (an SLV event's box holds the
-// line's voxel before the event, see draw_float), or outside the box.
-void mark_box_but(ivec3 lo, ivec3 hi, ivec3 done) {
-    if (lo != done) mark(lo);
-    ivec3 v = ivec3(hi.x, lo.y, lo.z);
-    if (hi.x != lo.x && v != done) mark(v);
-    v = ivec3(lo.x, hi.y, lo.z);
-    if (hi.y != lo.y && v != done) mark(v);
-    v = ivec3(lo.x, lo.y, hi.z);
-    if (hi.z != lo.z && v != done) mark(v);
-    v = ivec3(hi.x, hi.y, lo.z);
-    if (hi.x != lo.x && hi.y != lo.y && v != done) mark(v);
-    v = ivec3(hi.x, lo.y, hi.z);
-    if (hi.x != lo.x && hi.z != lo.z && v != done) mark(v);
-    v = ivec3(lo.x, hi.y, hi.z);
-    if (hi.y != lo.y && hi.z != lo.z && v != done) mark(v);
-    if (hi.x != lo.x && hi.y != lo.y && hi.z != lo.z && hi != done) mark(hi);
+// The corner index of voxel v of a box whose low corner is lo (bit i: v lies
+// at the box's high end on axis i).
+uint box_corner(ivec3 v, ivec3 lo) {
+    return (v.x != lo.x ? 1u : 0u) | (v.y != lo.y ? 2u : 0u) | (v.z != lo.z ? 4u : 0u);
 }
 
-// Every voxel of the box [lo, hi].
-void mark_box(ivec3 lo, ivec3 hi) { mark_box_but(lo, hi, lo - 1); }
+// Every voxel of the box [lo, hi] (at most 2 x 2 x 2) whose corner index
+// (box_corner) is not set in `skip`, the caller having marked those.  Most
+// boxes are one voxel, and most SLV events two that the caller marks: a loop
+// over the corners left runs no iteration for them, where eight mark sites
+// written out each cost a SIMD batch (llvmpipe runs every site under masks,
+// and an atomicOr site steps through the batch's lanes).  Loop iterations: 1
+// + up to 7, charged by the caller (MARK_BOX_COST).
+const uint MARK_BOX_COST = 8u;
 
+void mark_box_but(ivec3 lo, ivec3 hi, uint skip) {
+    uint corners = (lo.x == hi.x ? 0x55u : 0xFFu) & (lo.y == hi.y ? 0x33u : 0xFFu)
+                   & (lo.z == hi.z ? 0x0Fu : 0xFFu) & ~skip;
+    while (corners != 0u) {
+        uint c = uint(findLSB(corners));
+        corners &= corners - 1u;
+        mark(mix(lo, hi, bvec3((c & 1u) != 0u, (c & 2u) != 0u, (c & 4u) != 0u)));
+    }
+}
+
+// The voxels incident to p (charge MARK_BOX_COST): the one holding it, and
+// more where p lies on face planes.
 void mark_incident(vec3 p) {
     ivec2 x = incident(p.x), y = incident(p.y), z = incident(p.z);
-    mark_box(ivec3(x.x, y.x, z.x), ivec3(x.y, y.y, z.y));
+    ivec3 lo = ivec3(x.x, y.x, z.x);
+    mark(lo);
+    mark_box_but(lo, ivec3(x.y, y.y, z.y), 1u);
 }
 
 // Stepping state of a float line.  RLV: from floor(p), `left` steps per axis
@@ -170,7 +177,11 @@ ivec2 slv_range(float p, int cur, int stp, bool crossing) {
 void draw_float(vec3 p, vec3 q, bool super_cover, bool ends, bool reduce, int a, int b, float pa, float pb) {
     FLine l = fline_begin(p, q, super_cover);
     int n = l.left.x + l.left.y + l.left.z;
-    if (!job(uint(n) + 1u)) return;
+    // the steps and the last test; SLV's steps with their boxes' corner loops, and
+    // its end points' boxes
+    uint cost = uint(n) + 1u;
+    if (super_cover) cost += MARK_BOX_COST * uint(n) + (ends ? 2u * MARK_BOX_COST : 0u);
+    if (!job(cost)) return;
     if (super_cover) {
         if (ends) {
             mark_incident(p);
@@ -193,11 +204,15 @@ void draw_float(vec3 p, vec3 q, bool super_cover, bool ends, bool reduce, int a,
             // the box holds l.cur (both sides of a crossed plane, cur itself on the
             // other axes, incident(p) with cur = floor(p) where the line lies in a
             // plane), and l.cur is marked: by mark_incident(p) first (here or by
-            // the caller), then as the new voxel of the event before.  Marks are
-            // idempotent ORs, so leaving it out changes nothing but the count of
-            // atomics.
-            mark_box_but(lo, hi, l.cur);
+            // the caller), then as the new voxel of the event before.  The new
+            // voxel (in the box, and not l.cur: some axis crosses) is marked
+            // here, the rest of the box, at a singular point only, by the corner
+            // loop.  Marks are idempotent ORs, so leaving l.cur out changes
+            // nothing but the count of atomics.
             ivec3 xs = ivec3(x);
+            ivec3 next = l.cur + xs * l.stp;
+            mark(next);
+            mark_box_but(lo, hi, (1u << box_corner(l.cur, lo)) | (1u << box_corner(next, lo)));
             l.cur += xs * l.stp;
             l.plane += xs * l.stp;
             l.left -= xs;
@@ -218,12 +233,6 @@ void draw_float(vec3 p, vec3 q, bool super_cover, bool ends, bool reduce, int a,
             }
         }
     }
-}
-
-// Loop iterations draw_float will take, its end test included (the job cost).
-uint float_cost(vec3 p, vec3 q, bool super_cover) {
-    FLine l = fline_begin(p, q, super_cover);
-    return uint(l.left.x + l.left.y + l.left.z) + 1u;
 }
 
 // ---------------------------------------------------------------------------

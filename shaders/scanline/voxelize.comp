@@ -107,11 +107,14 @@ void float_triangle(vec3 P0, vec3 P1, vec3 P2) {
     vec3 lo = min(P0, min(P1, P2));
     vec3 hi = max(P0, max(P1, P2));
     if (any(lessThan(hi, vec3(0.0))) || any(greaterThan(lo, vec3(u_dims)))) return;
-#if LINE_MODE == 1 && PASS != 1
-    // the edges' end points (float_edge): marks only, no loop, so no job
+#if LINE_MODE == 1
+    // the edges' end points (float_edge), charged for their boxes' loops
+    if (!tick(3u * MARK_BOX_COST)) return;
+#if PASS != 1
     mark_incident(P0);
     mark_incident(P1);
     mark_incident(P2);
+#endif
 #endif
     float_edge(P0, P1);
     float_edge(P1, P2);
