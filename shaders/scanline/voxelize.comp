@@ -487,14 +487,29 @@ void mark_row4(ivec3 v, uint bits) {
     if (second != 0u) atomicOr(grid[row + uint(w + 1)], second);
 }
 
-// Row (y, z) of the block: bits 4 (y + 4 z) ... + 3 of the entry, in .x for z < 2.
-#define SMALL_ROW(Y, Z) mark_row4(lo + ivec3(0, Y, Z), (((Z) < 2 ? m.x : m.y) >> (4u * uint((Y) + 4 * ((Z) & 1)))) & 15u);
+// Bit r of the result: nibble r (bits 4 r .. 4 r + 3) of w is not 0.
+uint nonzero_nibbles(uint w) {
+    uint t = w | (w >> 1);
+    t = (t | (t >> 2)) & 0x11111111u;   // bit 4 r
+    t = (t | (t >> 3)) & 0x03030303u;   // gathered: bits 0-1 of each byte
+    t = (t | (t >> 6)) & 0x000F000Fu;   // bits 0-3 of each half
+    return (t | (t >> 12)) & 0xFFu;
+}
+
+// The entry's voxels: row r = y + 4 z of the block holds bits 4 r .. 4 r + 3,
+// of .x for r < 8.  A loop over the rows that hold any (a small triangle's
+// few), not the sixteen rows written out: llvmpipe runs every mark site
+// under masks, and an atomicOr site steps through the batch's lanes.  Loop
+// iterations: 1 + up to 16 (SMALL_COST).
+const uint SMALL_COST = 17u;
 
 void mark_small(ivec3 lo, uvec2 m) {
-    SMALL_ROW(0, 0) SMALL_ROW(1, 0) SMALL_ROW(2, 0) SMALL_ROW(3, 0)
-    SMALL_ROW(0, 1) SMALL_ROW(1, 1) SMALL_ROW(2, 1) SMALL_ROW(3, 1)
-    SMALL_ROW(0, 2) SMALL_ROW(1, 2) SMALL_ROW(2, 2) SMALL_ROW(3, 2)
-    SMALL_ROW(0, 3) SMALL_ROW(1, 3) SMALL_ROW(2, 3) SMALL_ROW(3, 3)
+    uint rows = nonzero_nibbles(m.x) | (nonzero_nibbles(m.y) << 8u);
+    while (rows != 0u) {
+        uint r = uint(findLSB(rows));
+        rows &= rows - 1u;
+        mark_row4(lo + ivec3(0, int(r & 3u), int(r >> 2u)), ((r < 8u ? m.x : m.y) >> (4u * (r & 7u))) & 15u);
+    }
 }
 #endif
 
@@ -518,7 +533,8 @@ bool ilv_triangle(vec3 X0, vec3 X1, vec3 X2) {
     }
 #if SMALL_TABLE
     if (all(lessThanEqual(hi - lo, ivec3(3)))) {
-        mark_small(lo, small_table[small_index(small_corner(P0 - lo), small_corner(P1 - lo), small_corner(P2 - lo))]);
+        if (tick(SMALL_COST))
+            mark_small(lo, small_table[small_index(small_corner(P0 - lo), small_corner(P1 - lo), small_corner(P2 - lo))]);
         return false;
     }
     return true;
