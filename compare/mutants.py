@@ -298,8 +298,26 @@ MUTANTS: list[Mutant] = [
            ("tests/test_gwn.py", "-k", "caps_decide_most")),
     Mutant("scanline-slv-box-skips-another", "scanline-slv: an event's box leaves out its far corner, "
            "not the voxel the line marked before", "shaders/scanline/lines.glsl",
-           (("            mark_box_but(lo, hi, l.cur);", "            mark_box_but(lo, hi, hi);"),),
+           (("            mark_box_but(lo, hi, (1u << box_corner(l.cur, lo))",
+             "            mark_box_but(lo, hi, (1u << box_corner(hi, lo))"),),
            ("tests/test_scanline.py", "-k", "slv")),
+    Mutant("scanline-slv-box-corners-unmarked", "scanline-slv: the corner loop marks nothing, so a "
+           "singular event's box and a vertex on a face plane lose all but one or two voxels",
+           "shaders/scanline/lines.glsl",
+           (("        mark(mix(lo, hi, bvec3((c & 1u) != 0u, (c & 2u) != 0u, (c & 4u) != 0u)));", "        ;"),),
+           ("tests/test_scanline.py", "-k", "slv")),
+    Mutant("scanline-slv-vertex-box-lost", "scanline-slv: a triangle's third vertex's incident voxels "
+           "are not marked (the edges leave their end points to the triangle)",
+           "shaders/scanline/voxelize.comp", (("    mark_incident(P2);\n", ""),),
+           ("tests/test_scanline.py", "-k", "slv")),
+    Mutant("scanline-float-layer-not-reset", "scanline-rlv/slv: a layer's scanlines continue the count "
+           "of the layer before", "shaders/scanline/voxelize.comp",
+           (("            i = 0;\n        }\n", "        }\n"),),
+           ("tests/test_scanline.py", "-k", "float_paths_equal_cpu")),
+    Mutant("scanline-ilv-small-nibble-bits-lost", "scanline-ilv: a table row whose voxels are all at "
+           "x + 2 or x + 3 of the block is skipped", "shaders/scanline/voxelize.comp",
+           (("    t = (t | (t >> 2)) & 0x11111111u;", "    t = t & 0x11111111u;"),),
+           ("tests/test_scanline.py", "-k", "in_a_block")),
     Mutant("scanline-ilv-small-second-word-lost", "scanline-ilv: a small triangle's row across a word "
            "boundary loses the bits of its second word", "shaders/scanline/voxelize.comp",
            (("    if (second != 0u) atomicOr(grid[row + uint(w + 1)], second);\n", ""),),
@@ -319,8 +337,7 @@ MUTANTS: list[Mutant] = [
            ("tests/test_scanline.py", "-k", "in_a_block")),
     Mutant("scanline-ilv-small-rows-transposed", "scanline-ilv: a small triangle's rows are read with y "
            "and z swapped", "shaders/scanline/voxelize.comp",
-           (("(((Z) < 2 ? m.x : m.y) >> (4u * uint((Y) + 4 * ((Z) & 1))))",
-             "(((Y) < 2 ? m.x : m.y) >> (4u * uint((Z) + 4 * ((Y) & 1))))"),),
+           (("lo + ivec3(0, int(r & 3u), int(r >> 2u))", "lo + ivec3(0, int(r >> 2u), int(r & 3u))"),),
            ("tests/test_scanline.py", "-k", "in_a_block")),
     Mutant("scanline-ilv-small-index-unsorted", "scanline-ilv: the table is looked up with the corners "
            "in the vertices' order", "shaders/scanline/voxelize.comp",

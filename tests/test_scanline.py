@@ -412,6 +412,27 @@ def test_slv_singular_events_on_a_box_on_voxel_planes(gl_context):
     assert np.array_equal(cpu, conservative_surface(tris, spec.dims))
 
 
+@pytest.mark.parametrize("ends,corner", [(((0.5, 0.5), (2.5, 2.5)), (0.5, 2.5)),
+                                         (((0.5, 0.5), (2.5, 2.5)), (2.5, 0.5)),
+                                         (((0.5, 2.5), (2.5, 0.5)), (0.5, 0.5)),
+                                         (((0.5, 2.5), (2.5, 0.5)), (2.5, 2.5))])
+def test_slv_marks_the_whole_box_where_an_edge_passes_a_voxel_edge(ends, corner, gl_context):
+    """A triangle with an edge along a diagonal of a 2 x 2 square of voxel
+    columns, passing two voxel edges exactly (dyadic, so no rounding), and its
+    third corner on one side: a voxel beyond the edge touched only at such a
+    point is the super cover's (and the conservative set's), and only the
+    event's box marks it.  Both diagonals (the edge crosses x and y planes at
+    once going up, and going up and down), the triangle on either side."""
+    v = np.array([[*ends[0], 1.25], [*ends[1], 1.5], [*corner, 1.625]])
+    spec = GridSpec(dims=(4, 4, 3), origin=np.zeros(3), voxel_size=1.0)
+    mesh = load_mesh((v, np.array([[0, 1, 2]])), name="diagonal triangle")
+    tris = spec.vertices_to_voxel(mesh.vertices[mesh.faces])
+    assert np.array_equal(tris, v[None])
+    cpu = scanline_surface(tris, spec.dims, "slv", exact=True)
+    assert np.array_equal(cpu, conservative_surface(tris, spec.dims))
+    assert np.array_equal(run_method("scanline-slv", mesh, spec).dense(), cpu)
+
+
 def test_stage_timings_and_statistics(gl_context):
     mesh = load_mesh("gen:torus")
     g = run_method("scanline-ilv", mesh, glvox.grid_for(mesh, 32))
