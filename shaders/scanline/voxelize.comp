@@ -90,11 +90,11 @@ void float_line(vec3 p, vec3 q, bool ends, bool reduce, int a, int b, float pa, 
 
 // Edges go from their lexicographically smaller end: the ends chosen by a
 // select and one call, since llvmpipe runs both sides of a branch under
-// masks, and a call on each side cost two lines (SLV 0.72 of the time on the
-// bunny at 128^3).  Their end points' voxels are not marked here: SLV's
-// float_triangle marks each vertex's incident voxels once for its two edges.
-// An end point the clip moved lies on the grown grid's face, whose incident
-// voxels are all outside the grid, so nothing is lost.
+// masks, and a call on each side cost two lines (docs/methods/scanline.md).
+// Their end points' voxels are not marked here: SLV's float_triangle marks
+// each vertex's incident voxels once for its two edges.  An end point the
+// clip moved lies on the grown grid's face, whose incident voxels are all
+// outside the grid, so nothing is lost.
 void float_edge(vec3 p, vec3 q) {
     bool swap = lex_less(q, p);
     float_line(swap ? q : p, swap ? p : q, false, false, 0, 1, 0.0, 0.0);
@@ -108,7 +108,8 @@ void float_triangle(vec3 P0, vec3 P1, vec3 P2) {
     vec3 hi = max(P0, max(P1, P2));
     if (any(lessThan(hi, vec3(0.0))) || any(greaterThan(lo, vec3(u_dims)))) return;
 #if LINE_MODE == 1
-    // the edges' end points (float_edge), charged for their boxes' loops
+    // SLV: the voxels incident to the vertices, once for the two edges at each
+    // (float_edge leaves them out), charged for their boxes' corner loops
     if (!tick(3u * MARK_BOX_COST)) return;
 #if PASS != 1
     mark_incident(P0);
