@@ -23,6 +23,7 @@
 #include "common/snap.glsl"
 
 layout(local_size_x = LOCAL_SIZE) in;
+#include "common/dispatch.glsl"
 
 layout(std430, binding = 0) readonly buffer Vertices { float verts[]; };
 layout(std430, binding = 1) readonly buffer Faces { uint faces[]; };
@@ -456,8 +457,8 @@ void ilv_slice(Chain ca, Chain cb, int na, int nb, ivec3 A_last, ivec3 B_last, b
 // triangle's lattice box) are drawn once, by the scan itself, into a table of
 // C(66, 3) = 45,760 slots, one per sorted triple (PASS 3, once per context and
 // tunnel).  A triangle whose lattice points fit in such a block (nearly all of
-// a fine mesh's up to 256^3) reads its block from it: no loops, and one
-// atomicOr per word of each of its rows.
+// a fine mesh's up to 256^3) reads its block from it: no scan, only a loop over
+// the rows that hold voxels, one atomicOr per word of each (mark_small).
 
 uint small_corner(ivec3 d) { return uint(d.x + 4 * d.y + 16 * d.z); }
 
@@ -603,7 +604,7 @@ void ilv_scan(ivec3 P0, ivec3 P1, ivec3 P2) {
 ivec3 small_offset(uint c) { return ivec3(int(c & 3u), int(c >> 2 & 3u), int(c >> 4)); }
 
 void main() {
-    uint gid = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x;
+    uint gid = global_index_1d();
     if (gid >= u_count) return;
     tick(16u);
     uvec4 c = items[gid];
@@ -613,7 +614,7 @@ void main() {
 }
 #else
 void main() {
-    uint gid = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x;
+    uint gid = global_index_1d();
 #if FROM_LIST
     if (gid >= scan_n) return;
     uint tri = scan_list[gid];
