@@ -251,6 +251,14 @@ MUTANTS: list[Mutant] = [
            "shaders/gwn/events.comp", (("    if ((atomicXor(events[at], b) & b) == 0u) return;",
                                         "    atomicXor(events[at], b);\n    return;"),),
            ("tests/test_gwn.py", "-k", "add_up")),
+    Mutant("gwn-events-carry-unflagged", "gwn-solid's crossing counts: a carry into plane 1 leaves its "
+           "row unflagged, so the row pass reads plane 0 alone there",
+           "shaders/gwn/events.comp", (("    carried[u_carried0 + slab_row(j, k)] = 1u;\n", ""),),
+           ("tests/test_gwn.py", "-k", "add_up")),
+    Mutant("gwn-caps-carry-flags-shared", "gwn-solid's caps: their carries flag the mesh's rows, not "
+           "their own", "glvox/methods/gwn/field.py",
+           (("carried=carried, carried0=(s1 - s0) * ny)", "carried=carried, carried0=0)"),),
+           ("tests/test_gwn.py", "-k", "caps_count_three")),
     Mutant("gwn-todo-run-short", "gwn-solid's listing of the segments the bricks left: the last of "
            "each run of segments is never listed", "shaders/gwn/todo.comp",
            (("    uint end = min(first + uint(GWN_TODO_RUN), u_items);",

@@ -456,6 +456,26 @@ def test_open_sheets_past_the_planes_run_again_and_stay_exact(gl_context):
     assert 0 < g.count < spec.n_voxels
 
 
+def test_caps_count_three_crossings_in_one_voxel(gl_context):
+    """Three boxes nested 0.05 voxel apart, each open on its -x side: the rows through
+    the openings cross the three caps' fans (gwn/caps.glsl closes each opening with one)
+    in one voxel, and the three +x walls in another, so both the caps' bit planes and
+    the mesh's carry into plane 1, flagged per row (gwn/layout.glsl).  A grid large
+    enough for the bricks and the caps; equal to reference-gwn up to ties."""
+    parts = []
+    for i in range(3):
+        b = trimesh.creation.box(bounds=[[2.0 + 0.05 * i] * 3, [61.9 - 0.05 * i] * 3])
+        parts.append(trimesh.Trimesh(b.vertices, b.faces[b.triangles_center[:, 0] > b.bounds[0, 0] + 1e-9]))
+    mesh = load_mesh(trimesh.util.concatenate(parts))
+    assert not mesh.watertight
+    spec = GridSpec((64, 64, 64), (0.0, 0.0, 0.0), 1.0)
+    g, ref, _ = _check_gwn(mesh, spec, threshold=1.5)
+    bricks = run_method("gwn-solid", mesh, spec, threshold=1.5)
+    assert bricks.run.stats["caps"] and bricks.run.stats["cap_bricks"] > 0
+    assert not bricks.run.stats.get("event_overflow", False)
+    assert 0 < bricks.count < spec.n_voxels
+
+
 def test_closed_meshes_in_slabs_keep_their_counts(gl_context, shared_mesh, monkeypatch):
     """The bit planes hold one slab of z slices at a time: a closed mesh in many slabs
     (and nested boxes past the planes, run again with an int per voxel, in slabs too)

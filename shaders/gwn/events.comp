@@ -19,8 +19,8 @@
 // PLANES 1: the counts go into bit planes instead of an int per voxel, eight
 // times less memory to clear and for gwn/rows.comp to read.  Two planes count
 // the +1 crossings of each voxel (0 to 3), two more the -1 ones, each plane a
-// bit grid of the slab, the four words of one grid word side by side (one
-// uvec4 in gwn/rows.comp: +1 plane 0, +1 plane 1, -1 plane 0, -1 plane 1).
+// bit grid of the slab (gwn/layout.glsl has their order, and the Carried
+// flags that say where plane 1 holds a bit).
 // A crossing increments its voxel's counter bit-serially with atomicXor: it
 // toggles the bit of plane 0 and, where the bit was set (1 -> 0), carries
 // into plane 1.  Every plane's toggles are atomic, so plane p ends up toggled
@@ -38,13 +38,17 @@ layout(local_size_x = 64) in;
 #if PLANES
 layout(std430, binding = 0) buffer Events { uint events[]; };
 layout(std430, binding = 8) buffer Count { uint count_words[5]; uint overflow; };
+layout(std430, binding = 12) writeonly buffer Carried { uint carried[]; };  // gwn/layout.glsl
+uniform uint u_carried0;  // this pass's first flag: 0 (the mesh) or slab_rows() (the caps)
 
 // One crossing of sign `step` at voxel i of row (j, k) of the slab.
 void add_event(int i, int j, int k, int step) {
-    uint at = 4u * (row_base(j, k) / 32u + uint(i) / 32u) + (step > 0 ? 0u : 2u);
+    uint at = 2u * (row_base(j, k) / 32u + uint(i) / 32u) + (step > 0 ? 0u : 1u);
     uint b = 1u << (uint(i) & 31u);
     if ((atomicXor(events[at], b) & b) == 0u) return;
-    if ((atomicXor(events[at + 1u], b) & b) == 0u) return;
+    // a carry into plane 1: flag the row (every writer writes 1: no atomic needed)
+    carried[u_carried0 + slab_row(j, k)] = 1u;
+    if ((atomicXor(events[2u * plane_words() + at], b) & b) == 0u) return;
     atomicOr(overflow, 1u);
 }
 #else

@@ -18,3 +18,16 @@ uint cell_index(int i, int j, int k) { return row_base(j, k) + uint(i); }
 uniform int u_bits_k0;
 
 uint bits_row(int j, int k) { return (uint(k - u_bits_k0) * uint(u_dims.y) + uint(j)) * words_per_row(); }
+
+// gwn/events.comp's bit planes of the slab (PLANES 1), in uints: plane 0 of
+// the +1 and of the -1 counts side by side for each grid word (the slab's
+// rows as in the bit grid), then plane 1 the same way.  Plane 1 takes a
+// carry, two or more crossings of one sign in a voxel, which is rare: the
+// Carried buffer has a flag per row of the slab, set where plane 1 holds a
+// bit of the row (the mesh's rows, then the caps'), so gwn/rows.comp reads
+// plane 0 alone, half the bytes, in every other row.
+uint plane_words() { return uint(u_slab.y - u_slab.x) * uint(u_dims.y) * words_per_row(); }
+
+uint slab_rows() { return uint(u_slab.y - u_slab.x) * uint(u_dims.y); }
+
+uint slab_row(int j, int k) { return uint(k - u_slab.x) * uint(u_dims.y) + uint(j); }

@@ -27,7 +27,8 @@
 // (record w 3).  Elsewhere C alone goes on as above.
 //
 // PLANES 1: the crossings come as gwn/events.comp's bit planes (two for the
-// +1 counts, two for the -1 ones), not as an int per voxel; the
+// +1 counts, two for the -1 ones; the second of each only read in rows
+// flagged with a carry: gwn/layout.glsl), not as an int per voxel; the
 // Cells then only receive C where a later pass reads it.  Closed meshes
 // (EDGES 0, no WINDING) go word by word: a word without crossings has one C
 // throughout, a word with some is cut at them.
@@ -40,7 +41,7 @@ layout(std430, binding = 3) buffer Cells { ivec4 cells[]; };
 #if PLANES
 // gwn/events.comp's counts, per word of the slab's bit grid: +1 crossings
 // (planes 0 and 1 of a count 0..3), then -1 crossings
-layout(std430, binding = 0) readonly buffer Events { uvec4 events[]; };
+layout(std430, binding = 0) readonly buffer Events { uvec2 events[]; };
 
 // The crossing counts of voxels shift .. shift + 3 of a word whose planes are e.
 ivec4 block_deltas(uvec4 e, uint shift) {
@@ -54,6 +55,18 @@ int voxel_delta(uvec4 e, uint i) {
     ivec4 b = ivec4((e >> i) & 1u);
     return b.x + 2 * b.y - b.z - 2 * b.w;
 }
+
+// The planes of grid word `word` of the slab (gwn/layout.glsl) as one uvec4:
+// +1 plane 0, +1 plane 1, -1 plane 0, -1 plane 1; plane 1 is read only in a
+// row flagged in Carried, else it holds nothing.  A macro, for Events and
+// CapEvents alike.
+#define GWN_PLANES(buf, word, carried) \
+    gwn_planes(buf[word], (carried) ? buf[plane_words() + (word)] : uvec2(0u))
+uvec4 gwn_planes(uvec2 p0, uvec2 p1) { return uvec4(p0.x, p1.x, p0.y, p1.y); }
+
+// gwn/events.comp's flags: row r of the slab has a bit in the mesh's plane 1
+// where carried[r] != 0, in the caps' where carried[slab_rows() + r] != 0
+layout(std430, binding = 12) readonly buffer Carried { uint carried[]; };
 #endif
 layout(std430, binding = 7) buffer Bits { uint bits[]; };
 layout(std430, binding = 8) buffer Count {
@@ -79,7 +92,7 @@ uniform float u_margin;
 uniform ivec2 u_segs;   // segments s0 .. s0 + ns - 1: the rest is outside (w < threshold)
 #if CAPS
 // gwn/events.comp's planes of the caps' crossings alone, laid out as Events
-layout(std430, binding = 10) readonly buffer CapEvents { uvec4 cap_events[]; };
+layout(std430, binding = 10) readonly buffer CapEvents { uvec2 cap_events[]; };
 // gwn/bricks.comp's bit per brick the caps decide
 layout(std430, binding = 11) readonly buffer CapBits { uint cap_bits[]; };
 #endif
@@ -140,11 +153,15 @@ void main() {
 #if PLANES
     uint ev_row = row_base(j, k) / 32u;  // the row's first word
     uvec4 ev;
+    bool row_carried = carried[slab_row(j, k)] != 0u;
+#if CAPS
+    bool cap_carried = carried[slab_rows() + slab_row(j, k)] != 0u;
+#endif
 #endif
 #if PLANES && !EDGES && !WINDING
     uint wpr = words_per_row();
     for (uint w = 0u; w < wpr; ++w) {
-        ev = events[ev_row + w];
+        ev = GWN_PLANES(events, ev_row + w, row_carried);
         uint any = ev.x | ev.y | ev.z | ev.w;
         // voxels from .. i - 1 have C = run; voxel i adds its own crossings
         uint from = 0u;
@@ -182,7 +199,7 @@ void main() {
             bool whole = sw >= u_segs.x && sw < u_segs.x + u_segs.y
                          && ((cap_bits[bi / 32u] >> (bi & 31u)) & ((1u << per_word) - 1u)) == (1u << per_word) - 1u;
             if (whole) {
-                uvec4 e = events[ev_row + q / 8u], f = cap_events[ev_row + q / 8u];
+                uvec4 e = GWN_PLANES(events, ev_row + q / 8u, row_carried), f = GWN_PLANES(cap_events, ev_row + q / 8u, cap_carried);
                 uint any = e.x | e.y | e.z | e.w | f.x | f.y | f.z | f.w;
                 uint from = 0u;
                 while (any != 0u) {
@@ -207,7 +224,7 @@ void main() {
 #endif
         for (uint q = q8; q < q_end; ++q) {
 #if PLANES
-            if ((q & 7u) == 0u) ev = events[ev_row + q / 8u];
+            if ((q & 7u) == 0u) ev = GWN_PLANES(events, ev_row + q / 8u, row_carried);
             ivec4 c = block_deltas(ev, (q & 7u) * 4u);
 #else
             ivec4 c = cells[base + q];
@@ -218,7 +235,7 @@ void main() {
             c.w += c.z;
             run = c.w;
 #if CAPS
-            if ((q & 7u) == 0u) cev = cap_events[ev_row + q / 8u];
+            if ((q & 7u) == 0u) cev = GWN_PLANES(cap_events, ev_row + q / 8u, cap_carried);
             ivec4 ck = block_deltas(cev, (q & 7u) * 4u);
             ck.x += run_caps;
             ck.y += ck.x;

@@ -144,6 +144,8 @@ SLAB_CELLS = 1 << 26
 #: (closed meshes, llvmpipe: see docs/methods/gwn.md).
 PLANES = 2
 
+
+
 #: Fan triangles (boundary edges) up to which the caps are used: each brick
 #: near a fan sums a bound over its triangles (within the loop budget beside
 #: the tree walk's half of it), and a soup, a loop per triangle, gains nothing.
@@ -365,9 +367,12 @@ class _Run:
         cells_n = (s1 - s0) * ny * 32 * spec.words_per_row
         plane_words = (s1 - s0) * ny * spec.words_per_row
         events = None
+        carried = None
         if self.planes:
             events = pool.get("events", 2 * PLANES * plane_words * 4,
                               what=f"crossing counts of {s1 - s0} z slices ({2 * PLANES} bit planes)")
+            # a flag per row where plane 1 holds a bit: the mesh's rows, then the caps'
+            carried = pool.get("carried", 2 * (s1 - s0) * ny * 4, what=f"carry flags of {s1 - s0} z slices")
         # an int per voxel: the counts without planes; C where a later pass reads it (the
         # field and refinement, only where the bricks left blocks: written before read
         # then, no clear), or w itself
@@ -377,12 +382,13 @@ class _Run:
             cells = pool.get("cells", cells_n * 4, what=f"slab of {s1 - s0} z slices", clear=cleared)
         common = {**self.uniforms, "u_slab": (s0, s1), "u_threshold": self.threshold,
                   "u_bits_k0": 0 if self.stream is None else s0}
-        self._crossings(n, cells, events, common)
+        self._crossings(n, cells, events, common, carried=carried)
         cap_events = None
         if self.caps is not None:
             cap_events = pool.get("cap_events", 2 * PLANES * plane_words * 4,
                                   what=f"the caps' crossing counts of {s1 - s0} z slices")
-            self._crossings(self.caps.count, None, cap_events, common, first=self.caps.first)
+            self._crossings(self.caps.count, None, cap_events, common, first=self.caps.first,
+                            carried=carried, carried0=(s1 - s0) * ny)
         j0, k0, nj, nk = rows
         fbox, segs = self._field_part(s0, s1, rows) if self.tree is not None else (None, None)
         if self.bricks:
@@ -406,7 +412,7 @@ class _Run:
             if cells is not None:
                 blocks["Cells"] = cells
             if events is not None:
-                blocks["Events"] = events
+                blocks.update(Events=events, Carried=carried)
             if self.bricks:
                 set_uniforms(prog, {"u_segs": segs, "u_margin": WINDING_TIE})
                 t = self.gpu_tree
@@ -432,7 +438,7 @@ class _Run:
     def _plane_defines(self) -> dict:
         return {"PLANES": int(self.planes)}
 
-    def _crossings(self, n, cells, events, common, first: int = 0):
+    def _crossings(self, n, cells, events, common, first: int = 0, carried=None, carried0: int = 0):
         ctx, pool = self.ctx, self.pool
         big = pool.get("big", (n + 2) * 4, what="the triangles with several column chunks", clear=False)
         clear_buffer(ctx, big, 8)
@@ -441,8 +447,9 @@ class _Run:
                                                                       **self._plane_defines})
                             for f in (1, 0))
         for prog in (first_pass, rest):
-            set_uniforms(prog, {**common, "u_triangles": n, "u_triangle0": first})
-        counts = {"Events": events, "Count": self.count} if self.planes else {"Counts": cells}
+            set_uniforms(prog, {**common, "u_triangles": n, "u_triangle0": first, "u_carried0": carried0})
+        counts = ({"Events": events, "Count": self.count, "Carried": carried} if self.planes
+                  else {"Counts": cells})
         with self.timer.stage("crossings"):
             chunked_passes(ctx, (first_pass, rest), n, self.max_groups,
                            {"VoxVerts": self.vox, "Faces": self.bufs.faces, **counts}, big, args, _LOCAL)
