@@ -259,6 +259,10 @@ MUTANTS: list[Mutant] = [
            "their own", "glvox/methods/gwn/field.py",
            (("carried=carried, carried0=(s1 - s0) * ny)", "carried=carried, carried0=0)"),),
            ("tests/test_gwn.py", "-k", "caps_count_three")),
+    Mutant("gwn-far-g-halved", "gwn-solid's cluster records: the s . n part of the expansion's g "
+           "vector halved (it counts for fans around an apex off the node's center)",
+           "glvox/methods/gwn/tree.py", (("    g = (2.0 * (T[:, 0, :, 0]", "    g = (1.0 * (T[:, 0, :, 0]"),),
+           ("tests/test_gwn.py", "-k", "far_field_error")),
     Mutant("gwn-todo-run-short", "gwn-solid's listing of the segments the bricks left: the last of "
            "each run of segments is never listed", "shaders/gwn/todo.comp",
            (("    uint end = min(first + uint(GWN_TODO_RUN), u_items);",

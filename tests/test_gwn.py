@@ -244,24 +244,36 @@ def test_boundary_loops_are_closed_walks_of_the_boundary(shared_mesh):
 def test_far_field_error_stays_under_its_bound():
     """The second-order expansion of random closed polygons' fans against the direct sum
     of the fan's solid angles, at points from 1.2 to 8 radii: the error never exceeds
-    far_bound, which is proven but pessimistic: the measured error stays under 0.044
-    of it (pinned at 0.1; without the l = 3 term it reaches 0.9, without l = 2, 3.9)."""
+    far_bound, which is proven but pessimistic: the measured error stays under 0.067
+    of it (pinned at 0.1; without the l = 3 term it reaches 0.9, without l = 2, 3.9).
+    Half the fans have their apex at the polygon's centroid, not at the expansion's
+    center, as a node of whole loops has (each loop's fan around its own centroid):
+    only then does the part of g that comes from s . n count (a fan around the center
+    lies in planes through it, where s . n = 0).  Their error stays under 0.047 of the
+    bound (pinned at 0.07; with that part of g halved it reaches 0.098)."""
     rng = np.random.default_rng(3)
-    for _ in range(30):
+    moments, records = [], []
+    for case in range(40):
         k = rng.integers(3, 12)
         poly = rng.normal(size=(k, 3)) * rng.uniform(0.2, 2.0, size=3)
         c = 0.5 * (poly.min(axis=0) + poly.max(axis=0))
         r = np.sqrt(((poly - c) ** 2).sum(axis=1)).max()
         a, b = poly - c, np.roll(poly, -1, axis=0) - c
-        rec = pack_moments(c, r, *fan_moments(a, b))
+        apex = np.broadcast_to(poly.mean(axis=0) - c if case % 2 else np.zeros(3), a.shape)
+        moments.append((c, r, *fan_moments(a, b, apex)))
+        rec = pack_moments(*moments[-1])
+        records.append(rec)
         d = rng.normal(size=(200, 3))
         d /= np.linalg.norm(d, axis=1)[:, None]
         p = c + d * r * rng.uniform(1.2, 8.0, size=(200, 1))
-        fan = np.stack([np.broadcast_to(c, a.shape), a + c, b + c], axis=1)
+        fan = np.stack([apex + c, a + c, b + c], axis=1)
         exact = winding_direct(fan, p)
         err = np.abs(far_field(rec, p) - exact)
         bound = far_bound(rec, p)
-        assert (err <= 0.1 * bound + 1e-15).all()
+        assert (err <= (0.07 if case % 2 else 0.1) * bound + 1e-15).all()
+    # the tree packs all its nodes at once: the same records, bit for bit
+    batch = pack_moments(*(np.stack(x) for x in zip(*moments)))
+    assert np.array_equal(batch, np.stack(records))
 
 
 def test_tree_covers_every_edge_once(shared_mesh):

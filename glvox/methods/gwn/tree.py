@@ -278,9 +278,8 @@ def _node_records(polys, edges: np.ndarray, edge_loop: np.ndarray, loop_cent: np
     r = np.sqrt(np.maximum.reduceat(r2, start)) * (1 + 1e-6) + RADIUS_MARGIN
     D, Q, T, area = fan_moments(a, b, apex, start)
     length = np.add.reduceat(np.where(chord, 0.0, np.linalg.norm(v - u, axis=1)), start)
-    for k in range(len(p)):
-        out[k, :7] = pack_moments(c[k], r[k], D[k], Q[k], T[k], area[k])
-        out[k, 7, 0] = length[k] * (1 + 1e-6)  # rounded up: a bound's input
+    out[:, :7] = pack_moments(c, r, D, Q, T, area)
+    out[:, 7, 0] = length * (1 + 1e-6)  # rounded up: a bound's input
     return out
 
 
@@ -322,17 +321,30 @@ def fan_moments(a: np.ndarray, b: np.ndarray, apex: np.ndarray | None = None,
 
 
 def pack_moments(c, r, D, Q, T, area) -> np.ndarray:
-    """One node record's first 7 vec4: what the GPU's expansion needs,
-    symmetrized, and the fan's unsigned area last (:func:`far_bound`)."""
-    Qs = 0.5 * (Q + Q.T)
-    g = 2.0 * np.einsum("iki->k", T) + np.einsum("jji->i", T)
-    S = (T + T.transpose(0, 2, 1) + T.transpose(1, 0, 2) + T.transpose(1, 2, 0) + T.transpose(2, 0, 1)
-         + T.transpose(2, 1, 0)) / 6.0
-    rec = [c[0], c[1], c[2], r, D[0], D[1], D[2], np.trace(Q),
-           Qs[0, 0], Qs[1, 1], Qs[2, 2], Qs[0, 1], Qs[0, 2], Qs[1, 2], g[0], g[1],
-           g[2], S[0, 0, 0], S[1, 1, 1], S[2, 2, 2], S[0, 0, 1], S[0, 0, 2], S[0, 1, 1], S[0, 2, 2],
-           S[1, 1, 2], S[1, 2, 2], S[0, 1, 2], area]
-    return np.asarray(rec, dtype=np.float64).reshape(7, 4)
+    """Node records' first 7 vec4: what the GPU's expansion needs,
+    symmetrized, and the fan's unsigned area last (:func:`far_bound`).
+
+    One node (``c`` (3,), ``r`` scalar, ...: a (7, 4) record) or many at once
+    (a leading axis M on every argument: (M, 7, 4) records, each the same
+    float64 arithmetic as the node alone).
+    """
+    c, r, D, Q, T, area = (np.asarray(x, np.float64) for x in (c, r, D, Q, T, area))
+    one = c.ndim == 1
+    if one:
+        c, r, D, Q, T, area = c[None], r[None], D[None], Q[None], T[None], area[None]
+    Qs = 0.5 * (Q + Q.transpose(0, 2, 1))
+    # g_k = 2 sum_i T[i, k, i] + sum_j T[j, j, k]
+    g = (2.0 * (T[:, 0, :, 0] + T[:, 1, :, 1] + T[:, 2, :, 2])
+         + (T[:, 0, 0, :] + T[:, 1, 1, :] + T[:, 2, 2, :]))
+    S = (T + T.transpose(0, 1, 3, 2) + T.transpose(0, 2, 1, 3) + T.transpose(0, 2, 3, 1)
+         + T.transpose(0, 3, 1, 2) + T.transpose(0, 3, 2, 1)) / 6.0
+    trace = Q[:, 0, 0] + Q[:, 1, 1] + Q[:, 2, 2]
+    rec = np.stack([c[:, 0], c[:, 1], c[:, 2], r, D[:, 0], D[:, 1], D[:, 2], trace,
+                    Qs[:, 0, 0], Qs[:, 1, 1], Qs[:, 2, 2], Qs[:, 0, 1], Qs[:, 0, 2], Qs[:, 1, 2], g[:, 0], g[:, 1],
+                    g[:, 2], S[:, 0, 0, 0], S[:, 1, 1, 1], S[:, 2, 2, 2], S[:, 0, 0, 1], S[:, 0, 0, 2],
+                    S[:, 0, 1, 1], S[:, 0, 2, 2], S[:, 1, 1, 2], S[:, 1, 2, 2], S[:, 0, 1, 2], area],
+                   axis=1).reshape(-1, 7, 4)
+    return rec[0] if one else rec
 
 
 def far_field(rec: np.ndarray, p: np.ndarray) -> np.ndarray:
