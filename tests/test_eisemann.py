@@ -631,12 +631,12 @@ def test_open_mesh_is_refused_then_warned_and_parity_per_column(gl_context, shar
     with pytest.raises(NotWatertightError, match="not watertight.*allow_open"):
         run_method("eisemann-solid", mesh, UNIT)
     with pytest.warns(NotWatertightWarning, match="parity of ray crossings"):
-        along_z = run_method("eisemann-solid", mesh, UNIT, allow_open=True)
+        along_z = run_method("eisemann-solid", mesh, UNIT, allow_open=True, axis=2)
     streak = np.zeros(UNIT.dims, bool)
     streak[1:6, 0:4, 3:] = True
     assert np.array_equal(along_z.dense(), streak)
     with pytest.warns(NotWatertightWarning):
-        along_x = run_method("eisemann-solid", mesh, UNIT, allow_open=True, axis=0)
+        along_x = run_method("eisemann-solid", mesh, UNIT, allow_open=True)  # x: the default
     assert np.array_equal(along_x.dense(), expected_box_solid())
     # the surface methods take open meshes as they are
     assert run_method("eisemann-surface", mesh, UNIT).count == 20  # the bottom face only
@@ -644,7 +644,7 @@ def test_open_mesh_is_refused_then_warned_and_parity_per_column(gl_context, shar
     bunny = load_mesh(shared_mesh("stanford_bunny_bun_zipper.ply"))
     spec = glvox.grid_for(bunny, 64)
     with pytest.warns(NotWatertightWarning):
-        g = run_method("eisemann-solid", bunny, spec, allow_open=True)
+        g = run_method("eisemann-solid", bunny, spec, allow_open=True, axis=2)
         ref = run_method("reference-solid", bunny, spec, allow_open=True, axis=2)
     c = check_against_reference(g, bunny, reference_grid=ref)
     assert c.ok, c.describe()
@@ -660,7 +660,9 @@ def test_registry_entries():
         "solid", "raster", "reference-solid", True)
     assert (surface.kind, surface.pipeline, surface.reference, surface.exact) == (
         "surface", "raster", "reference-conservative", False)
-    assert solid.options["axis"].default == 2 and surface.options["masks"].default == eisemann_passes.DEFAULT_MASKS
+    # the solid along x (its pack a copy), the surface along z as the paper draws it
+    assert solid.options["axis"].default == 0 and surface.options["axis"].default == 2
+    assert surface.options["masks"].default == eisemann_passes.DEFAULT_MASKS
 
 
 def test_stages_and_stats(gl_context):
@@ -672,8 +674,8 @@ def test_stages_and_stats(gl_context):
     # 64 slices: one pass with one target of the eight
     assert (st["passes"], st["tiles"], st["draws"], st["slices_per_pass"], st["render_targets"]) == (
         1, [1, 1], 1, 1024, 1)
-    assert (st["axis"], st["coverage"], st["masks"]) == (2, "exact", eisemann_passes.DEFAULT_MASKS)
-    deep = run_method("eisemann-solid", mesh, glvox.grid_for(mesh, dims=(16, 16, 2100)))
+    assert (st["axis"], st["coverage"], st["masks"]) == (0, "exact", eisemann_passes.DEFAULT_MASKS)
+    deep = run_method("eisemann-solid", mesh, glvox.grid_for(mesh, dims=(16, 16, 2100)), axis=2)
     names = [s.name for s in deep.run.timings.stages]
     assert names == ["transform", "setup"] + ["render", "pack"] * 3 + ["readback"]
     assert deep.run.stats["draws"] == 3 and deep.run.stats["render_targets"] == 8

@@ -2,8 +2,9 @@
 
 ``eisemann-solid`` (Eisemann & Decoret 2008, described in Leung & Wang 2013
 Sec. III-A, Alg. 1 lines 1-7, and Schwarz & Seidel 2010 Sec. 2): one
-orthographic render of the mesh along an axis (z by default) into 8 RGBA32UI
-render targets, 1024 bits per pixel, one bit per slice.  Each fragment (a
+orthographic render of the mesh along an axis (x by default for the solid, z
+for the surface) into 8 RGBA32UI render targets, 1024 bits per pixel, one bit
+per slice.  Each fragment (a
 triangle crossing a voxel column) writes ones at every slice whose voxel
 center lies beyond the crossing; the logic op XOR combines them, so each bit
 ends as the parity of the crossings below its voxel center: the solid
@@ -102,9 +103,9 @@ class _Eisemann(Method):
         release_targets(ctx)
 
 
-def _options(what: str) -> dict[str, Option]:
+def _options(what: str, axis: int) -> dict[str, Option]:
     return {
-        "axis": Option(2, f"render axis: {what} along it (0=x, 1=y, 2=z)", (0, 1, 2)),
+        "axis": Option(axis, f"render axis: {what} along it (0=x, 1=y, 2=z)", (0, 1, 2)),
         "masks": Option(DEFAULT_MASKS, "fragment masks from bit arithmetic or a mask texture", MASKS),
         "coverage": Option("exact", "who decides the covered column centers: the double-precision "
                                     "edge test (exact) or the rasterizer on snapped vertices (raster)",
@@ -123,7 +124,10 @@ class EisemannSolid(_Eisemann):
                 "into 8 RGBA32UI targets (1024 slices per pass)",
         reference="reference-solid",
         requires=_REQUIRES,
-        options=_options("parity of crossings"),
+        # along x the slices are the packed grid's own words: the pack is a copy, not
+        # 32 x 32 transposes with scattered stores (docs/methods/eisemann.md); the
+        # solid is the same along any axis up to ties
+        options=_options("parity of crossings", 0),
     )
     op = "xor"
 
@@ -138,6 +142,7 @@ class EisemannSurface(_Eisemann):
         reference="reference-conservative",
         exact=False,
         requires=_REQUIRES,
-        options=_options("slices of the crossings"),
+        # along z as the paper draws it: which voxels it keeps depends on the axis
+        options=_options("slices of the crossings", 2),
     )
     op = "or"
