@@ -263,6 +263,10 @@ MUTANTS: list[Mutant] = [
            "vector halved (it counts for fans around an apex off the node's center)",
            "glvox/methods/gwn/tree.py", (("    g = (2.0 * (T[:, 0, :, 0]", "    g = (1.0 * (T[:, 0, :, 0]"),),
            ("tests/test_gwn.py", "-k", "far_field_error")),
+    Mutant("gwn-overflow-seen-late", "gwn-solid: planes that overflowed go on through the tree's "
+           "passes before the slabs run again with ints", "glvox/methods/gwn/field.py",
+           (("        if self.tree is not None and self.overflowed():", "        if False:"),),
+           ("tests/test_gwn.py", "-k", "past_the_planes")),
     Mutant("gwn-todo-run-short", "gwn-solid's listing of the segments the bricks left: the last of "
            "each run of segments is never listed", "shaders/gwn/todo.comp",
            (("    uint end = min(first + uint(GWN_TODO_RUN), u_items);",

@@ -466,6 +466,10 @@ def test_open_sheets_past_the_planes_run_again_and_stay_exact(gl_context):
     g, ref, _ = _check_gwn(open_mesh, spec, threshold=2.5)
     assert g.run.stats["event_overflow"] and g.run.stats["boundary_edges"] > 0
     assert 0 < g.count < spec.n_voxels
+    # the overflow is seen right after the planes' crossings: the tree's passes run
+    # once, on the ints, not first on planes that are then thrown away
+    names = [s.name for s in g.run.timings.stages]
+    assert names.count("crossings") == 2 and names.index("rows") > names.index("crossings") + 1, names
 
 
 def test_caps_count_three_crossings_in_one_voxel(gl_context):

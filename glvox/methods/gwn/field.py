@@ -352,7 +352,8 @@ class _Run:
         for s0 in range(0, nz, per_slab):
             s1 = min(nz, s0 + per_slab)
             self.stats["slabs"] += 1
-            self._slab(n_triangles, s0, s1, (j0, k0, nj, nk), field)
+            if not self._slab(n_triangles, s0, s1, (j0, k0, nj, nk), field):
+                break  # the planes overflowed: the caller runs the slabs again
             self.timer.slab_done(self.stats["slabs"], total)
         return None if field is None else field[:, :, :nx].transpose(2, 1, 0)
 
@@ -361,7 +362,8 @@ class _Run:
         Reads one word: waits for the passes so far."""
         return self.planes and bool(np.frombuffer(self.count.read(size=4, offset=20), dtype="<u4")[0])
 
-    def _slab(self, n, s0, s1, rows, field):
+    def _slab(self, n, s0, s1, rows, field) -> bool:
+        """The passes of slices s0 .. s1 - 1; False where the planes overflowed first."""
         ctx, spec, pool = self.ctx, self.spec, self.pool
         ny = spec.dims[1]
         cells_n = (s1 - s0) * ny * 32 * spec.words_per_row
@@ -389,6 +391,10 @@ class _Run:
                                   what=f"the caps' crossing counts of {s1 - s0} z slices")
             self._crossings(self.caps.count, None, cap_events, common, first=self.caps.first,
                             carried=carried, carried0=(s1 - s0) * ny)
+        if self.tree is not None and self.overflowed():
+            # the slabs run again with an int per voxel anyway: not the tree's passes
+            # first, the most of an open mesh's call (one word read, a wait per slab)
+            return False
         j0, k0, nj, nk = rows
         fbox, segs = self._field_part(s0, s1, rows) if self.tree is not None else (None, None)
         if self.bricks:
@@ -433,6 +439,7 @@ class _Run:
             per_slice = ny * spec.words_per_row * 4
             self.stream[1](s0, s1 - s0, self.bits)
             clear_buffer(ctx, self.bits, (s1 - s0) * per_slice)
+        return True
 
     @property
     def _plane_defines(self) -> dict:
