@@ -429,14 +429,17 @@ def _nested_boxes(flips):
     return load_mesh(trimesh.util.concatenate(parts)), GridSpec((16, 16, 16), (0.0, 0.0, 0.0), 1.0)
 
 
+@pytest.mark.parametrize("flags", [True, False], ids=["carry-flags", "no-flags"])
 @pytest.mark.parametrize("flips, w", [((False, False, False), 3), ((False, True, False), 1),
                                       ((False,) * 5, 5)], ids=["three", "one-inside-out", "five"])
-def test_crossing_counts_of_one_voxel_add_up(gl_context, flips, w):
+def test_crossing_counts_of_one_voxel_add_up(gl_context, monkeypatch, flips, w, flags):
     """gwn/events.comp counts a voxel's crossings of each sign in two bit planes (0 to 3):
     three walls crossing a row in one voxel count 3 (plane 1 carries), an inside-out wall
     among them takes one off, and five (past the planes) run again with an int per voxel.
     Hand-worked: w is the number of boxes (minus the inside-out ones) over the cube
-    [2, 14)^3 and 0 elsewhere."""
+    [2, 14)^3 and 0 elsewhere.  With the rows that carry flagged (large grids: here
+    forced) and without (every row reads plane 1)."""
+    monkeypatch.setattr(gwn, "CARRY_FLAGS_MIN_VOXELS", 0 if flags else 2 ** 62)
     mesh, spec = _nested_boxes(flips)
     cube = np.zeros(spec.dims, bool)
     cube[2:14, 2:14, 2:14] = True
@@ -472,12 +475,14 @@ def test_open_sheets_past_the_planes_run_again_and_stay_exact(gl_context):
     assert names.count("crossings") == 2 and names.index("rows") > names.index("crossings") + 1, names
 
 
-def test_caps_count_three_crossings_in_one_voxel(gl_context):
+def test_caps_count_three_crossings_in_one_voxel(gl_context, monkeypatch):
     """Three boxes nested 0.05 voxel apart, each open on its -x side: the rows through
     the openings cross the three caps' fans (gwn/caps.glsl closes each opening with one)
     in one voxel, and the three +x walls in another, so both the caps' bit planes and
-    the mesh's carry into plane 1, flagged per row (gwn/layout.glsl).  A grid large
-    enough for the bricks and the caps; equal to reference-gwn up to ties."""
+    the mesh's carry into plane 1, flagged per row (gwn/layout.glsl; the flags forced
+    on at this size).  A grid large enough for the bricks and the caps; equal to
+    reference-gwn up to ties."""
+    monkeypatch.setattr(gwn, "CARRY_FLAGS_MIN_VOXELS", 0)
     parts = []
     for i in range(3):
         b = trimesh.creation.box(bounds=[[2.0 + 0.05 * i] * 3, [61.9 - 0.05 * i] * 3])

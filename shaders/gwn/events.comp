@@ -20,7 +20,7 @@
 // times less memory to clear and for gwn/rows.comp to read.  Two planes count
 // the +1 crossings of each voxel (0 to 3), two more the -1 ones, each plane a
 // bit grid of the slab (gwn/layout.glsl has their order, and the Carried
-// flags that say where plane 1 holds a bit).
+// flags that say where plane 1 holds a bit, with CARRY_FLAGS 1).
 // A crossing increments its voxel's counter bit-serially with atomicXor: it
 // toggles the bit of plane 0 and, where the bit was set (1 -> 0), carries
 // into plane 1.  Every plane's toggles are atomic, so plane p ends up toggled
@@ -46,8 +46,10 @@ void add_event(int i, int j, int k, int step) {
     uint at = 2u * (row_base(j, k) / 32u + uint(i) / 32u) + (step > 0 ? 0u : 1u);
     uint b = 1u << (uint(i) & 31u);
     if ((atomicXor(events[at], b) & b) == 0u) return;
+#if CARRY_FLAGS
     // a carry into plane 1: flag the row (every writer writes 1: no atomic needed)
     carried[u_carried0 + slab_row(j, k)] = 1u;
+#endif
     if ((atomicXor(events[2u * plane_words() + at], b) & b) == 0u) return;
     atomicOr(overflow, 1u);
 }

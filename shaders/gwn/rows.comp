@@ -153,9 +153,10 @@ void main() {
 #if PLANES
     uint ev_row = row_base(j, k) / 32u;  // the row's first word
     uvec4 ev;
-    bool row_carried = carried[slab_row(j, k)] != 0u;
+    // without CARRY_FLAGS (small grids) every row reads its second planes
+    bool row_carried = CARRY_FLAGS == 0 || carried[slab_row(j, k)] != 0u;
 #if CAPS
-    bool cap_carried = carried[slab_rows() + slab_row(j, k)] != 0u;
+    bool cap_carried = CARRY_FLAGS == 0 || carried[slab_rows() + slab_row(j, k)] != 0u;
 #endif
 #endif
 #if PLANES && !EDGES && !WINDING

@@ -77,10 +77,11 @@ from ..ss.surface import COMPUTE as SURFACE_COMPUTE, surface_on_gpu
 
 _LOCAL = 64  # local_size_x of the gwn shaders
 _REQUIRES = Requirements(gl_version=430, extensions=("GL_ARB_gpu_shader_fp64",),
-                         limits={"GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 12},
-                         # the row pass with bricks and caps binds the most blocks (12)
+                         # the row pass with bricks and caps binds the most blocks (13, bindings
+                         # 0-12), read from its source
                          compute=(("gwn/*.comp", {}),
-                                  ("gwn/rows.comp", {"EDGES": 1, "BRICKS": 1, "CAPS": 1, "PLANES": 1}),
+                                  ("gwn/rows.comp", {"EDGES": 1, "BRICKS": 1, "CAPS": 1, "PLANES": 1,
+                                                     "CARRY_FLAGS": 1}),
                                   ("gwn/bricks.comp", {"CAPS": 1, "GWN_GRAD": 1}))
                          + SOLID_COMPUTE + SURFACE_COMPUTE)
 
@@ -145,6 +146,15 @@ SLAB_CELLS = 1 << 26
 PLANES = 2
 
 
+
+#: Grids from which the crossings flag the rows whose second bit planes hold a bit
+#: (gwn/layout.glsl), so that the row pass reads them there only.  The flag's store
+#: costs the crossing pass as much at every size (llvmpipe runs it in every batch),
+#: and below this the planes are read as fast as the flags save: the armadillo
+#: (closed) took 1.04-1.12x the time with flags at 64^3, 1.01 at 128^3, 0.89-0.91
+#: at 256^3 and 0.85 at 512^3 (`glvox bench -m gwn-solid --against REV`, 2 cores,
+#: llvmpipe).
+CARRY_FLAGS_MIN_VOXELS = 1 << 24
 
 #: Fan triangles (boundary edges) up to which the caps are used: each brick
 #: near a fan sums a bound over its triangles (within the loop budget beside
@@ -374,7 +384,10 @@ class _Run:
             events = pool.get("events", 2 * PLANES * plane_words * 4,
                               what=f"crossing counts of {s1 - s0} z slices ({2 * PLANES} bit planes)")
             # a flag per row where plane 1 holds a bit: the mesh's rows, then the caps'
-            carried = pool.get("carried", 2 * (s1 - s0) * ny * 4, what=f"carry flags of {s1 - s0} z slices")
+            # (bound but neither written nor read without CARRY_FLAGS)
+            flags = bool(self._plane_defines["CARRY_FLAGS"])
+            carried = pool.get("carried", 2 * (s1 - s0) * ny * 4 if flags else 4,
+                               what=f"carry flags of {s1 - s0} z slices", clear=flags)
         # an int per voxel: the counts without planes; C where a later pass reads it (the
         # field and refinement, only where the bricks left blocks: written before read
         # then, no clear), or w itself
@@ -443,7 +456,8 @@ class _Run:
 
     @property
     def _plane_defines(self) -> dict:
-        return {"PLANES": int(self.planes)}
+        return {"PLANES": int(self.planes),
+                "CARRY_FLAGS": int(self.planes and self.spec.n_voxels >= CARRY_FLAGS_MIN_VOXELS)}
 
     def _crossings(self, n, cells, events, common, first: int = 0, carried=None, carried0: int = 0):
         ctx, pool = self.ctx, self.pool
