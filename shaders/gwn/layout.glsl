@@ -22,10 +22,12 @@ uint bits_row(int j, int k) { return (uint(k - u_bits_k0) * uint(u_dims.y) + uin
 // gwn/events.comp's bit planes of the slab (PLANES 1), in uints: plane 0 of
 // the +1 and of the -1 counts side by side for each grid word (the slab's
 // rows as in the bit grid), then plane 1 the same way.  Plane 1 takes a
-// carry, two or more crossings of one sign in a voxel, which is rare: the
-// Carried buffer has a flag per row of the slab, set where plane 1 holds a
-// bit of the row (the mesh's rows, then the caps'), so gwn/rows.comp reads
-// plane 0 alone, half the bytes, in every other row.
+// carry, two or more crossings of one sign in a voxel, which is rare: with
+// CARRY_FLAGS 1 (large grids: CARRY_FLAGS_MIN_VOXELS in
+// glvox/methods/gwn/field.py) the Carried buffer has a flag per row of the
+// slab, set where plane 1 holds a bit of the row (the mesh's rows, then the
+// caps'), so gwn/rows.comp reads plane 0 alone, half the bytes, in every
+// other row.
 uint plane_words() { return uint(u_slab.y - u_slab.x) * uint(u_dims.y) * words_per_row(); }
 
 uint slab_rows() { return uint(u_slab.y - u_slab.x) * uint(u_dims.y); }

@@ -39,8 +39,9 @@ layout(local_size_x = 64) in;
 #include "gwn/layout.glsl"
 layout(std430, binding = 3) buffer Cells { ivec4 cells[]; };
 #if PLANES
-// gwn/events.comp's counts, per word of the slab's bit grid: +1 crossings
-// (planes 0 and 1 of a count 0..3), then -1 crossings
+// gwn/events.comp's counts of the +1 and the -1 crossings of each voxel (0..3),
+// in bit planes (gwn/layout.glsl): plane 0 of both as a uvec2 per word of the
+// slab's bit grid, then plane 1 the same way
 layout(std430, binding = 0) readonly buffer Events { uvec2 events[]; };
 
 // The crossing counts of voxels shift .. shift + 3 of a word whose planes are e.

@@ -145,12 +145,10 @@ SLAB_CELLS = 1 << 26
 #: (closed meshes, llvmpipe: see docs/methods/gwn.md).
 PLANES = 2
 
-
-
-#: Grids from which the crossings flag the rows whose second bit planes hold a bit
-#: (gwn/layout.glsl), so that the row pass reads them there only.  The flag's store
-#: costs the crossing pass as much at every size (llvmpipe runs it in every batch),
-#: and below this the planes are read as fast as the flags save: the armadillo
+#: Grids (voxels) from which the crossings flag the rows whose second bit planes
+#: hold a bit (gwn/layout.glsl), so that the row pass reads those planes there
+#: only.  The flag's store costs the crossing pass at every size (llvmpipe runs it
+#: in every batch); below this the row pass saves no more than that: the armadillo
 #: (closed) took 1.04-1.12x the time with flags at 64^3, 1.01 at 128^3, 0.89-0.91
 #: at 256^3 and 0.85 at 512^3 (`glvox bench -m gwn-solid --against REV`, 2 cores,
 #: llvmpipe).
