@@ -16,7 +16,7 @@ from glvox import io, voxelize
 from glvox.cli import build_parser
 from glvox.cli import main as cli_main
 from glvox.methods import request
-from glvox.methods.gwn import field as gwn
+from glvox.methods.gwn import plan
 from glvox.study.compare import plan_from
 from glvox.methods import method_names
 
@@ -77,7 +77,7 @@ def test_voxelize_shows_the_slabs_of_a_long_run(gl_context, tmp_path, monkeypatc
     """A method that works the grid in z slabs reports each one, and glvox voxelize shows
     them: off a terminal, a line now and then and one at the end (gwn-solid forced into
     slabs of 4 slices here); --quiet shows none."""
-    monkeypatch.setattr(gwn, "SLAB_CELLS", 32 * 24 * 4 // 8)  # 4 slices of 24 rows of 32 voxels at most
+    monkeypatch.setattr(plan, "SLAB_CELLS", 32 * 24 * 4 // 8)  # 4 slices of 24 rows of 32 voxels at most
     out = tmp_path / "t.npz"
     assert cli_main(["voxelize", "gen:torus", "-r", "24", "-m", "gwn-solid", "-o", str(out)]) == 0
     err = capsys.readouterr().err

@@ -383,7 +383,7 @@ def test_accuracy_only_moves_work_not_voxels(gl_context, shared_mesh, monkeypatc
     base, ref, near = _check_gwn(mesh, spec)
     exact, _, _ = _check_gwn(mesh, spec, accuracy=1.0001)
     assert exact.run.stats["refined_segments"] > 0.75 * exact.run.stats["field_segments"]
-    monkeypatch.setattr(gwn, "SLAB_CELLS", 48 * 64 * 5)
+    monkeypatch.setattr(plan, "SLAB_CELLS", 48 * 64 * 5)
     monkeypatch.setattr(gwn, "REFINE_EDGES", 7)
     monkeypatch.setattr(gwn, "LOOP_BUDGET", 3000)
     monkeypatch.setattr(plan, "LOOP_BUDGET", 3000)  # the tree's chunks too
@@ -439,14 +439,14 @@ def test_crossing_counts_of_one_voxel_add_up(gl_context, monkeypatch, flips, w, 
     Hand-worked: w is the number of boxes (minus the inside-out ones) over the cube
     [2, 14)^3 and 0 elsewhere.  With the rows that carry flagged (large grids: here
     forced) and without (every row reads plane 1)."""
-    monkeypatch.setattr(gwn, "CARRY_FLAGS_MIN_VOXELS", 0 if flags else 2 ** 62)
+    monkeypatch.setattr(plan, "CARRY_FLAGS_MIN_VOXELS", 0 if flags else 2 ** 62)
     mesh, spec = _nested_boxes(flips)
     cube = np.zeros(spec.dims, bool)
     cube[2:14, 2:14, 2:14] = True
     for threshold in (w - 0.5, w + 0.5):
         g = run_method("gwn-solid", mesh, spec, threshold=threshold)
         assert g.run.stats["boundary_edges"] == 0
-        assert g.run.stats.get("event_overflow", False) == (len(flips) >= 2 ** gwn.PLANES)
+        assert g.run.stats.get("event_overflow", False) == (len(flips) >= 2 ** plan.PLANES)
         want = cube if threshold < w else np.zeros_like(cube)
         assert np.array_equal(g.dense(), want), f"threshold {threshold}: {int(g.count)} voxels"
         assert np.array_equal(want, run_method("reference-gwn", mesh, spec, threshold=threshold).dense())
@@ -482,7 +482,7 @@ def test_caps_count_three_crossings_in_one_voxel(gl_context, monkeypatch):
     the mesh's carry into plane 1, flagged per row (gwn/layout.glsl; the flags forced
     on at this size).  A grid large enough for the bricks and the caps; equal to
     reference-gwn up to ties."""
-    monkeypatch.setattr(gwn, "CARRY_FLAGS_MIN_VOXELS", 0)
+    monkeypatch.setattr(plan, "CARRY_FLAGS_MIN_VOXELS", 0)
     parts = []
     for i in range(3):
         b = trimesh.creation.box(bounds=[[2.0 + 0.05 * i] * 3, [61.9 - 0.05 * i] * 3])
@@ -511,7 +511,7 @@ def test_closed_meshes_in_slabs_keep_their_counts(gl_context, shared_mesh, monke
     # fresh buffers: the whole grid's would still hold its counts where a slab mis-indexes
     get_method("gwn-solid").release(gl_context)
     slice_cells = 32 * spec.words_per_row * spec.dims[1]
-    monkeypatch.setattr(gwn, "SLAB_CELLS", slice_cells * 3 // 8)  # 3 slices of planes
+    monkeypatch.setattr(plan, "SLAB_CELLS", slice_cells * 3 // 8)  # 3 slices of planes
     sliced = run_method("gwn-solid", mesh, spec)
     assert sliced.run.stats["slabs"] == -(-spec.dims[2] // 3)
     assert sliced.equal(whole)
@@ -560,7 +560,7 @@ def test_slabs_are_as_deep_as_the_storage_block_allows(gl_context, shared_mesh, 
     slice_bytes = 4 * 32 * spec.words_per_row * ny
     whole = run_method("gwn-solid", mesh, spec)
     real = gl_context.limits()
-    monkeypatch.setattr(gwn, "SLAB_CELLS", 1 << 30)  # the limit binds, not the constant
+    monkeypatch.setattr(plan, "SLAB_CELLS", 1 << 30)  # the limit binds, not the constant
     monkeypatch.setattr(gl_context, "limits", lambda: {**real, "GL_MAX_SHADER_STORAGE_BLOCK_SIZE": 6 * slice_bytes})
     get_method("gwn-solid").release(gl_context)
     one = run_method("gwn-solid", mesh, spec)

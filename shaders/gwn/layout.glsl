@@ -7,8 +7,10 @@ uniform ivec2 u_slab;  // z slices k0 .. k1 - 1
 
 uint row_cells() { return 32u * words_per_row(); }
 
-// First cell of row (j, k), k inside the slab.
-uint row_base(int j, int k) { return (uint(k - u_slab.x) * uint(u_dims.y) + uint(j)) * row_cells(); }
+// Row (j, k) of the slab, k inside it: its index among the slab's rows, and its first cell.
+uint slab_row(int j, int k) { return uint(k - u_slab.x) * uint(u_dims.y) + uint(j); }
+
+uint row_base(int j, int k) { return slab_row(j, k) * row_cells(); }
 
 uint cell_index(int i, int j, int k) { return row_base(j, k) + uint(i); }
 
@@ -24,12 +26,10 @@ uint bits_row(int j, int k) { return (uint(k - u_bits_k0) * uint(u_dims.y) + uin
 // rows as in the bit grid), then plane 1 the same way.  Plane 1 takes a
 // carry, two or more crossings of one sign in a voxel, which is rare: with
 // CARRY_FLAGS 1 (large grids: CARRY_FLAGS_MIN_VOXELS in
-// glvox/methods/gwn/field.py) the Carried buffer has a flag per row of the
+// glvox/methods/gwn/plan.py) the Carried buffer has a flag per row of the
 // slab, set where plane 1 holds a bit of the row (the mesh's rows, then the
 // caps'), so gwn/rows.comp reads plane 0 alone, half the bytes, in every
 // other row.
-uint plane_words() { return uint(u_slab.y - u_slab.x) * uint(u_dims.y) * words_per_row(); }
-
 uint slab_rows() { return uint(u_slab.y - u_slab.x) * uint(u_dims.y); }
 
-uint slab_row(int j, int k) { return uint(k - u_slab.x) * uint(u_dims.y) + uint(j); }
+uint plane_words() { return slab_rows() * words_per_row(); }

@@ -68,7 +68,7 @@ from ...results.voxels import VoxelGrid
 from ...tolerances import WINDING_TIE
 from ..base import Method, MethodInfo, Option, Requirements, register
 from .caps import RunCaps, cap_margin, cap_records, capped_mesh
-from .plan import BRICK, EDGE_COST, SEGV, plan_chunks, strip_free_share, x_range
+from .plan import BRICK, EDGE_COST, PLANES, SEGV, carry_flags, plan_chunks, slab_slices, strip_free_share, x_range
 from .tree import NODE_VEC4, boundary_loops, build_tree
 from ..ss.chunks import chunked_passes
 from ..ss.solid import COMPUTE as SOLID_COMPUTE, COLUMN_CHUNK, mesh_rows
@@ -124,35 +124,6 @@ GRAD_EDGES = 4096
 #: 0.87-0.93 at 64^3), at 1.9e5 they were level (the wall at 64^3, 0.96-1.00),
 #: and below they lost (the tower 1.04, the teapot 1.10 at 64^3).
 BRICKS_MIN_VOXELS = 200_000
-
-#: Cells (voxels of padded rows) per slab, at most: the slab buffer takes 4
-#: bytes a cell and, with several tree chunks, the chunk sums' buffer 8; each
-#: must fit the storage-block limit, which binds first where it is lower
-#: (llvmpipe's 128 MiB: 2^25 cells; NVIDIA's 2 GiB: this cap, 256 MiB of
-#: cells, 16 slabs at 1024^3).  Eight times as many where only the crossings'
-#: bit planes are kept (closed meshes, no field).  Every slab repeats the crossing pass over
-#: all triangles and each pass's fixed cost: on llvmpipe the bunny at 512^3
-#: took 949 / 1,082 / 1,934 ms in 8 / 32 / 128 slabs (same process, best of 3).
-SLAB_CELLS = 1 << 26
-
-#: Bit planes per sign of the crossing counts (gwn/events.comp, which fixes
-#: it at 2: one uvec4 per grid word): a voxel's count of +1 (and of -1)
-#: crossings is held modulo 2^PLANES.  The crossings
-#: of one sign in one voxel and row are one or none but where sheets of the
-#: mesh nearly coincide; 4 or more set a flag, and the slabs run again with an
-#: int per voxel (``run.stats['event_overflow']``).  Against that int per
-#: voxel, the planes cut the memory cleared and read by the row pass eightfold
-#: (closed meshes, llvmpipe: see docs/methods/gwn.md).
-PLANES = 2
-
-#: Grids (voxels) from which the crossings flag the rows whose second bit planes
-#: hold a bit (gwn/layout.glsl), so that the row pass reads those planes there
-#: only.  The flag's store costs the crossing pass at every size (llvmpipe runs it
-#: in every batch); below this the row pass saves no more than that: the armadillo
-#: (closed) took 1.04-1.12x the time with flags at 64^3, 1.01 at 128^3, 0.89-0.91
-#: at 256^3 and 0.85 at 512^3 (`glvox bench -m gwn-solid --against REV`, 2 cores,
-#: llvmpipe).
-CARRY_FLAGS_MIN_VOXELS = 1 << 24
 
 #: Fan triangles (boundary edges) up to which the caps are used: each brick
 #: near a fan sums a bound over its triangles (within the loop budget beside
@@ -343,15 +314,9 @@ class _Run:
         """Every slab's passes; the winding field (nx, ny, nz) float32 view, or None."""
         nx, ny, nz = self.spec.dims
         row = 32 * self.spec.words_per_row
-        limit = int(self.ctx.limits()["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"])
-        if self.planes and not self.winding and self.tree is None:
-            # no cells at all: the slab's planes take 2 * PLANES bits a cell
-            cells = min(8 * SLAB_CELLS, limit * 8 // (2 * PLANES))
-        else:
-            # the cells take 4 bytes each; the chunk sums 8 more, with several tree chunks only
-            several = self.tree is not None and len(self.chunks) > 1
-            cells = min(SLAB_CELLS, limit // (8 if several else 4))
-        per_slab = max(1, cells // (row * ny))
+        per_slab = slab_slices(self.spec, int(self.ctx.limits()["GL_MAX_SHADER_STORAGE_BLOCK_SIZE"]),
+                               planes_only=self.planes and not self.winding and self.tree is None,
+                               several_chunks=self.tree is not None and len(self.chunks) > 1)
         if self.stream is not None:
             per_slab = min(per_slab, self.stream[0])
         field = np.empty((nz, ny, row), np.float32) if self.winding else None
@@ -454,8 +419,7 @@ class _Run:
 
     @property
     def _plane_defines(self) -> dict:
-        return {"PLANES": int(self.planes),
-                "CARRY_FLAGS": int(self.planes and self.spec.n_voxels >= CARRY_FLAGS_MIN_VOXELS)}
+        return {"PLANES": int(self.planes), "CARRY_FLAGS": int(self.planes and carry_flags(self.spec))}
 
     def _crossings(self, n, cells, events, common, first: int = 0, carried=None, carried0: int = 0):
         ctx, pool = self.ctx, self.pool

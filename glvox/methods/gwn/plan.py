@@ -1,6 +1,8 @@
-"""How ``gwn-solid`` (:mod:`.field`) divides its work: the boundary tree in
-chunks of subtrees per field dispatch (:func:`plan_chunks`, within the loop
-budget), the share of brick columns where bricks can decide at all
+"""How ``gwn-solid`` (:mod:`.field`) divides its work: the grid in slabs of z
+slices (:func:`slab_slices`) and its crossing counts in bit planes
+(:data:`PLANES`, :func:`carry_flags`), the boundary tree in chunks of
+subtrees per field dispatch (:func:`plan_chunks`, within the loop budget),
+the share of brick columns where bricks can decide at all
 (:func:`strip_free_share`), and the row segments along x the mesh can reach
 (:func:`x_range`)."""
 
@@ -32,6 +34,56 @@ EDGE_COST = 1 + SEGV
 #: 16 leaves twice as many).  It divides 4 * SEGV: a block of 4 voxels lies in
 #: one brick.
 BRICK = 8
+
+#: Cells (voxels of padded rows) per slab, at most: the slab buffer takes 4
+#: bytes a cell and, with several tree chunks, the chunk sums' buffer 8; each
+#: must fit the storage-block limit, which binds first where it is lower
+#: (llvmpipe's 128 MiB: 2^25 cells; NVIDIA's 2 GiB: this cap, 256 MiB of
+#: cells, 16 slabs at 1024^3).  Eight times as many where only the crossings'
+#: bit planes are kept (closed meshes, no field).  Every slab repeats the crossing pass over
+#: all triangles and each pass's fixed cost: on llvmpipe the bunny at 512^3
+#: took 949 / 1,082 / 1,934 ms in 8 / 32 / 128 slabs (same process, best of 3).
+SLAB_CELLS = 1 << 26
+
+#: Bit planes per sign of the crossing counts (gwn/events.comp, which fixes
+#: it at 2; gwn/layout.glsl has their layout): a voxel's count of +1 (and of
+#: -1) crossings is held modulo 2^PLANES.  The crossings
+#: of one sign in one voxel and row are one or none but where sheets of the
+#: mesh nearly coincide; 4 or more set a flag, and the slabs run again with an
+#: int per voxel (``run.stats['event_overflow']``).  Against that int per
+#: voxel, the planes cut the memory cleared and read by the row pass eightfold
+#: (closed meshes, llvmpipe: see docs/methods/gwn.md).
+PLANES = 2
+
+#: Grids (voxels) from which the crossings flag the rows whose second bit planes
+#: hold a bit (gwn/layout.glsl), so that the row pass reads those planes there
+#: only.  The flag's store costs the crossing pass at every size (llvmpipe runs it
+#: in every batch); below this the row pass saves no more than that: the armadillo
+#: (closed) took 1.04-1.12x the time with flags at 64^3, 1.01 at 128^3, 0.89-0.91
+#: at 256^3 and 0.85 at 512^3 (`glvox bench -m gwn-solid --against REV`, 2 cores,
+#: llvmpipe).
+CARRY_FLAGS_MIN_VOXELS = 1 << 24
+
+
+def slab_slices(spec, limit: int, *, planes_only: bool, several_chunks: bool) -> int:
+    """z slices per slab of ``spec``'s grid: :data:`SLAB_CELLS` cells at most, and
+    each slab buffer within the storage-block ``limit`` (bytes).  ``planes_only``:
+    only the crossings' bit planes are kept (2 * PLANES bits a cell, eight times
+    the cells); else a cell takes 4 bytes, and 8 with ``several_chunks`` (the
+    tree's chunk sums)."""
+    row = 32 * spec.words_per_row
+    if planes_only:
+        cells = min(8 * SLAB_CELLS, limit * 8 // (2 * PLANES))
+    else:
+        cells = min(SLAB_CELLS, limit // (8 if several_chunks else 4))
+    return max(1, cells // (row * spec.dims[1]))
+
+
+def carry_flags(spec) -> bool:
+    """Whether the crossings flag the rows that carry into the second bit planes
+    (:data:`CARRY_FLAGS_MIN_VOXELS`)."""
+    return spec.n_voxels >= CARRY_FLAGS_MIN_VOXELS
+
 
 def plan_chunks(tree: ClusterTree) -> list[list[int]]:
     """Subtree roots per field dispatch, so that one invocation's loops stay
