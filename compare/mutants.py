@@ -267,6 +267,10 @@ MUTANTS: list[Mutant] = [
            "passes before the slabs run again with ints", "glvox/methods/gwn/field.py",
            (("        if self.tree is not None and self.overflowed():", "        if False:"),),
            ("tests/test_gwn.py", "-k", "past_the_planes")),
+    Mutant("gwn-super-ball-shrunk", "gwn-solid's super bricks: the caps' bound taken over a ball of "
+           "0.3 of the super brick's radius, not around all its voxel centers", "shaders/gwn/bricks.comp",
+           (("caps_decide(0.5 * (lo + hi), 0.5 * length(hi - lo))", "caps_decide(0.5 * (lo + hi), 0.15 * length(hi - lo))"),),
+           ("tests/test_gwn.py", "-k", "open_shared_meshes_64")),
     Mutant("gwn-todo-run-short", "gwn-solid's listing of the segments the bricks left: the last of "
            "each run of segments is never listed", "shaders/gwn/todo.comp",
            (("    uint end = min(first + uint(GWN_TODO_RUN), u_items);",

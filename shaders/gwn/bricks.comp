@@ -47,6 +47,14 @@
 // under the limit gets the record (0, 0, 0, 3) and its bit in CapBits:
 // gwn/rows.comp decides its voxels from the crossing counts of the mesh and
 // its caps, and the tree is not walked for it.
+//
+// GWN_SUPER > 0 (with CAPS): the pass before, one invocation per super brick
+// of GWN_SUPER^3 bricks of the evaluated part.  The caps' bound holds over any
+// ball, so where it holds over the ball around a super brick's voxel centers
+// each of its bricks gets its bit in CapBits at once; the brick pass then
+// takes a brick whose bit is set as decided, without a test of its own.  Far
+// from the caps one test stands for GWN_SUPER^3 (each of which loops over
+// every fan triangle whose ball it is in).
 #include "common/voxel_space.glsl"
 #include "gwn/layout.glsl"
 #include "gwn/strip.glsl"
@@ -72,7 +80,11 @@ vec3 vertex(uint i) { return vec3(vox[3u * i], vox[3u * i + 1u], vox[3u * i + 2u
 #include "gwn/winding2d.glsl"
 #if CAPS
 #include "gwn/caps.glsl"
-layout(std430, binding = 8) buffer Count { uint count_words[7]; uint cap_bricks; };
+layout(std430, binding = 8) buffer Count {
+    uint count_words[7];
+    uint cap_bricks;    // bricks the caps decide (run.stats)
+    uint super_bricks;  // of them, those their super brick decided
+};
 // a bit per brick (bit brick_index(b), cleared before): the caps decide it
 layout(std430, binding = 3) buffer CapBits { uint cap_bits[]; };
 #endif
@@ -159,6 +171,27 @@ vec4 gradient_record(vec3 p0, vec3 lo, vec3 hi) {
 }
 #endif
 
+#if GWN_SUPER
+// (GWN_SUPER: bricks.comp's header)
+void main() {
+    uint id = global_index_1d();
+    ivec3 ns = (u_bricks + GWN_SUPER - 1) / GWN_SUPER;
+    uint nxy = uint(ns.x * ns.y);
+    if (id >= nxy * uint(ns.z)) return;
+    ivec3 b0 = u_brick0 + GWN_SUPER * ivec3(int(id % uint(ns.x)), int((id % nxy) / uint(ns.x)), int(id / nxy));
+    ivec3 b1 = min(b0 + GWN_SUPER, u_brick0 + u_bricks) - 1;
+    vec3 lo = brick_low(b0), hi = brick_low(b1) + float(GWN_BRICK - 1);
+    if (!caps_decide(0.5 * (lo + hi), 0.5 * length(hi - lo))) return;
+    ivec3 n = b1 - b0 + 1;
+    atomicAdd(super_bricks, uint(n.x * n.y * n.z));
+    for (int z = b0.z; z <= b1.z; ++z)
+        for (int y = b0.y; y <= b1.y; ++y)
+            for (int x = b0.x; x <= b1.x; ++x) {
+                uint bi = brick_index(ivec3(x, y, z));
+                atomicOr(cap_bits[bi / 32u], 1u << (bi & 31u));
+            }
+}
+#else
 void main() {
     uint id = global_index_1d();
     uint nxy = uint(u_bricks.x * u_bricks.y);
@@ -170,12 +203,13 @@ void main() {
     int wn = 0;  // the boundary chain's (y, z) winding number around p0
 #if CAPS
     // the caps' bound, on the first chunk; later chunks read its flag (w: 1)
-    bool capped = u_first ? caps_decide(p0, 0.5 * sqrt(3.0) * float(GWN_BRICK - 1)) : bricks[at].w != 0.0;
+    uint bi = brick_index(b);
+    bool pre = u_first && ((cap_bits[bi / 32u] >> (bi & 31u)) & 1u) != 0u;
+    bool capped = u_first ? pre || caps_decide(p0, 0.5 * sqrt(3.0) * float(GWN_BRICK - 1)) : bricks[at].w != 0.0;
     if (capped) {
         if (u_first) {
             atomicAdd(cap_bricks, 1u);
-            uint bi = brick_index(b);
-            atomicOr(cap_bits[bi / 32u], 1u << (bi & 31u));
+            if (!pre) atomicOr(cap_bits[bi / 32u], 1u << (bi & 31u));
         }
         bricks[at] = vec4(0.0, 0.0, 0.0, u_last ? 3.0 : 1.0);
         return;
@@ -271,3 +305,4 @@ void main() {
 #endif
     bricks[at + 1u] = first_order;
 }
+#endif

@@ -68,7 +68,8 @@ from ...results.voxels import VoxelGrid
 from ...tolerances import WINDING_TIE
 from ..base import Method, MethodInfo, Option, Requirements, register
 from .caps import RunCaps, cap_margin, cap_records, capped_mesh
-from .plan import BRICK, EDGE_COST, PLANES, SEGV, carry_flags, plan_chunks, slab_slices, strip_free_share, x_range
+from .plan import (BRICK, EDGE_COST, PLANES, SEGV, SUPER, carry_flags, plan_chunks, slab_slices, strip_free_share,
+                   super_size, x_range)
 from .tree import NODE_VEC4, boundary_loops, build_tree
 from ..ss.chunks import chunked_passes
 from ..ss.solid import COMPUTE as SOLID_COMPUTE, COLUMN_CHUNK, mesh_rows
@@ -82,7 +83,8 @@ _REQUIRES = Requirements(gl_version=430, extensions=("GL_ARB_gpu_shader_fp64",),
                          compute=(("gwn/*.comp", {}),
                                   ("gwn/rows.comp", {"EDGES": 1, "BRICKS": 1, "CAPS": 1, "PLANES": 1,
                                                      "CARRY_FLAGS": 1}),
-                                  ("gwn/bricks.comp", {"CAPS": 1, "GWN_GRAD": 1}))
+                                  ("gwn/bricks.comp", {"CAPS": 1, "GWN_GRAD": 1, "GWN_SUPER": 0}),
+                                  ("gwn/bricks.comp", {"CAPS": 1, "GWN_GRAD": 0, "GWN_SUPER": SUPER}))
                          + SOLID_COMPUTE + SURFACE_COMPUTE)
 
 #: Segments one invocation of gwn/todo.comp lists (as many as a work group of
@@ -237,7 +239,9 @@ class GwnSolid(Method):
             run.stats["first_order_blocks"] = first  # blocks the bricks' first-order records decided
         if run.caps is not None:
             # bricks decided by the caps' bound, counts alone
-            run.stats["cap_bricks"] = int(np.frombuffer(run.count.read(size=4, offset=28), dtype="<u4")[0])
+            caps, supers = (int(x) for x in np.frombuffer(run.count.read(size=8, offset=28), dtype="<u4"))
+            run.stats["cap_bricks"] = caps
+            run.stats["super_bricks"] = supers  # of them, those decided with their super brick
         timer.stats.update(boundary_edges=loops.n_edges, loops=len(loops.loops), **run.stats)
         # the passes count in a uint32: not where a grid has 2^32 voxels or more
         return VoxelGrid(words=words, spec=spec, count=voxels if spec.n_voxels < 2**32 else None,
@@ -270,8 +274,9 @@ class _Run:
         # the crossing counts in bit planes (else an int per voxel)
         self.planes = planes
         # voxels, refine list, todo list (slab), todo total, blocks of the -x split,
-        # the planes' overflow flag, 0, bricks the caps decided
-        self.count = pool.get("count", 32)
+        # the planes' overflow flag, blocks of the first-order records, bricks the
+        # caps decided, of them those their super brick decided
+        self.count = pool.get("count", 36)
         # bricks need the voxels alone: the field asked for is the tree's everywhere
         self.bricks = tree is not None and not winding
         # the mirrored split's T (gwn/rows.comp, chain_winding) walks the whole tree
@@ -503,9 +508,8 @@ class _Run:
         self.stats["bricks"] += n
         edges = len(self.tree.edges)
         grad = edges <= GRAD_EDGES
-        prog = compute_program(ctx, "gwn/bricks.comp", {"GWN_SEGV": SEGV, "GWN_BRICK": BRICK,
-                                                         "GWN_NODE_VEC4": NODE_VEC4, "GWN_GRAD": int(grad),
-                                                         **self._cap_defines})
+        defines = {"GWN_SEGV": SEGV, "GWN_BRICK": BRICK, "GWN_NODE_VEC4": NODE_VEC4, **self._cap_defines}
+        prog = compute_program(ctx, "gwn/bricks.comp", {**defines, "GWN_GRAD": int(grad), "GWN_SUPER": 0})
         if grad:
             set_uniforms(prog, {"u_edges": edges})
         t = self.gpu_tree
@@ -513,6 +517,14 @@ class _Run:
              Roots=t["roots"], **({} if self.caps is None else {"Caps": self.caps.buf, "Count": self.count,
                                                                  "CapBits": cap_bits}))
         with self.timer.stage("bricks"):
+            size = super_size(n) if self.caps is not None else 0
+            if size:
+                # the caps' bound over whole super bricks first (gwn/bricks.comp's header)
+                sup = compute_program(ctx, "gwn/bricks.comp", {**defines, "GWN_GRAD": 0, "GWN_SUPER": size})
+                bind(sup, VoxVerts=self.vox, Caps=self.caps.buf, Count=self.count, CapBits=cap_bits)
+                set_uniforms(sup, {**common, "u_brick0": first, "u_bricks": counts, **self._cap_uniforms()})
+                dispatch_1d(ctx, sup, math.prod(-(-c // size) for c in counts), _LOCAL)
+                barrier(ctx)
             start = 0
             for i, chunk in enumerate(self.chunks):
                 set_uniforms(prog, {**common, "u_beta": self.beta, "u_roots": (start, start + len(chunk)),
