@@ -43,8 +43,8 @@ BRICK = 8
 #: is what it saves.  Measured on llvmpipe (2 cores), `glvox bench -m gwn-solid
 #: --meshes stanford_bunny_bun_zipper.ply messy_teapot_newell.obj
 #: messy_tower_holes.obj messy_wallhole.obj depth_gyroid_tpms_sheet.stl -r 128
-#: 256 512 --against REV --repeat 3` (best ratios): 0.88-0.93 at 512^3
-#: (the bunny 0.97), 0.95-0.98 at 256^3, 1.00-1.05 at 128^3.
+#: 256 512 --against REV --repeat 3`, two runs (best ratios): 0.88-0.96 at
+#: 512^3 (the bunny 0.97), 0.95-1.01 at 256^3, 1.00-1.05 at 128^3.
 SUPER = 4
 SUPER_MIN_BRICKS = 1 << 14
 
