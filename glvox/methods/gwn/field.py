@@ -237,11 +237,9 @@ class GwnSolid(Method):
             run.stats["field_segments"] = left  # the segments the bricks left to the tree walk
             run.stats["split_blocks"] = split  # blocks of 4 voxels the -x split decided
             run.stats["first_order_blocks"] = first  # blocks the bricks' first-order records decided
-        if run.caps is not None:
-            # bricks decided by the caps' bound, counts alone
-            caps, supers = (int(x) for x in np.frombuffer(run.count.read(size=8, offset=28), dtype="<u4"))
-            run.stats["cap_bricks"] = caps
-            run.stats["super_bricks"] = supers  # of them, those decided with their super brick
+        if run.caps is not None:  # bricks the caps' bound decided (counts alone), of them with their super brick
+            caps = np.frombuffer(run.count.read(size=8, offset=28), dtype="<u4")
+            run.stats["cap_bricks"], run.stats["super_bricks"] = int(caps[0]), int(caps[1])
         timer.stats.update(boundary_edges=loops.n_edges, loops=len(loops.loops), **run.stats)
         # the passes count in a uint32: not where a grid has 2^32 voxels or more
         return VoxelGrid(words=words, spec=spec, count=voxels if spec.n_voxels < 2**32 else None,
