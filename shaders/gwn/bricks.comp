@@ -198,12 +198,11 @@ void main() {
     if (id >= nxy * uint(u_bricks.z)) return;
     ivec3 b = u_brick0 + ivec3(int(id % uint(u_bricks.x)), int((id % nxy) / uint(u_bricks.x)), int(id / nxy));
     vec3 lo = brick_low(b), hi = lo + float(GWN_BRICK - 1), p0 = brick_center(b);
-    uint at = 2u * brick_index(b);
+    uint bi = brick_index(b), at = 2u * bi;
     float f = 0.0, err = 0.0, grad = 0.0;
     int wn = 0;  // the boundary chain's (y, z) winding number around p0
 #if CAPS
     // the caps' bound, on the first chunk; later chunks read its flag (w: 1)
-    uint bi = brick_index(b);
     bool pre = u_first && ((cap_bits[bi / 32u] >> (bi & 31u)) & 1u) != 0u;
     bool capped = u_first ? pre || caps_decide(p0, 0.5 * sqrt(3.0) * float(GWN_BRICK - 1)) : bricks[at].w != 0.0;
     if (capped) {
