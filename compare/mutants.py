@@ -469,6 +469,14 @@ MUTANTS: list[Mutant] = [
            "glvox/methods/binvox/solid.py",
            (("    bits[first] |= 1\n    bits[last] |= 8\n", "    bits[first] |= 8\n    bits[last] |= 1\n"),),
            ("tests/test_binvox.py", "-k", "owners")),
+    Mutant("depth-draw-no-barrier", "depth layers: no barrier after a draw whose layer a dispatch then reads "
+           "(GL orders it; softpipe's tile cache does not)", "glvox/methods/depth/raster.py",
+           (("        rendered(self.ctx)\n", ""),),
+           ("tests/test_drivers.py", "-k", "softpipe")),
+    Mutant("eisemann-logic-op-unprobed", "eisemann-*: the logic op on integer targets taken on trust, not probed",
+           "glvox/methods/eisemann/slicing.py",
+           (("    behaviours=(\"integer-logic-op\",))", "    behaviours=())"),),
+           ("tests/test_drivers.py",)),
 ]
 
 

@@ -20,6 +20,7 @@ from ._version import __version__
 from .batch import BatchSettings, run_batch
 from .errors import GlvoxError
 from .gl.context import get_context
+from .gpu.behaviours import PROBES, broken
 from .grid import binvox_grid, grid_for
 from .inspect import inspect_mesh
 from .mesh import binvox_bounds, load_mesh
@@ -33,7 +34,10 @@ from .results import LDI, SDFGrid, SparseOctree
 
 
 def cmd_info(args) -> int:
-    d = get_context(args.backend).describe()
+    ctx = get_context(args.backend)
+    d = ctx.describe()
+    # the behaviours the methods rely on, probed on this context (None: done right)
+    d["behaviours"] = {name: broken(ctx, name) for name in PROBES}
     if args.json:
         print(json.dumps(d, indent=2))
         return 0
@@ -43,6 +47,9 @@ def cmd_info(args) -> int:
     print("limits:")
     for k, v in d["limits"].items():
         print(f"  {k:<40} {v}")
+    print("behaviours:")
+    for k, v in d["behaviours"].items():
+        print(f"  {k:<40} {'ok' if v is None else 'BROKEN: ' + v}")
     return 0
 
 

@@ -70,7 +70,8 @@ def _broken(monkeypatch, name, change):
 
     def broken(self, mesh, spec, **kw):
         grid = run(self, mesh, spec, **kw)
-        return VoxelGrid(change(grid.dense().copy()), spec)
+        grid = grid if hasattr(grid, "words") else grid.to_grid()  # an LDI: its solid
+        return VoxelGrid(change(grid.dense().copy()), spec, extras=grid.extras)
 
     monkeypatch.setattr(cls, "run", broken)
 
@@ -134,6 +135,49 @@ def test_binvox_solid_may_differ_from_its_twin_on_ties_only(gl_context, capsys, 
     rc, out = _run(capsys, "--methods", "binvox-solid", "--json")
     _, _, _, row = json.loads(out.out)["methods"]  # after the compiler's, the ties and the readback rows
     assert (rc, row["status"], row["mismatches"] > 0) == ((1, "mismatch", True) if bad else (0, "ok", False)), row
+
+
+@pytest.mark.parametrize("name", sorted(BOUNDS))
+def test_an_emptied_result_fails_every_bound(gl_context, capsys, monkeypatch, name):
+    """Every approximate method's check holds it from below too: an empty grid fails it
+    (eisemann-surface and scanline-rlv/slv were once checked only for staying inside
+    the conservative surface, which an empty grid does)."""
+    _broken(monkeypatch, name, np.zeros_like)
+    rc, out = _run(capsys, "--methods", name, "--json")
+    _, _, _, row = json.loads(out.out)["methods"]
+    assert rc == 1 and row["status"] == "mismatch" and row["mismatches"] > 0, row
+
+
+def test_passalis_stencil_may_leave_only_crowded_columns_unclassified(gl_context, capsys, monkeypatch):
+    """passalis-stencil is exact outside the voxels it marks unclassifiable, and may mark
+    only those whose columns hold more than four crossings along every axis: a run that
+    marks every voxel and sets none fails."""
+    cls = type(get_method("passalis-stencil"))
+
+    def everything_unclassifiable(self, mesh, spec, **kw):
+        everything = VoxelGrid(np.ones(spec.dims, bool), spec)
+        return VoxelGrid(np.zeros(spec.dims, bool), spec, extras={"unclassifiable": everything})
+
+    monkeypatch.setattr(cls, "run", everything_unclassifiable)
+    rc, out = _run(capsys, "--methods", "passalis-stencil", "--json")
+    _, _, _, row = json.loads(out.out)["methods"]
+    assert rc == 1 and row["status"] == "mismatch" and row["mismatches"] > 0, row
+
+
+def test_a_refused_method_is_reported_once_and_fails(gl_context, capsys, monkeypatch):
+    """A method the context refuses (here: a logic op the behaviour probe found broken)
+    gets one line, the refusal's, and the status 'refused'; the run fails."""
+    known = gl_context.caches.setdefault("behaviours", {})
+    monkeypatch.setitem(known, "integer-logic-op", "glLogicOp(XOR) writes zeros (a broken driver)")
+    rc, out = _run(capsys, "--methods", "eisemann-solid", "ss-solid", "--json")
+    report = json.loads(out.out)
+    rows = {r["method"]: r for r in report["methods"]}
+    row = rows["eisemann-solid"]
+    assert rc == 1 and row["status"] == "refused" and row["cases"] == 0, row
+    assert row["detail"] == ["refused: method 'eisemann-solid' needs integer-logic-op: glLogicOp(XOR) writes zeros "
+                             f"(a broken driver) ({gl_context.renderer}); 'passalis-peel' runs on this context instead"]
+    assert rows["ss-solid"]["status"] == "ok"
+    assert rows["ties"]["status"] == "ok" and "render targets and pack not traced" in rows["ties"]["detail"][-1]
 
 
 def test_every_approximate_method_has_a_bound():

@@ -101,3 +101,17 @@ def barrier(ctx) -> None:
     indirect-dispatch argument reads and buffer reads."""
     ctx.mgl.memory_barrier(moderngl.SHADER_STORAGE_BARRIER_BIT | moderngl.COMMAND_BARRIER_BIT
                            | moderngl.BUFFER_UPDATE_BARRIER_BIT)
+
+
+def rendered(ctx) -> None:
+    """After a draw whose render targets later dispatches or draws read (texel fetches,
+    image loads): make its framebuffer writes visible to them.
+
+    GL orders framebuffer writes before later commands' reads by itself; a memory
+    barrier is required only after shaders' own stores (GL 4.5 Sec. 7.12.2).  Mesa's
+    softpipe (22.3) keeps rendered pixels in a tile cache that a compute dispatch's
+    texel fetches do not flush, so without this its depth-buffer, LDI and binvox
+    methods read empty layers and return empty solids (``tests/test_drivers.py``).  On
+    a driver that orders them already this adds a texture cache invalidation.
+    """
+    ctx.mgl.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)

@@ -18,6 +18,7 @@ import numpy as np
 
 from ..errors import MethodError
 from ..gl.workgroups import ComputeNeeds, needs_of
+from ..gpu.behaviours import broken
 from ..gpu.buffers import buffer_pool
 from ..grid import MAX_VOXELS
 
@@ -99,12 +100,18 @@ class Requirements:
         GL_MAX_COMPUTE_WORK_GROUP_SIZE, GL_MAX_COMPUTE_WORK_GROUP_INVOCATIONS,
         GL_MAX_COMPUTE_SHARED_MEMORY_SIZE, GL_MAX_COMPUTE_SHADER_STORAGE_BLOCKS
         and GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS, so no number is written by hand.
+    behaviours : tuple of str
+        GL behaviours the method relies on that a context may advertise and
+        still get wrong (:data:`glvox.gpu.behaviours.PROBES`, e.g.
+        ``'integer-logic-op'``), each checked by a functional probe once per
+        context.
     """
 
     gl_version: int = 450
     extensions: tuple[str, ...] = ()
     limits: Mapping[str, Any] = field(default_factory=dict)
     compute: tuple[tuple[str, Mapping[str, Any]], ...] = ()
+    behaviours: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         for name, need in self.limits.items():
@@ -143,8 +150,10 @@ class Requirements:
     def missing(self, ctx) -> list[str]:
         """Human-readable list of what ``ctx`` lacks (empty when all is there).
 
-        ``ctx`` needs ``.mgl.version_code``, ``.mgl.extensions`` and
-        ``.limits()`` only (tests pass published limit tables as fake contexts).
+        ``ctx`` needs ``.mgl.version_code``, ``.mgl.extensions``, ``.limits()``
+        and, for :attr:`behaviours`, ``.caches`` (tests pass published limit
+        tables as fake contexts, whose caches hold the probes' answers).  The
+        behaviours are probed last, and only where nothing else is missing.
         """
         out = []
         if ctx.mgl.version_code < self.gl_version:
@@ -166,6 +175,8 @@ class Requirements:
                 raise ValueError(f"{name} has {len(have)} components: give the need as a tuple")
             elif have is None or have < need:
                 out.append(f"{name} >= {need} (context has {have})")
+        if not out:
+            out += [f"{b}: {why}" for b in self.behaviours if (why := broken(ctx, b)) is not None]
         return out
 
 

@@ -45,6 +45,7 @@ import numpy as np
 
 from ..errors import GlvoxError
 from ..gl.timing import StageTimer
+from ..gpu.behaviours import broken
 from ..gpu.buffers import buffer_pool, clear_buffer
 from ..gpu.transform import gpu_vertices_voxel
 from ..grid import unpack_bits
@@ -272,9 +273,10 @@ def _after_the_fragments(ctx, spec, records: np.ndarray, grid) -> list[TraceDiff
     """The render's next steps on a one-tile, one-target grid: each pixel of the target must
     hold the XOR of the suffix masks of the covered fragments traced there (the masks the
     fragment shader writes and the logic op), and the packed grid must hold those masks'
-    slices (the pack)."""
+    slices (the pack).  Not where the context gets the logic op wrong
+    (:mod:`glvox.gpu.behaviours`): eisemann-solid is refused there."""
     nu, nv, na = spec.dims
-    if na > SLICES_PER_TARGET or max(nu, nv) > tile_limit(ctx):
+    if broken(ctx, "integer-logic-op") is not None or na > SLICES_PER_TARGET or max(nu, nv) > tile_limit(ctx):
         return []
     tex = last_pass_targets(ctx)[0]
     masks = np.frombuffer(tex.read(), dtype="<u4").reshape(tex.size[1], tex.size[0], 4)[:nv, :nu]

@@ -49,7 +49,7 @@ import numpy as np
 
 from ...gl.shaders import compute_program, render_program
 from ...gpu.buffers import buffer_pool, clear_buffer, mesh_buffers, read_grid_words
-from ...gpu.dispatch import barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
+from ...gpu.dispatch import barrier, bind, dispatch_1d, grid_uniforms, rendered, set_uniforms
 from ...gpu.fixed_point import fixed_bits
 from ...gpu.transform import gpu_vertices_voxel, snap_defines
 from ...grid import GridSpec
@@ -216,6 +216,7 @@ class _BinvoxRun(RasterPass):
             set_uniforms(self.wire, {"u_far": far})
             self.owners.use(_OWNERS_UNIT)
             self.wire_vao.render(moderngl.TRIANGLES)
+            rendered(self.ctx)
             self.passes += 1
 
     def record_layer(self, target, size, layer: int, kind: int, *, stencil: bool = False) -> int | None:

@@ -32,7 +32,7 @@ from ...errors import CapabilityError, MethodError
 from ...gl import raw as rawgl
 from ...gl.shaders import render_program
 from ...gpu.buffers import object_cache
-from ...gpu.dispatch import set_uniforms
+from ...gpu.dispatch import rendered, set_uniforms
 from ...gpu.transform import SNAP_DEFINES
 
 #: Largest count the 8-bit stencil holds (GL_INCR saturates there).  A view
@@ -320,6 +320,7 @@ class RasterPass:
                 self.vao.render(moderngl.TRIANGLES)
         else:
             self.vao.render(moderngl.TRIANGLES)
+        rendered(self.ctx)
         self.passes += 1
 
 

@@ -22,7 +22,7 @@ import numpy as np
 from ...errors import CapabilityError, LimitError, MethodError
 from ...gl.shaders import compute_program, render_program
 from ...gpu.buffers import buffer_pool, object_cache, release_object_cache
-from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
+from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, rendered, set_uniforms
 from ...gpu.fixed_point import fixed_bits
 from ...gpu.transform import transform_vertices
 
@@ -358,6 +358,7 @@ def _draw_pass(ctx, render: SliceRender, pp: _PassPrograms, on_grid: _OnGrid, ti
         pp.table.use(_MASK_UNIT)
     with ctx.logic_op(render.op):
         pp.vao.render(moderngl.TRIANGLES, vertices=3 * on_grid.n_triangles)
+    rendered(ctx)
 
 
 def _pack_pass(ctx, render: SliceRender, pp: _PassPrograms, tg: _Targets, used: int, grid, count,

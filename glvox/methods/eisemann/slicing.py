@@ -84,7 +84,8 @@ _PAPER_2008 = ("Eisemann & Decoret 2008 (Leung & Wang 2013 Sec. III-A, Alg. 1 li
 _PAPER_2006 = "Eisemann & Decoret 2006 (the OR variant; Schwarz & Seidel 2010 Sec. 2)"
 _REQUIRES = Requirements(gl_version=450, limits={
     "GL_MAX_DRAW_BUFFERS": TARGETS, "GL_MAX_COLOR_ATTACHMENTS": TARGETS,
-    "GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 4}, compute=(("eisemann/*.comp", {}),) + TRANSFORM_SHADERS)
+    "GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 4}, compute=(("eisemann/*.comp", {}),) + TRANSFORM_SHADERS,
+    behaviours=("integer-logic-op",))
 
 
 class _Eisemann(Method):

@@ -99,7 +99,7 @@ _REQUIRES = Requirements(gl_version=450, limits={
     "GL_MAX_DRAW_BUFFERS": TARGETS, "GL_MAX_COLOR_ATTACHMENTS": TARGETS,
     "GL_MAX_SHADER_STORAGE_BUFFER_BINDINGS": 12},
     compute=tuple((f"ldi/{name}.comp", {}) for name in ("intersect", "count", "masks_store", "store"))
-    + (("eisemann/setup.comp", {}),) + TRANSFORM_SHADERS)
+    + (("eisemann/setup.comp", {}),) + TRANSFORM_SHADERS, behaviours=("integer-logic-op",))
 _TILE = Option(0, "largest render-target side in pixels; larger views are drawn in tiles (0: the context's "
                   "limits); any side >= 1 (the passes store whole rays)")
 

@@ -26,7 +26,7 @@ from ...errors import CapabilityError, MethodError
 from ...gl import raw as rawgl
 from ...gl.shaders import compute_program, render_program
 from ...gpu.buffers import check_buffer_size, mesh_buffers, object_cache, release_object_cache
-from ...gpu.dispatch import barrier, bind, dispatch_1d, set_uniforms
+from ...gpu.dispatch import barrier, bind, dispatch_1d, rendered, set_uniforms
 from ...gpu.fixed_point import fixed_bits
 from ...gpu.transform import transform_vertices
 from ..eisemann import passes as eisemann_passes
@@ -295,6 +295,7 @@ def render_mask(ctx, frame: Frame, mesh: OnGrid, op: str, out, t1, timer, stage:
                             bind(prog, LdiT1=t1)
                         with ctx.logic_op(op):
                             vao.render(moderngl.TRIANGLES, vertices=3 * n_tri)
+                        rendered(ctx)
                     with timer.stage(f"{stage}_store"):
                         for t, tex in enumerate(tg.textures):
                             tex.bind_to_image(t, read=True, write=False)
@@ -383,6 +384,7 @@ def phase2(ctx, frame: Frame, meshes: list[OnGrid], t1, t2, counts, n_max: int, 
                             set_uniforms(prog, {"u_motion": m.motion, "u_cells_per_voxel": frame.cells / frame.n_a})
                             vao.render(moderngl.TRIANGLES, vertices=3 * m.bufs.n_triangles)
                             stats["draws"] += 1
+                        rendered(ctx)
                     with timer.stage("store"):
                         for t, tex in enumerate(tg.textures):
                             tex.bind_to_image(t, read=True, write=False)
