@@ -76,22 +76,31 @@ def test_a_broken_logic_op_is_found_and_refuses_before_any_work(gl_context, monk
     assert run_method("ss-solid", mesh, spec).count > 0
 
 
-def _softpipe_info() -> dict:
-    """``glvox info --json`` with softpipe asked for ({} where no context came up)."""
-    env = {**os.environ, **SOFTPIPE}
+@pytest.fixture(scope="module")
+def softpipe() -> dict:
+    """``glvox info --json`` with softpipe asked for; skips where that is not softpipe."""
     proc = subprocess.run([sys.executable, "-m", "glvox", "info", "--json"], capture_output=True, text=True,
-                          env=env, timeout=120)
-    return json.loads(proc.stdout) if proc.returncode == 0 else {}
+                          env={**os.environ, **SOFTPIPE}, timeout=120)
+    info = json.loads(proc.stdout) if proc.returncode == 0 else {}
+    if info.get("renderer") != "softpipe":
+        pytest.skip(f"Mesa's softpipe is not what GALLIUM_DRIVER=softpipe gives here ({info.get('renderer')!r})")
+    return info
 
 
-def test_softpipe_runs_the_raster_methods_and_refuses_the_logic_op_ones(gl_context):
+def test_a_new_softpipe_context_has_no_gl_error_pending(softpipe):
+    """moderngl's info leaves GL_INVALID_ENUM on softpipe (a limit it does not know); the
+    context factory takes it, so glvox's own error checks see only glvox's calls."""
+    code = "from glvox.gl.context import get_context; c = get_context(); c.limits(); print(c.mgl.error)"
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env={**os.environ, **SOFTPIPE}, timeout=120)
+    assert proc.stdout.split() == ["GL_NO_ERROR"], proc.stderr[-2000:]
+
+
+def test_softpipe_runs_the_raster_methods_and_refuses_the_logic_op_ones(softpipe):
     """On softpipe, the depth-buffer methods and peel-ldi equal their references (they
     returned empty solids before the barrier after their draws), and the logic-op methods
     are refused, not empty: the selftest says so, method by method."""
-    info = _softpipe_info()
-    if info.get("renderer") != "softpipe":
-        pytest.skip(f"Mesa's softpipe is not what GALLIUM_DRIVER=softpipe gives here ({info.get('renderer')!r})")
-    assert info["behaviours"]["integer-logic-op"].startswith("glLogicOp(XOR) onto an RGBA32UI render target")
+    assert softpipe["behaviours"]["integer-logic-op"].startswith("glLogicOp(XOR) onto an RGBA32UI render target")
     methods = ["karabassi", "passalis-peel", "peel-ldi", "ss-solid", *sorted(LOGIC_OP)]
     proc = subprocess.run([sys.executable, "-m", "glvox", "selftest", "--json", "--methods", *methods],
                           capture_output=True, text=True, env={**os.environ, **SOFTPIPE}, timeout=600)

@@ -505,6 +505,11 @@ def create_context(backend: str | None = None, *, require: int = GL_VERSION_REQU
                     pass
             continue
         made = _last_created[-1]
+        # moderngl's info asks for every limit it knows, once, and a context that lacks
+        # one leaves GL_INVALID_ENUM pending (softpipe does): read it here and take that
+        # error, so that the first check after glvox's own calls sees only theirs
+        _ = mgl.info
+        _ = mgl.error
         ctx = GLContext(mgl=mgl, backend=b, device=made.device, raw=RawGL(made.load_opengl_function),
                         egl_index=made.egl_index)
         global _current
