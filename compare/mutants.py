@@ -473,6 +473,20 @@ MUTANTS: list[Mutant] = [
            "(GL orders it; softpipe's tile cache does not)", "glvox/methods/depth/raster.py",
            (("        rendered(self.ctx)\n", ""),),
            ("tests/test_drivers.py", "-k", "softpipe")),
+    Mutant("depth-combine-break", "passalis-stencil's combine: the loop over a word's bits left by break "
+           "past the row's end (softpipe's interpreter gets it wrong)", "shaders/depth/combine.comp",
+           (("        uint bits = min(32u, nx - wi * 32u);\n        for (uint b = 0u; b < bits; ++b) {\n"
+             "            uint i = wi * 32u + b;\n",
+             "        for (uint b = 0u; b < 32u; ++b) {\n            uint i = wi * 32u + b;\n"
+             "            if (i >= nx) break;\n"),),
+           ("tests/test_drivers.py", "-k", "softpipe_runs")),
+    Mutant("binvox-combine-break", "binvox-solid's vote: the loop over a word's bits left by break past the "
+           "row's end (softpipe's interpreter gets it wrong)", "shaders/binvox/combine.comp",
+           (("        uint bits = min(32u, nx - wi * 32u);\n        for (uint b = 0u; b < bits; ++b) {\n"
+             "            uint i = wi * 32u + b;\n",
+             "        for (uint b = 0u; b < 32u; ++b) {\n            uint i = wi * 32u + b;\n"
+             "            if (i >= nx) break;\n"),),
+           ("tests/test_drivers.py", "-k", "parity_vote")),
     Mutant("eisemann-logic-op-unprobed", "eisemann-*: the logic op on integer targets taken on trust, not probed",
            "glvox/methods/eisemann/slicing.py",
            (("    behaviours=(\"integer-logic-op\",))", "    behaviours=())"),),

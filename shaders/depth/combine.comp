@@ -44,9 +44,9 @@ void main() {
     if (u_axis == 0) {         // view (u, v) = (y, z): one column for the whole row
         c = crowded[k * ny + j] == 0u ? valid : 0u;
     } else {
-        for (uint b = 0u; b < 32u; ++b) {
+        uint bits = min(32u, nx - wi * 32u);
+        for (uint b = 0u; b < bits; ++b) {
             uint i = wi * 32u + b;
-            if (i >= nx) break;
             // view (u, v) = (z, x) along y, (x, y) along z
             uint pixel = u_axis == 1 ? i * nz + k : j * nx + i;
             if (crowded[pixel] == 0u) c |= bit_of(b);
