@@ -5,9 +5,10 @@ right.  Mesa's softpipe (22.3), a conforming-looking GL 4.5 context, writes
 zeros where a draw with ``glLogicOp(GL_XOR)`` meets an RGBA32UI render target:
 ``eisemann-solid`` then returns an empty solid on every mesh, with no GL error.
 Each behaviour here has a small functional probe, run once per context the
-first time a method that needs it is asked for (:meth:`glvox.methods.base.
-Requirements.missing`), so such a context refuses the method in one line
-before any work, naming what went wrong and what runs instead.
+first time a method that needs it is asked for
+(:meth:`glvox.methods.base.Requirements.missing`), so such a context refuses
+the method in one line before any work, naming what went wrong and what runs
+instead.
 
     from glvox.gpu.behaviours import broken
     why = broken(ctx, "integer-logic-op")   # None where it works
