@@ -4,11 +4,12 @@ Mesa ships two software rasterizers in the same driver package: llvmpipe (what
 the suite runs on) and softpipe, a separate implementation (its own rasterizer,
 tile cache and shader interpreter, no LLVM).  softpipe advertises GL 3.3;
 ``MESA_GL_VERSION_OVERRIDE=4.5`` lifts that, and every compute method then runs
-on it.  It found two things llvmpipe never shows:
+on it.  It found three things llvmpipe never shows (and one more, about the GL
+error moderngl leaves: below):
 
 * rendered pixels stay in softpipe's tile cache when a compute dispatch fetches
   the texture: the depth-buffer, LDI and binvox methods read empty layers and
-  returned empty solids.  GL orders framebuffer writes before later reads by
+  returned empty or wrong solids.  GL orders framebuffer writes before later reads by
   itself; glvox now puts a barrier after every draw whose targets are read
   (``glvox.gpu.dispatch.rendered``), which such a driver needs and a
   conforming one ignores.
