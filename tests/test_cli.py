@@ -30,10 +30,10 @@ def test_info_reports_renderer_and_limits():
     p = glvox("info")
     assert p.returncode == 0, p.stderr
     assert "renderer:" in p.stdout and "GL_MAX_SHADER_STORAGE_BLOCK_SIZE" in p.stdout
-    assert "\nbehaviours:\n  integer-logic-op" in p.stdout
+    assert "\nbehaviours:\n  integer-logic-op" in p.stdout and "\n  uniform-update " in p.stdout
     d = json.loads(glvox("info", "--json").stdout)
     assert d["version"].startswith("4.")
-    assert d["behaviours"] == {"integer-logic-op": None}  # probed on this context: done right
+    assert d["behaviours"] == {"integer-logic-op": None, "uniform-update": None}  # probed here: done right
     if d["software"]:
         assert "llvmpipe" in d["renderer"]
 

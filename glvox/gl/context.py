@@ -13,6 +13,13 @@ registers its own two backend names with glcontext (``glvox-egl`` wraps
 glcontext's EGL backend, ``glvox-osmesa`` drives libOSMesa through ctypes);
 both keep the loader, which :class:`glvox.gl.raw.RawGL` needs for ``glLogicOp``
 and stencil state on the same context.
+
+Driver settings: before the first context, ``ZINK_INLINE_UNIFORMS`` is set to
+``0`` unless the environment sets it (:data:`DRIVER_DEFAULTS`).  Mesa's zink
+(GL over Vulkan) otherwise specializes programs on the uniforms their branches
+read and, in Mesa 22.3, dispatched a program with another program's values
+(:mod:`glvox.gpu.behaviours`, ``uniform-update``).  The variable means nothing
+to any other driver.
 """
 
 from __future__ import annotations
@@ -32,6 +39,10 @@ from .raw import RawGL
 
 GL_VERSION_REQUIRED = 450
 BACKENDS = ("egl", "osmesa")
+
+#: Driver environment variables glvox sets before creating a context, unless the
+#: environment already sets them (the user's choice wins): see the module docstring.
+DRIVER_DEFAULTS = {"ZINK_INLINE_UNIFORMS": "0"}
 
 # What to install when no backend works (Debian/Ubuntu package names).
 _PACKAGE_HINT = (
@@ -489,6 +500,8 @@ def create_context(backend: str | None = None, *, require: int = GL_VERSION_REQU
     name = _normalize_backend(backend)
     order = BACKENDS if name == "auto" else (name,)
     _register_backends()
+    for var, value in DRIVER_DEFAULTS.items():
+        os.environ.setdefault(var, value)  # read by the driver when its screen is created
     if _deferred:
         _reap()
     failures = []

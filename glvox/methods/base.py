@@ -18,7 +18,7 @@ import numpy as np
 
 from ..errors import MethodError
 from ..gl.workgroups import ComputeNeeds, needs_of
-from ..gpu.behaviours import broken
+from ..gpu.behaviours import EVERY_METHOD, broken
 from ..gpu.buffers import buffer_pool
 from ..grid import MAX_VOXELS
 
@@ -153,7 +153,8 @@ class Requirements:
         ``ctx`` needs ``.mgl.version_code``, ``.mgl.extensions``, ``.limits()``
         and, for :attr:`behaviours`, ``.caches`` (tests pass published limit
         tables as fake contexts, whose caches hold the probes' answers).  The
-        behaviours are probed last, and only where nothing else is missing.
+        behaviours (:data:`~glvox.gpu.behaviours.EVERY_METHOD` and the method's
+        own) are probed last, and only where nothing else is missing.
         """
         out = []
         if ctx.mgl.version_code < self.gl_version:
@@ -176,7 +177,8 @@ class Requirements:
             elif have is None or have < need:
                 out.append(f"{name} >= {need} (context has {have})")
         if not out:
-            out += [f"{b}: {why}" for b in self.behaviours if (why := broken(ctx, b)) is not None]
+            out += [f"{b}: {why}" for b in EVERY_METHOD + tuple(b for b in self.behaviours if b not in EVERY_METHOD)
+                    if (why := broken(ctx, b)) is not None]
         return out
 
 
