@@ -491,6 +491,14 @@ MUTANTS: list[Mutant] = [
            "glvox/methods/eisemann/slicing.py",
            (("    behaviours=(\"integer-logic-op\",))", "    behaviours=())"),),
            ("tests/test_drivers.py",)),
+    Mutant("zink-inlined-uniforms-left-on", "the context factory leaves zink's inlined uniforms on",
+           "glvox/gl/context.py",
+           (('DRIVER_DEFAULTS = {"ZINK_INLINE_UNIFORMS": "0"}', "DRIVER_DEFAULTS = {}"),),
+           ("tests/test_drivers.py", "-k", "zink")),
+    Mutant("uniform-probe-blind", "the uniform-update probe runs its dispatches and reports nothing",
+           "glvox/gpu/behaviours.py",
+           (("    if not errors:\n        return None\n    hint", "    if True:\n        return None\n    hint"),),
+           ("tests/test_drivers.py", "-k", "zink")),
 ]
 
 
@@ -511,6 +519,7 @@ def env_for(scratch: Path) -> dict:
     env["PYTHONPATH"] = str(scratch) + os.pathsep + env.get("PYTHONPATH", "")
     env["GLVOX_SHADER_PATH"] = str(scratch / "shaders")
     env.setdefault("GLVOX_MESHES", str(mesh_dir().resolve()))
+    env.setdefault("GLVOX_LAVAPIPE", str(ROOT / ".lavapipe"))  # git ignores it: the zink tests find it here
     return env
 
 

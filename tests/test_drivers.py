@@ -1,4 +1,4 @@
-"""A second GL implementation on any machine with Mesa: softpipe, and the behaviour probes.
+"""Other GL implementations on any machine with Mesa: softpipe and zink, and the behaviour probes.
 
 Mesa ships two software rasterizers in the same driver package: llvmpipe (what
 the suite runs on) and softpipe, a separate implementation (its own rasterizer,
@@ -23,6 +23,13 @@ error moderngl leaves: below):
   unclassifiable that were not, and binvox-solid's parity vote came out empty.
   The loops now run to their bound (``depth/combine.comp``,
   ``binvox/combine.comp``), and the selftest has a case that reaches them.
+
+zink, Mesa's OpenGL over Vulkan, runs here on lavapipe (Mesa's Vulkan driver on
+the CPU), unpacked by ``.ci/lavapipe``.  With its inlined uniforms on it dispatched
+a compute program with another program's uniform values: ss-solid-tiled, solid,
+binvox-solid and the mapped readback failed the selftest.  glvox turns the
+inlining off (``glvox.gl.context.DRIVER_DEFAULTS``) and probes the behaviour for
+every GL method (``uniform-update``).
 """
 
 from __future__ import annotations
@@ -31,18 +38,37 @@ import json
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from glvox.errors import CapabilityError
-from glvox.gpu.behaviours import PROBES, broken
+from glvox.gl.context import DRIVER_DEFAULTS
+from glvox.gpu.behaviours import (EVERY_METHOD, PROBES, UNIFORM_STEPS, broken, uniform_branch_word,
+                                  uniform_update_errors)
 from glvox.mesh import load_mesh
 from glvox.methods import method_infos, run_method
 from glvox.grid import grid_for
 from glvox.testing.gl_limits import PUBLISHED, FakeContext
 
 SOFTPIPE = {"GALLIUM_DRIVER": "softpipe", "MESA_GL_VERSION_OVERRIDE": "4.5", "MESA_GLSL_VERSION_OVERRIDE": "450"}
+#: Where .ci/lavapipe unpacks Mesa's lavapipe (the Vulkan driver zink runs on here);
+#: GLVOX_LAVAPIPE names another such folder (compare/mutants.py's scratch copies do).
+LAVAPIPE = Path(os.environ.get("GLVOX_LAVAPIPE") or Path(__file__).resolve().parents[1] / ".lavapipe")
+
+
+def zink_env() -> dict[str, str] | None:
+    """The environment that gives glvox Mesa's zink on lavapipe (None without .lavapipe):
+    the Vulkan loader pointed at the unpacked driver, and LIBGL_ALWAYS_SOFTWARE, without
+    which zink (22.3) passes over a CPU device."""
+    icd, lib = LAVAPIPE / "icd.json", LAVAPIPE / "root" / "usr" / "lib" / "x86_64-linux-gnu"
+    if not icd.is_file():
+        return None
+    paths = [str(lib)] + [p for p in os.environ.get("LD_LIBRARY_PATH", "").split(":") if p]
+    env = {k: v for k, v in os.environ.items() if k not in DRIVER_DEFAULTS}
+    return {**env, "GALLIUM_DRIVER": "zink", "LIBGL_ALWAYS_SOFTWARE": "1", "VK_ICD_FILENAMES": str(icd),
+            "LD_LIBRARY_PATH": ":".join(paths)}
 #: The methods needing the logic op on integer targets (Requirements.behaviours).
 LOGIC_OP = {"eisemann-solid", "eisemann-surface", "leung-wang-ldi"}
 
@@ -82,6 +108,72 @@ def test_a_broken_logic_op_is_found_and_refuses_before_any_work(gl_context, monk
     with pytest.raises(CapabilityError):
         run_method("leung-wang-ldi", mesh, spec)
     assert run_method("ss-solid", mesh, spec).count > 0
+
+
+class _InlinedUniforms:
+    """A model of zink's inlined uniforms (Mesa 22.3): the values a dispatch's branches
+    see are the context's, updated only where a program's uniforms are set, not where
+    a program is bound again with the values it holds."""
+
+    def __init__(self, stale: bool):
+        self.stale = stale
+        self.held: list[tuple | None] = [None, None]
+        self.inlined: tuple | None = None
+
+    def dispatch(self, prog: int, values) -> int:
+        if values is not None:
+            self.held[prog] = self.inlined = values
+        elif not self.stale:
+            self.inlined = self.held[prog]
+        return uniform_branch_word(prog, *self.inlined)
+
+
+def test_the_uniform_probe_tells_a_stale_driver_from_a_right_one():
+    """The probe's sequence passes the right model and finds the stale one where, worked
+    by hand, it must: dispatches 7, 10 and 13 reuse their program's values right after
+    the other program was given others (14 reuses them after its own program ran: the
+    stale model gets that one right, as zink did)."""
+    assert uniform_update_errors(_InlinedUniforms(stale=False).dispatch) == []
+    errors = uniform_update_errors(_InlinedUniforms(stale=True).dispatch)
+    assert [e.split(" (")[0] for e in errors] == ["dispatch 7", "dispatch 10", "dispatch 13"], errors
+    assert all("unchanged since its last dispatch" in e for e in errors)
+    assert sum(v is None for _, v in UNIFORM_STEPS) == 4
+
+
+def test_the_uniform_probe_passes_here(gl_context):
+    """The probe passes on this context: testing/uniform_branch.comp writes what
+    uniform_branch_word says on each of its four branches (the sequence takes each)."""
+    assert broken(gl_context, "uniform-update") is None
+    assert "uniform-update" in EVERY_METHOD
+
+
+def test_every_gl_method_is_refused_where_uniforms_go_stale(gl_context, monkeypatch):
+    """A context that fails uniform-update refuses every GL method in one line, naming
+    the CPU reference that runs instead; CPU methods still run."""
+    monkeypatch.setitem(gl_context.caches, "behaviours", {"uniform-update": "stale (test)"})
+    mesh = load_mesh("gen:torus")
+    spec = grid_for(mesh, 16)
+    with pytest.raises(CapabilityError) as err:
+        run_method("ss-conservative", mesh, spec)
+    msg = str(err.value)
+    assert msg.startswith("method 'ss-conservative' needs uniform-update: stale (test)"), msg
+    assert msg.endswith("'reference-conservative' runs on this context instead"), msg
+    for info in method_infos():
+        if info.uses_gl:
+            assert any(m.startswith("uniform-update") for m in info.requires.missing(gl_context)), info.name
+    assert run_method("reference-conservative", mesh, spec).count > 0
+
+
+def test_zink_inlined_uniforms_are_off_unless_the_user_says():
+    """The context factory sets ZINK_INLINE_UNIFORMS=0 before the driver reads it, and
+    leaves a value the environment gives alone."""
+    code = ("import os; from glvox.gl.context import create_context; create_context(); "
+            "print(os.environ.get('ZINK_INLINE_UNIFORMS'))")
+    env = {k: v for k, v in os.environ.items() if k not in DRIVER_DEFAULTS}
+    for given, want in ((None, "0"), ("1", "1")):
+        e = env if given is None else {**env, "ZINK_INLINE_UNIFORMS": given}
+        proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=e, timeout=120)
+        assert proc.returncode == 0 and proc.stdout.split()[-1] == want, proc.stderr[-2000:]
 
 
 @pytest.fixture(scope="module")
@@ -139,3 +231,51 @@ def test_binvox_parity_vote_on_softpipe(softpipe, tmp_path):
     assert proc.returncode == 0, proc.stderr[-2000:]
     got = np.load(out)["occupancy"]
     assert want.sum() > 0 and np.array_equal(got, want), int((got ^ want).sum())
+
+
+@pytest.fixture(scope="module")
+def zink() -> dict[str, str]:
+    """The zink environment (:func:`zink_env`); skips where it does not give zink."""
+    env = zink_env()
+    if env is None:
+        pytest.skip(f"no lavapipe unpacked at {LAVAPIPE} (bash .ci/lavapipe unpacks it)")
+    proc = subprocess.run([sys.executable, "-m", "glvox", "info", "--json"], capture_output=True, text=True,
+                          env=env, timeout=120)
+    info = json.loads(proc.stdout) if proc.returncode == 0 else {}
+    if not info.get("renderer", "").startswith("zink"):
+        pytest.skip(f"the lavapipe environment does not give zink here ({info.get('renderer')!r}: "
+                    f"{proc.stderr.strip()[-300:]})")
+    return env
+
+
+def test_zink_passes_the_selftest(zink):
+    """Every method equals its check on zink (GL over Vulkan, lavapipe) on every selftest
+    case, the readback row included.  With zink's inlined uniforms on (Mesa 22.3's
+    default before glvox turned them off) four rows failed: ss-solid-tiled returned empty
+    solids once ss-conservative's sorted variant had set the shared dispatch-arguments
+    program's branch uniform, binvox-solid and solid lost voxels, and the mapped readback
+    differed from glGetBufferSubData's words."""
+    proc = subprocess.run([sys.executable, "-m", "glvox", "selftest", "--json"], capture_output=True, text=True,
+                          env=zink, timeout=600)
+    report = json.loads(proc.stdout)
+    assert report["renderer"].startswith("zink")
+    bad = [(r["method"], r["status"], r["detail"][:3]) for r in report["methods"] if r["status"] != "ok"]
+    assert proc.returncode == 0 and not bad, bad
+
+
+def test_zink_with_inlined_uniforms_refuses_every_gl_method(zink, tmp_path):
+    """Where the user turns zink's inlined uniforms back on, the probe finds the stale
+    values: glvox info says so, and a voxelization is refused in one line naming the
+    variable and the CPU reference that runs instead."""
+    env = {**zink, "ZINK_INLINE_UNIFORMS": "1"}
+    proc = subprocess.run([sys.executable, "-m", "glvox", "info", "--json"], capture_output=True, text=True,
+                          env=env, timeout=120)
+    why = json.loads(proc.stdout)["behaviours"]["uniform-update"]
+    assert why.startswith("a compute program dispatched with other uniform values than it holds"), why
+    assert "ZINK_INLINE_UNIFORMS=0" in why
+    out = tmp_path / "torus.npz"
+    proc = subprocess.run([sys.executable, "-m", "glvox", "voxelize", "gen:torus", "-r", "16", "-o", str(out), "-q"],
+                          capture_output=True, text=True, env=env, timeout=120)
+    errors = [line for line in proc.stderr.splitlines() if line.startswith("glvox: error:")]
+    assert proc.returncode != 0 and not out.exists() and len(errors) == 1, proc.stderr[-2000:]
+    assert "needs uniform-update" in errors[0] and "'reference-conservative' runs on this context instead" in errors[0]
