@@ -499,6 +499,11 @@ MUTANTS: list[Mutant] = [
            "glvox/gpu/behaviours.py",
            (("    if not errors:\n        return None\n    hint", "    if True:\n        return None\n    hint"),),
            ("tests/test_drivers.py", "-k", "zink")),
+    Mutant("osmesa-path-ignored", "the OSMesa backend ignores GLVOX_OSMESA (only the system's library)",
+           "glvox/gl/context.py",
+           (('name = os.environ.get("GLVOX_OSMESA") or ctypes.util.find_library("OSMesa")',
+             'name = ctypes.util.find_library("OSMesa")'),),
+           ("tests/test_context.py", "-k", "backend")),
 ]
 
 
@@ -519,7 +524,7 @@ def env_for(scratch: Path) -> dict:
     env["PYTHONPATH"] = str(scratch) + os.pathsep + env.get("PYTHONPATH", "")
     env["GLVOX_SHADER_PATH"] = str(scratch / "shaders")
     env.setdefault("GLVOX_MESHES", str(mesh_dir().resolve()))
-    env.setdefault("GLVOX_LAVAPIPE", str(ROOT / ".lavapipe"))  # git ignores it: the zink tests find it here
+    env.setdefault("GLVOX_UNPACKED_DRIVERS", str(ROOT / ".drivers"))  # git ignores it: the zink tests find it here
     return env
 
 

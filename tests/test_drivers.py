@@ -1,4 +1,4 @@
-"""Other GL implementations on any machine with Mesa: softpipe and zink, and the behaviour probes.
+"""Other GL implementations on any machine with Mesa: softpipe, zink and OSMesa, and the behaviour probes.
 
 Mesa ships two software rasterizers in the same driver package: llvmpipe (what
 the suite runs on) and softpipe, a separate implementation (its own rasterizer,
@@ -25,7 +25,8 @@ error moderngl leaves: below):
   ``binvox/combine.comp``), and the selftest has a case that reaches them.
 
 zink, Mesa's OpenGL over Vulkan, runs here on lavapipe (Mesa's Vulkan driver on
-the CPU), unpacked by ``.ci/lavapipe``.  With its inlined uniforms on it dispatched
+the CPU), unpacked by ``.ci/drivers`` with libOSMesa (the OSMesa backend's
+selftest runs here too).  With its inlined uniforms on it dispatched
 a compute program with another program's uniform values: ss-solid-tiled, solid,
 binvox-solid and the mapped readback failed the selftest.  glvox turns the
 inlining off (``glvox.gl.context.DRIVER_DEFAULTS``) and probes the behaviour for
@@ -38,7 +39,6 @@ import json
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -50,25 +50,9 @@ from glvox.gpu.behaviours import (EVERY_METHOD, PROBES, UNIFORM_STEPS, broken, u
 from glvox.mesh import load_mesh
 from glvox.methods import method_infos, run_method
 from glvox.grid import grid_for
+from glvox.testing.drivers import SOFTPIPE, osmesa_library, unpacked_dir, zink_env
 from glvox.testing.gl_limits import PUBLISHED, FakeContext
 
-SOFTPIPE = {"GALLIUM_DRIVER": "softpipe", "MESA_GL_VERSION_OVERRIDE": "4.5", "MESA_GLSL_VERSION_OVERRIDE": "450"}
-#: Where .ci/lavapipe unpacks Mesa's lavapipe (the Vulkan driver zink runs on here);
-#: GLVOX_LAVAPIPE names another such folder (compare/mutants.py's scratch copies do).
-LAVAPIPE = Path(os.environ.get("GLVOX_LAVAPIPE") or Path(__file__).resolve().parents[1] / ".lavapipe")
-
-
-def zink_env() -> dict[str, str] | None:
-    """The environment that gives glvox Mesa's zink on lavapipe (None without .lavapipe):
-    the Vulkan loader pointed at the unpacked driver, and LIBGL_ALWAYS_SOFTWARE, without
-    which zink (22.3) passes over a CPU device."""
-    icd, lib = LAVAPIPE / "icd.json", LAVAPIPE / "root" / "usr" / "lib" / "x86_64-linux-gnu"
-    if not icd.is_file():
-        return None
-    paths = [str(lib)] + [p for p in os.environ.get("LD_LIBRARY_PATH", "").split(":") if p]
-    env = {k: v for k, v in os.environ.items() if k not in DRIVER_DEFAULTS}
-    return {**env, "GALLIUM_DRIVER": "zink", "LIBGL_ALWAYS_SOFTWARE": "1", "VK_ICD_FILENAMES": str(icd),
-            "LD_LIBRARY_PATH": ":".join(paths)}
 #: The methods needing the logic op on integer targets (Requirements.behaviours).
 LOGIC_OP = {"eisemann-solid", "eisemann-surface", "leung-wang-ldi"}
 
@@ -238,7 +222,7 @@ def zink() -> dict[str, str]:
     """The zink environment (:func:`zink_env`); skips where it does not give zink."""
     env = zink_env()
     if env is None:
-        pytest.skip(f"no lavapipe unpacked at {LAVAPIPE} (bash .ci/lavapipe unpacks it)")
+        pytest.skip(f"no lavapipe unpacked at {unpacked_dir()} (bash .ci/drivers unpacks it)")
     proc = subprocess.run([sys.executable, "-m", "glvox", "info", "--json"], capture_output=True, text=True,
                           env=env, timeout=120)
     info = json.loads(proc.stdout) if proc.returncode == 0 else {}
@@ -279,3 +263,19 @@ def test_zink_with_inlined_uniforms_refuses_every_gl_method(zink, tmp_path):
     errors = [line for line in proc.stderr.splitlines() if line.startswith("glvox: error:")]
     assert proc.returncode != 0 and not out.exists() and len(errors) == 1, proc.stderr[-2000:]
     assert "needs uniform-update" in errors[0] and "'reference-conservative' runs on this context instead" in errors[0]
+
+
+def test_the_osmesa_backend_passes_the_selftest():
+    """glvox's OSMesa backend (its fallback where EGL fails) gives a context on which
+    every method equals its check on every selftest case."""
+    lib = osmesa_library()
+    if lib is None:
+        pytest.skip(f"no libOSMesa installed or unpacked at {unpacked_dir()} (bash .ci/drivers unpacks it)")
+    env = {**os.environ, "GLVOX_BACKEND": "osmesa", "GLVOX_OSMESA": lib}
+    proc = subprocess.run([sys.executable, "-m", "glvox", "selftest", "--json"], capture_output=True, text=True,
+                          env=env, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    report = json.loads(proc.stdout)
+    info = json.loads(subprocess.run([sys.executable, "-m", "glvox", "info", "--json"], capture_output=True,
+                                     text=True, env=env, timeout=120).stdout)
+    assert info["backend"] == "osmesa" and report["ok"]

@@ -5,7 +5,8 @@ backend is chosen by argument or by the environment variable
 ``GLVOX_BACKEND`` (``egl``, ``osmesa`` or ``auto``; auto tries EGL first, then
 OSMesa).  With EGL, a hardware device is preferred when the machine has one;
 otherwise Mesa's software device (llvmpipe) is used.  ``GLVOX_EGL_DEVICE=N``
-forces the N-th EGL device.
+forces the N-th EGL device; ``GLVOX_OSMESA=PATH`` names the libOSMesa to load
+(default: the system's).
 
 The contexts are made through moderngl/glcontext.  glcontext has no OSMesa
 backend and does not hand its function loader to moderngl's users, so glvox
@@ -167,7 +168,7 @@ class _OSMesa:
     _RGBA, _UNSIGNED_BYTE = 0x1908, 0x1401
 
     def __init__(self, glversion: int = GL_VERSION_REQUIRED, **_: Any):
-        name = ctypes.util.find_library("OSMesa") or "libOSMesa.so.8"
+        name = os.environ.get("GLVOX_OSMESA") or ctypes.util.find_library("OSMesa") or "libOSMesa.so.8"
         try:
             lib = ctypes.CDLL(name)
         except OSError as exc:
