@@ -50,6 +50,9 @@ def cmd_info(args) -> int:
     print("behaviours:")
     for k, v in d["behaviours"].items():
         print(f"  {k:<40} {'ok' if v is None else 'BROKEN: ' + v}")
+    print("driver settings:")
+    for k, v in d["driver_settings"].items():
+        print(f"  {k + '=' + v['value']:<40} (set by {v['set_by']})")
     return 0
 
 

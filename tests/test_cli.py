@@ -34,6 +34,8 @@ def test_info_reports_renderer_and_limits():
     d = json.loads(glvox("info", "--json").stdout)
     assert d["version"].startswith("4.")
     assert d["behaviours"] == {"integer-logic-op": None, "uniform-update": None}  # probed here: done right
+    assert "\ndriver settings:\n  ZINK_INLINE_UNIFORMS=" in p.stdout
+    assert d["driver_settings"]["ZINK_INLINE_UNIFORMS"]["value"] == os.environ.get("ZINK_INLINE_UNIFORMS", "0")
     if d["software"]:
         assert "llvmpipe" in d["renderer"]
 

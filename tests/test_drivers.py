@@ -150,14 +150,15 @@ def test_every_gl_method_is_refused_where_uniforms_go_stale(gl_context, monkeypa
 
 def test_zink_inlined_uniforms_are_off_unless_the_user_says():
     """The context factory sets ZINK_INLINE_UNIFORMS=0 before the driver reads it, and
-    leaves a value the environment gives alone."""
-    code = ("import os; from glvox.gl.context import create_context; create_context(); "
-            "print(os.environ.get('ZINK_INLINE_UNIFORMS'))")
+    leaves a value the environment gives alone; glvox info says which it was."""
+    code = ("import json; from glvox.gl.context import create_context, driver_settings; create_context(); "
+            "print(json.dumps(driver_settings()))")
     env = {k: v for k, v in os.environ.items() if k not in DRIVER_DEFAULTS}
-    for given, want in ((None, "0"), ("1", "1")):
+    for given, want in ((None, {"value": "0", "set_by": "glvox"}), ("1", {"value": "1", "set_by": "environment"})):
         e = env if given is None else {**env, "ZINK_INLINE_UNIFORMS": given}
         proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=e, timeout=120)
-        assert proc.returncode == 0 and proc.stdout.split()[-1] == want, proc.stderr[-2000:]
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        assert json.loads(proc.stdout.splitlines()[-1]) == {"ZINK_INLINE_UNIFORMS": want}
 
 
 @pytest.fixture(scope="module")

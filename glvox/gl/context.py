@@ -44,6 +44,15 @@ BACKENDS = ("egl", "osmesa")
 #: Driver environment variables glvox sets before creating a context, unless the
 #: environment already sets them (the user's choice wins): see the module docstring.
 DRIVER_DEFAULTS = {"ZINK_INLINE_UNIFORMS": "0"}
+#: Those of DRIVER_DEFAULTS this process's environment got from glvox (not the user).
+_set_by_glvox: set[str] = set()
+
+
+def driver_settings() -> dict[str, dict[str, str]]:
+    """The :data:`DRIVER_DEFAULTS` variables as they stand: ``{name: {"value", "set_by"}}``,
+    ``set_by`` 'glvox' or 'environment' (``glvox info`` prints them)."""
+    return {var: {"value": os.environ.get(var, ""), "set_by": "glvox" if var in _set_by_glvox else "environment"}
+            for var in DRIVER_DEFAULTS if var in os.environ}
 
 # What to install when no backend works (Debian/Ubuntu package names).
 _PACKAGE_HINT = (
@@ -360,6 +369,7 @@ class GLContext:
             "version": self.version,
             "software": self.is_software,
             "limits": {k: list(v) if isinstance(v, tuple) else v for k, v in self.limits().items()},
+            "driver_settings": driver_settings(),
         }
 
     # -- state --------------------------------------------------------------
@@ -502,7 +512,9 @@ def create_context(backend: str | None = None, *, require: int = GL_VERSION_REQU
     order = BACKENDS if name == "auto" else (name,)
     _register_backends()
     for var, value in DRIVER_DEFAULTS.items():
-        os.environ.setdefault(var, value)  # read by the driver when its screen is created
+        if var not in os.environ:  # read by the driver when its screen is created
+            os.environ[var] = value
+            _set_by_glvox.add(var)
     if _deferred:
         _reap()
     failures = []
