@@ -504,6 +504,10 @@ MUTANTS: list[Mutant] = [
            (('name = os.environ.get("GLVOX_OSMESA") or ctypes.util.find_library("OSMesa")',
              'name = ctypes.util.find_library("OSMesa")'),),
            ("tests/test_context.py", "-k", "backend")),
+    Mutant("osmesa-any-gallium-driver", "OSMesa tried with whatever GALLIUM_DRIVER names (it segfaults)",
+           "glvox/gl/context.py",
+           (("        if driver and driver not in OSMESA_DRIVERS:", "        if False:"),),
+           ("tests/test_context.py", "-k", "osmesa")),
 ]
 
 

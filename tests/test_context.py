@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from glvox.errors import BackendError
-from glvox.gl.context import _egl_devices, create_context, egl_cuda_ordinal, get_context
+from glvox.gl.context import OSMESA_DRIVERS, _egl_devices, create_context, egl_cuda_ordinal, get_context
 from glvox.testing import run_compute, run_fragment
 from glvox.testing.drivers import osmesa_library
 
@@ -38,6 +38,8 @@ def test_each_backend_gives_a_45_core_context(backend, monkeypatch):
         lib = osmesa_library()
         if lib is None:
             pytest.skip("libOSMesa is neither installed (Debian package libosmesa6) nor unpacked (.ci/drivers)")
+        if os.environ.get("GALLIUM_DRIVER", "") not in ("", *OSMESA_DRIVERS):
+            pytest.skip(f"GALLIUM_DRIVER={os.environ['GALLIUM_DRIVER']} here: OSMesa cannot run it (next test)")
         monkeypatch.setenv("GLVOX_OSMESA", lib)
     ctx = create_context(backend)
     try:
@@ -50,6 +52,24 @@ def test_each_backend_gives_a_45_core_context(backend, monkeypatch):
         assert ctx.raw.logic_op_state()[0] is False
     finally:
         ctx.release()
+
+
+def test_osmesa_refuses_a_gallium_driver_it_cannot_run():
+    """libOSMesa segfaults when GALLIUM_DRIVER names a driver other than its software
+    rasterizers (zink, as set for the zink tests, or a typo): glvox says so in one line
+    instead, and with ``auto`` that line joins EGL's in the BackendError."""
+    lib = osmesa_library()
+    if lib is None:
+        pytest.skip("libOSMesa is neither installed (Debian package libosmesa6) nor unpacked (.ci/drivers)")
+    code = ("from glvox.gl.context import create_context\n"
+            "try:\n    create_context('osmesa')\nexcept Exception as e:\n    print(type(e).__name__, e)")
+    for driver in ("zink", "no-such-driver"):
+        env = {**os.environ, "GALLIUM_DRIVER": driver, "GLVOX_OSMESA": lib}
+        proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+        assert proc.returncode == 0, (proc.returncode, proc.stderr[-2000:])
+        assert proc.stdout.startswith("BackendError no headless OpenGL 4.5 core context could be created "
+                                      "(osmesa: OSMesa runs only Mesa's software rasterizers"), proc.stdout
+        assert f"GALLIUM_DRIVER={driver} is set" in proc.stdout
 
 
 def test_backend_from_environment(monkeypatch):

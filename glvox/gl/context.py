@@ -41,6 +41,9 @@ from .raw import RawGL
 GL_VERSION_REQUIRED = 450
 BACKENDS = ("egl", "osmesa")
 
+#: The GALLIUM_DRIVER values libOSMesa can run (any other crashes it).
+OSMESA_DRIVERS = ("llvmpipe", "softpipe", "swrast")
+
 #: Driver environment variables glvox sets before creating a context, unless the
 #: environment already sets them (the user's choice wins): see the module docstring.
 DRIVER_DEFAULTS = {"ZINK_INLINE_UNIFORMS": "0"}
@@ -177,6 +180,12 @@ class _OSMesa:
     _RGBA, _UNSIGNED_BYTE = 0x1908, 0x1401
 
     def __init__(self, glversion: int = GL_VERSION_REQUIRED, **_: Any):
+        driver = os.environ.get("GALLIUM_DRIVER", "").strip()
+        if driver and driver not in OSMESA_DRIVERS:
+            # libOSMesa (Mesa 22.3) dies in OSMesaCreateContextAttribs with any other
+            # driver named there (zink, d3d12, a typo): a segfault, not an error
+            raise BackendError(f"OSMesa runs only Mesa's software rasterizers ({', '.join(OSMESA_DRIVERS)}); "
+                               f"GALLIUM_DRIVER={driver} is set, and would crash it")
         name = os.environ.get("GLVOX_OSMESA") or ctypes.util.find_library("OSMesa") or "libOSMesa.so.8"
         try:
             lib = ctypes.CDLL(name)
