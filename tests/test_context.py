@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from glvox.errors import BackendError
-from glvox.gl.context import OSMESA_DRIVERS, _egl_devices, create_context, egl_cuda_ordinal, get_context
+from glvox.gl.backends import OSMESA_DRIVERS, egl_cuda_ordinal, egl_devices
+from glvox.gl.context import create_context, get_context
 from glvox.testing import run_compute, run_fragment
 from glvox.testing.drivers import osmesa_library
 
@@ -119,7 +120,7 @@ def test_the_cuda_ordinal_is_read_from_egl_devices_that_have_one(gl_context):
     """EGL_NV_device_cuda: a device that lists the extension reports its CUDA ordinal
     (device='cuda' copies results to that GPU); every other device, an index that is
     no device, and OSMesa report None."""
-    exts = _egl_devices()
+    exts = egl_devices()
     for i, e in enumerate(exts):
         got = egl_cuda_ordinal(i)
         if "EGL_NV_device_cuda" in e.split():
