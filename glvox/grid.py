@@ -376,10 +376,25 @@ def ldi_axes(axis: int) -> tuple[int, int]:
 
 
 def pack_bits(dense: np.ndarray) -> np.ndarray:
-    """Dense bool (nx, ny, nz) -> uint32 words (nz, ny, words_per_row), GPU layout."""
+    """Dense bool (nx, ny, nz) -> uint32 words (nz, ny, words_per_row), GPU layout.
+
+    An array in Fortran order (x fastest, as :func:`unpack_bits` makes them) is
+    packed along its rows as they lie.  Any other is packed plane by plane of x
+    (each (y, z) plane shifted into its bit of the bytes of its 8 x) and only the
+    packed bytes, an eighth of it, are transposed: transposing a C-order bool
+    array itself took 0.5 s at 512^3 (0.12 s so), and one in a binvox file's
+    layout 1.3 s (0.2 s).
+    """
     nx, ny, nz = dense.shape
     wpr = (nx + 31) // 32
-    t = np.ascontiguousarray(np.asarray(dense, dtype=bool).transpose(2, 1, 0))
+    d = np.asarray(dense, dtype=bool)
+    if not d.transpose(2, 1, 0).flags.c_contiguous:
+        packed = np.zeros((wpr * 4, ny, nz), dtype=np.uint8)
+        planes = d.view(np.uint8)
+        for x in range(nx):
+            packed[x >> 3] |= planes[x] << np.uint8(x & 7)
+        return np.ascontiguousarray(packed.transpose(2, 1, 0)).view("<u4").reshape(nz, ny, wpr)
+    t = d.transpose(2, 1, 0)
     if wpr * 32 != nx:
         t = np.concatenate([t, np.zeros((nz, ny, wpr * 32 - nx), dtype=bool)], axis=2)
     packed = np.packbits(t, axis=2, bitorder="little")

@@ -170,6 +170,49 @@ def test_voxelgrid_compare_and_iou():
     assert VoxelGrid(a, spec).count == 3
 
 
+LAYOUTS = {
+    "C": lambda a: np.ascontiguousarray(a),
+    "Fortran": np.asfortranarray,
+    "binvox file (x, z, y)": lambda a: np.ascontiguousarray(a.transpose(0, 2, 1)).transpose(0, 2, 1),
+    "strided view": lambda a: np.ascontiguousarray(a[:, ::-1, :])[:, ::-1, :],
+}
+
+
+@pytest.mark.parametrize("layout", LAYOUTS)
+@pytest.mark.parametrize("dims", [(1, 1, 1), (9, 3, 2), (33, 4, 4), (64, 5, 3)])
+def test_pack_bits_in_any_memory_layout(dims, layout):
+    """Fortran order packs row by row as it lies; any other layout is packed plane by plane
+    of x: the words must be the same, and unpack to the array."""
+    occ = np.random.default_rng(3).random(dims) < 0.5
+    arr = LAYOUTS[layout](occ)
+    np.testing.assert_array_equal(arr, occ)
+    words = pack_bits(arr)
+    np.testing.assert_array_equal(words, pack_bits(np.asfortranarray(occ)))
+    np.testing.assert_array_equal(unpack_bits(words, dims), occ)
+
+
+@pytest.mark.parametrize("dims", [(37, 5, 4), (64, 3, 6), (5, 1, 1)])
+def test_compare_from_words_is_the_dense_comparison(dims):
+    """compare() works on the packed words: the same missing and extra voxels, in
+    np.argwhere's order, counts and IoU as the dense arrays give, whichever of the two
+    grids holds words or a dense array; bits past nx in the last word are no voxels."""
+    rng = np.random.default_rng(5)
+    spec = GridSpec(dims, (0, 0, 0), 1.0)
+    a, b = rng.random(dims) < 0.3, rng.random(dims) < 0.3
+    wa = pack_bits(a)
+    if dims[0] % 32:
+        wa[..., -1] |= np.uint32(0xFFFFFFFF) << np.uint32(dims[0] % 32)  # stray bits past the grid
+    for ga, gb in ((VoxelGrid(words=wa, spec=spec), VoxelGrid(b, spec)),
+                   (VoxelGrid(a, spec), VoxelGrid(words=pack_bits(b), spec=spec))):
+        c = ga.compare(gb)
+        np.testing.assert_array_equal(c.missing, np.argwhere(b & ~a))
+        np.testing.assert_array_equal(c.extra, np.argwhere(a & ~b))
+        assert c.missing.dtype == c.extra.dtype == np.int64
+        assert (c.count, c.reference_count) == (a.sum(), b.sum())
+        assert c.iou == pytest.approx((a & b).sum() / (a | b).sum())
+    assert VoxelGrid(a, spec).compare(VoxelGrid(words=wa, spec=spec)).equal
+
+
 def test_voxelgrid_refuses_other_placement_and_bad_arrays():
     s1 = GridSpec((2, 2, 2), (0, 0, 0), 1.0)
     s2 = GridSpec((2, 2, 2), (0.5, 0, 0), 1.0)

@@ -35,7 +35,7 @@ from typing import Iterator
 import numpy as np
 
 from ..errors import FormatError
-from ..grid import GridSpec
+from ..grid import GridSpec, pack_bits
 from ..results import Result, VoxelGrid
 from .common import Format, as_grid, warn_dropped
 
@@ -255,7 +255,8 @@ def read(path: Path, *, convention: str = "trimesh") -> VoxelGrid:
     else:
         h = scale / n
         origin = translate
-    return VoxelGrid(np.ascontiguousarray(occ), GridSpec(dims, origin, h))
+    # packed as read (x slowest in the file): no dense copy is made or kept
+    return VoxelGrid(words=pack_bits(occ), spec=GridSpec(dims, origin, h))
 
 
 FORMAT = Format("binvox", (".binvox",), write, read, options=("convention",), read_options=("convention",),

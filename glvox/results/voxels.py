@@ -412,16 +412,23 @@ class VoxelGrid(Result):
         return bool(np.array_equal(self.words(), other.words()))
 
     def compare(self, reference: "VoxelGrid") -> Comparison:
-        """Missing and extra voxels against ``reference``, and IoU."""
+        """Missing and extra voxels against ``reference``, and IoU.
+
+        On the packed words, with any bits past the grid's x extent masked off:
+        no dense array is made (at 512^3 the dense comparison took 3 s, most
+        of it ``np.argwhere`` over every voxel; the words hold 1/8 of the bytes
+        and the differences are listed from their non-zero words).
+        """
         self._check_same(reference)
-        a, b = self.dense(), reference.dense()
-        inter = int(np.count_nonzero(a & b))
-        union = int(np.count_nonzero(a | b))
+        mask = _row_mask(self.spec.dims[0])
+        a, b = self.words() & mask, reference.words() & mask
+        inter = _popcount(a & b)
+        union = _popcount(a | b)
         return Comparison(
-            missing=np.argwhere(b & ~a),
-            extra=np.argwhere(a & ~b),
-            count=int(np.count_nonzero(a)),
-            reference_count=int(np.count_nonzero(b)),
+            missing=set_indices(b & ~a, self.spec.dims),
+            extra=set_indices(a & ~b, self.spec.dims),
+            count=_popcount(a),
+            reference_count=_popcount(b),
             iou=1.0 if union == 0 else inter / union,
         )
 
@@ -431,6 +438,18 @@ class VoxelGrid(Result):
     def __repr__(self) -> str:
         m = f", method={self.run.method!r}" if self.run is not None else ""
         return f"VoxelGrid(dims={self.dims}, count={self.count}, voxel_size={self.voxel_size:.6g}{m})"
+
+
+def _row_mask(nx: int) -> np.ndarray:
+    """uint32 (words_per_row,): the bits of a row's words that hold voxels 0 .. nx - 1."""
+    mask = np.full((nx + 31) // 32, 0xFFFFFFFF, dtype=np.uint32)
+    if nx % 32:
+        mask[-1] = (1 << (nx % 32)) - 1
+    return mask
+
+
+def _popcount(words: np.ndarray) -> int:
+    return int(np.bitwise_count(words).sum(dtype=np.int64))
 
 
 def _bool_member(grid: VoxelGrid) -> np.ndarray | NpyStream:
