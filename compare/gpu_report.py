@@ -17,16 +17,22 @@ in its own process with its share of ``--budget`` seconds,
   where cuda-core sees a GPU);
 * ``sync``: ``compare/bench_sync.py`` at 64^3-256^3: whole calls with and without
   the per-stage waits for the GPU, side by side (its table is in ``report.md``);
-* ``bench``: ``glvox bench`` of the main methods on the bunny at 128^3-1024^3
-  (cuda_voxelizer beside them with ``--cuda-voxelizer PATH``);
+* ``bench``: ``glvox bench`` of the main methods on the bunny at 128^3-1024^3;
+* ``peer``: with ``--cuda-voxelizer PATH``, ``glvox bench`` of ``ss-conservative``
+  (its variants too) beside that cuda_voxelizer binary on the bunny at
+  256^3-1024^3: the two tools' whole calls and kernel times side by side, its
+  voxels checked against glvox's on its own cube (``compare/gpu_lease.py`` builds
+  the binary for a lent machine).  A step of its own, so that the bench's figures
+  do not wait on it, and skipped without a binary;
 * ``tables``: Schwarz & Seidel's Table 1 (``compare/table1_ss_surface.py``) with
   the paper's GTX 285 rows beside this GPU's.
 
-It writes at most eight files to the output folder: ``report.md`` (each step's status,
-seconds and last lines), ``info.json``, ``selftest.json``, and a ``.log`` per other
-step (the bench's ``bench.md`` beside its log).  A step that fails, times out or is
-left without budget is reported as such and the next one runs; the exit status is 1
-when any step did not finish with status 0.
+It writes at most eight files to the output folder (the device tool brings back
+eight): ``report.md`` (each step's status, seconds and last lines), ``info.json``,
+``selftest.json``, and a ``.log`` per other step but ``sync`` (the bench's logs hold
+its tables).  A step that fails, times out or is left without budget is reported
+as such and the next one runs; the exit status is 1 when any step did not finish
+with status 0 (a ``peer`` step skipped for want of a binary does not count).
 """
 
 from __future__ import annotations
@@ -35,7 +41,6 @@ import argparse
 import importlib.util
 import json
 import os
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -60,8 +65,12 @@ GPU_TESTS = [
 ]
 
 #: Steps in order, with their share of the budget.
-STEPS = {"info": 0.02, "selftest": 0.12, "tests": 0.35, "readback": 0.08, "sync": 0.05, "bench": 0.28,
-         "tables": 0.10}
+STEPS = {"info": 0.02, "selftest": 0.12, "tests": 0.28, "readback": 0.08, "sync": 0.05, "bench": 0.25,
+         "peer": 0.10, "tables": 0.10}
+
+#: The peer step's sizes: cuda_voxelizer's process writes a binvox file of the whole
+#: grid (about 5 s at 1024^3 on a 2-core machine), so it stops there.
+PEER_SIZES = ("256", "512", "1024")
 
 BUNNY = "stanford_bunny_bun_zipper.ply"
 
@@ -95,10 +104,12 @@ def commands(step: str, out: Path, work: Path, args) -> tuple[list[str], Path]:
         return [py, str(ROOT / "compare" / "bench_sync.py"), "--meshes", args.mesh, "-r", "64", "128", "256"], \
             work / "sync.log"
     if step == "bench":
-        peers = ["--peers", "cuda-voxelizer", "--cuda-voxelizer", args.cuda_voxelizer] if args.cuda_voxelizer \
-            else ["--peers"]
         return [*glvox, "bench", "-m", *args.bench_methods, "--meshes", args.mesh, "-r", *args.bench_sizes,
-                "--repeat", "5", "--check-max", "128", *peers, "-o", str(work / "bench"), "-q"], out / "bench.log"
+                "--repeat", "5", "--check-max", "128", "--peers", "-q"], out / "bench.log"
+    if step == "peer":
+        return [*glvox, "bench", "-m", "ss-conservative", "--meshes", args.mesh, "-r", *args.peer_sizes,
+                "--repeat", "3", "--check-max", "0", "--peers", "cuda-voxelizer", "--cuda-voxelizer",
+                str(args.cuda_voxelizer), "-q"], out / "peer.log"
     if step == "tables":
         return [py, str(ROOT / "compare" / "table1_ss_surface.py"), "--sizes", *args.bench_sizes,
                 "--repeat", "3"], out / "tables.log"
@@ -137,13 +148,13 @@ def main(argv=None) -> int:
                     default=["ss-conservative", "ss-solid", "eisemann-solid", "gwn-solid", "ss-octree",
                              "scanline-rlv", "scanline-ilv"])
     ap.add_argument("--readback-sizes", nargs="+", default=["512", "1024"])
+    ap.add_argument("--peer-sizes", nargs="+", default=list(PEER_SIZES))
     ap.add_argument("--cuda-voxelizer", default=os.environ.get("GLVOX_CUDA_VOXELIZER"),
-                    help="a cuda_voxelizer binary to bench beside glvox (default: $GLVOX_CUDA_VOXELIZER)")
+                    help="a cuda_voxelizer binary for the peer step (default: $GLVOX_CUDA_VOXELIZER)")
     args = ap.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
-    total = sum(STEPS[s] for s in args.steps)
     rows = []
     failed = False
     with tempfile.TemporaryDirectory(prefix="glvox-gpu-report-") as tmp:
@@ -153,6 +164,9 @@ def main(argv=None) -> int:
             later = sum(STEPS[s] for s in args.steps[n:])
             share = left * STEPS[step] / later if later else left
             cmd, log = commands(step, out, work, args)
+            if step == "peer" and not args.cuda_voxelizer:
+                rows.append((step, "skipped (no cuda_voxelizer binary: --cuda-voxelizer PATH)", 0.0, log, cmd, ""))
+                continue
             if share < 5:
                 rows.append((step, "skipped (no budget left)", 0.0, log, cmd, ""))
                 failed = True  # the report lacks it
@@ -160,8 +174,6 @@ def main(argv=None) -> int:
             print(f"gpu_report: {step} ({share:.0f} s at most): {' '.join(cmd)}", flush=True)
             status, seconds = run_step(cmd, log, share)
             failed |= status != "ok"
-            if step == "bench" and (work / "bench" / "bench.md").is_file():
-                shutil.copy(work / "bench" / "bench.md", out / "bench.md")
             rows.append((step, status, seconds, log, cmd, _tail(log, 25)))  # before work/ goes
     lines = ["# glvox on this GPU", ""]
     info = out / "info.json"

@@ -508,6 +508,33 @@ MUTANTS: list[Mutant] = [
            "glvox/gl/backends.py",
            (("        if driver and driver not in OSMESA_DRIVERS:", "        if False:"),),
            ("tests/test_context.py", "-k", "osmesa")),
+    Mutant("compare-counts-padding-bits", "VoxelGrid.compare counts the bits past nx in a row's last word",
+           "glvox/results/voxels.py",
+           (("        a, b = self.words() & mask, reference.words() & mask",
+             "        a, b = self.words(), reference.words()"),),
+           ("tests/test_grid.py", "-k", "compare")),
+    Mutant("pack-planes-wrong-bit", "pack_bits' plane path shifts planes past x = 31 into bit 0",
+           "glvox/grid.py",
+           (("            packed[x >> 3] |= planes[x] << np.uint8(x & 7)",
+             "            packed[x >> 3] |= planes[x] << np.uint8(x % 8 if x < 32 else 0)"),),
+           ("tests/test_grid.py", "-k", "pack")),
+    Mutant("lease-peer-builds-gl-viewer", "the peer build compiles trimesh2's OpenGL viewer too "
+           "(it needs GL headers the device image lacks)",
+           "compare/gpu_lease.py",
+           (('        if cc.name.startswith("GL"):', "        if False:"),),
+           ("tests/test_gpu_report.py", "-k", "recipe")),
+    Mutant("lease-peer-always-rebuilt", "the device rebuilds cuda_voxelizer even where the carried one runs",
+           "compare/gpu_lease.py",
+           (('    if why is None:\n        print(f"peer: {binary} runs")',
+             '    if False:\n        print(f"peer: {binary} runs")'),),
+           ("tests/test_gpu_report.py", "-k", "keeps")),
+    Mutant("report-peer-in-the-bench", "the report's bench waits on cuda_voxelizer (a peer step no longer "
+           "of its own)",
+           "compare/gpu_report.py",
+           (('"--repeat", "5", "--check-max", "128", "--peers", "-q"]',
+             '"--repeat", "5", "--check-max", "128", "--peers", "cuda-voxelizer", "--cuda-voxelizer", '
+             'str(args.cuda_voxelizer), "-q"]'),),
+           ("tests/test_gpu_report.py", "-k", "peer_step")),
 ]
 
 

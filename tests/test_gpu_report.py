@@ -5,13 +5,21 @@ carries are the versions tested here."""
 
 from __future__ import annotations
 
+import argparse
 import json
+import os
+import re
+import shutil
+import stat
 import subprocess
 import sys
+import textwrap
 from pathlib import Path
 
 import moderngl
+import pytest
 from conftest import load_script
+from test_peer_cuda import FAKE
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "compare" / "gpu_report.py"
@@ -19,8 +27,9 @@ SCRIPT = ROOT / "compare" / "gpu_report.py"
 
 def report(tmp_path, *args):
     out = tmp_path / "report"
+    env = {k: v for k, v in os.environ.items() if k != "GLVOX_CUDA_VOXELIZER"}
     p = subprocess.run([sys.executable, str(SCRIPT), "-o", str(out), *args], capture_output=True, text=True,
-                       timeout=300, cwd=ROOT)
+                       timeout=300, cwd=ROOT, env=env)
     return p, out
 
 
@@ -28,14 +37,13 @@ def test_a_small_report(tmp_path):
     p, out = report(tmp_path, "--steps", "info", "readback", "bench", "--budget", "240", "--mesh", "gen:torus",
                     "--bench-sizes", "32", "--bench-methods", "ss-conservative", "--readback-sizes", "64")
     assert p.returncode == 0, p.stdout + p.stderr
-    assert sorted(f.name for f in out.iterdir()) == ["bench.log", "bench.md", "info.json", "readback.log",
-                                                      "report.md"]
+    assert sorted(f.name for f in out.iterdir()) == ["bench.log", "info.json", "readback.log", "report.md"]
     info = json.loads((out / "info.json").read_text())
     text = (out / "report.md").read_text()
     assert f"Renderer: {info['renderer']}" in text
     for step in ("info", "readback", "bench"):
         assert f"| {step} | ok |" in text
-    assert "ss-conservative" in (out / "bench.md").read_text()
+    assert "| ss-conservative |" in (out / "bench.log").read_text()  # the bench's tables are in its log
 
 
 def test_a_failed_step_and_a_spent_budget_are_reported(tmp_path):
@@ -93,3 +101,149 @@ def test_the_sync_step_puts_its_table_in_the_report(tmp_path):
     assert "| sync | ok |" in text and "`below`" in text
     for n in (64, 128, 256):
         assert f"| ss-conservative | gen:torus | {n} |" in text and f"| ss-solid | gen:torus | {n} |" in text
+
+
+def test_the_peer_step_runs_cuda_voxelizer_beside_ss_conservative(tmp_path):
+    """With a cuda_voxelizer binary (here a fake that behaves as it does), the peer step
+    benches it beside ss-conservative and checks its voxels on its own cube, in a log of
+    its own; the bench step does not wait on it.  Without one the step is skipped, and
+    that is no failure."""
+    fake = tmp_path / "cuda_voxelizer"
+    fake.write_text(FAKE.format(python=sys.executable))
+    fake.chmod(fake.stat().st_mode | stat.S_IXUSR)
+    p, out = report(tmp_path, "--steps", "bench", "peer", "--budget", "240", "--mesh", "gen:torus",
+                    "--bench-sizes", "16", "--peer-sizes", "16", "--bench-methods", "ss-conservative",
+                    "--cuda-voxelizer", str(fake))
+    assert p.returncode == 0, p.stdout + p.stderr
+    assert sorted(f.name for f in out.iterdir()) == ["bench.log", "peer.log", "report.md"]
+    peer = (out / "peer.log").read_text()
+    assert "| peer cuda-voxelizer |" in peer and "## cuda_voxelizer on its own cube" in peer
+    # its wall time, its printed kernel time, and its voxels equal to glvox's on its cube
+    assert re.search(r"\| gen:torus \| 16 \| [0-9.]+ \| 1\.5 \| gpu \| (\d+) \| \1 \| 1\.000000 \| 0 \| 0 \|", peer)
+    assert "cuda-voxelizer" not in (out / "bench.log").read_text()
+    p, out = report(tmp_path, "--steps", "info", "peer", "--budget", "60")
+    assert p.returncode == 0, p.stdout + p.stderr
+    assert "| peer | skipped (no cuda_voxelizer binary" in (out / "report.md").read_text()
+
+
+def test_every_step_together_fits_the_eight_files_the_device_brings_back(tmp_path):
+    """The device tool brings back at most 8 files: report.md and the steps' own files,
+    and the lease command writes nothing else under $OUT."""
+    gr = load_script("gpu_report")
+    args = argparse.Namespace(readback_sizes=["64"], mesh="gen:torus", bench_methods=["ss-conservative"],
+                              bench_sizes=["32"], peer_sizes=["32"], cuda_voxelizer="cv")
+    out = tmp_path / "out"
+    files = {"report.md"} | {gr.commands(step, out, tmp_path / "work", args)[1].name for step in gr.STEPS
+                             if gr.commands(step, out, tmp_path / "work", args)[1].parent == out}
+    assert len(files) <= 8, sorted(files)
+    assert abs(sum(gr.STEPS.values()) - 1.0) < 1e-9
+    assert load_script("gpu_lease").command(480).count("$OUT") == 1
+
+
+#: The peer's build, on a synthetic source tree laid out as cuda_voxelizer's and
+#: trimesh2's: a library function, a viewer file that must not be built, the CUDA
+#: sources (a kernel that is never launched: no GPU here) and OpenMP.
+SYNTHETIC = {
+    "trimesh2/include/answer.h": "int trimesh_answer();\n",
+    "trimesh2/libsrc/answer.cc": '#include "answer.h"\nint trimesh_answer() { return 42; }\n',
+    "trimesh2/libsrc/GLviewer.cc": "#error the OpenGL viewer needs GL headers and is not built\n",
+    "trimesh2/LICENSE": "", "trimesh2/COPYING": "", "cuda_voxelizer/LICENSE": "",
+    "cuda_voxelizer/src/main.cpp": textwrap.dedent("""\
+        #include <cstdio>
+        #include <omp.h>
+        #include "answer.h"
+        int cu_answer();
+        int main() {
+            std::printf("## CUDA VOXELIZER (synthetic) %d %d %d\\n", trimesh_answer(), cu_answer(),
+                        omp_get_max_threads() > 0);
+            return 0;
+        }
+        """),
+    "cuda_voxelizer/src/voxelize.cu": "__global__ void k(int* p) { *p = 7; }\nint cu_answer() { return 7; }\n",
+    "cuda_voxelizer/src/voxelize_solid.cu": "__global__ void k2(int* p) { *p = 1; }\n",
+    "cuda_voxelizer/src/util_cuda.cpp": "", "cuda_voxelizer/src/util_io.cpp": "",
+    "cuda_voxelizer/src/cpu_voxelizer.cpp": "", "cuda_voxelizer/src/libs/magicavoxel_file_writer/VoxWriter.cpp": "",
+}
+
+
+def synthetic_sources(root: Path) -> Path:
+    for name, text in SYNTHETIC.items():
+        (root / name).parent.mkdir(parents=True, exist_ok=True)
+        (root / name).write_text(text)
+    return root
+
+
+def test_the_peer_build_recipe(tmp_path):
+    """trimesh2's library sources but its viewer's (GL*.cc), archived; cuda_voxelizer's
+    sources as its CMakeLists.txt lists them, linked with nvcc for sm_80 and sm_90 with
+    sm_90 PTX, OpenMP, the CUDA runtime static (nvcc's default: no -cudart shared)."""
+    lease = load_script("gpu_lease")
+    src = synthetic_sources(tmp_path / "src")
+    (src / "trimesh2/libsrc/TriMesh_io.cc").write_text("")
+    compile_, archive, link = lease.peer_build_commands(src, tmp_path / "b", tmp_path / "cv", "NVCC")
+    assert [c[c.index("-c") + 1] for c in compile_] == [str(src / "trimesh2/libsrc/TriMesh_io.cc"),
+                                                       str(src / "trimesh2/libsrc/answer.cc")]
+    assert archive == [["ar", "rcs", str(tmp_path / "b/libtrimesh.a"), str(tmp_path / "b/TriMesh_io.o"),
+                        str(tmp_path / "b/answer.o")]]
+    (cmd,) = link
+    assert cmd[0] == "NVCC" and cmd[-2:] == ["-o", str(tmp_path / "cv")] and "-cudart" not in cmd
+    pairs = [cmd[i + 1] for i, a in enumerate(cmd) if a == "-gencode"]
+    assert pairs == ["arch=compute_80,code=sm_80", "arch=compute_90,code=sm_90", "arch=compute_90,code=compute_90"]
+    assert [a for a in cmd if a.startswith(str(src / "cuda_voxelizer"))] == [
+        str(src / "cuda_voxelizer" / f) for f in ("src/main.cpp", "src/util_cuda.cpp", "src/util_io.cpp",
+                                                   "src/cpu_voxelizer.cpp",
+                                                   "src/libs/magicavoxel_file_writer/VoxWriter.cpp",
+                                                   "src/voxelize.cu", "src/voxelize_solid.cu")]
+    assert "-ltrimesh" in cmd and "-fopenmp,-O3" in cmd
+
+
+@pytest.mark.skipif(shutil.which("nvcc") is None, reason="needs CUDA's nvcc")
+def test_the_recipe_builds_a_program_that_runs(tmp_path):
+    lease = load_script("gpu_lease")
+    src = synthetic_sources(tmp_path / "src")
+    lease.build_peer(src, tmp_path / "peer" / "cuda_voxelizer")
+    assert lease.peer_runs(tmp_path / "peer" / "cuda_voxelizer") is None
+    p = subprocess.run([str(tmp_path / "peer" / "cuda_voxelizer")], capture_output=True, text=True, timeout=60)
+    assert p.stdout.split()[-3:] == ["42", "7", "1"]
+    (src / "trimesh2/libsrc/broken.cc").write_text("this is not C++\n")
+    with pytest.raises(subprocess.CalledProcessError):
+        lease.build_peer(src, tmp_path / "peer2" / "cuda_voxelizer")
+
+
+def test_the_device_keeps_a_peer_that_runs_and_builds_one_that_does_not(tmp_path, monkeypatch, capsys):
+    """A binary built here may not run on the device's image: `gpu_lease.py peer` keeps one
+    that starts and prints its banner, builds from the carried sources otherwise, and says
+    in one line why there is none."""
+    lease = load_script("gpu_lease")
+    folder = tmp_path / ".peers"
+    folder.mkdir()
+    binary = folder / "cuda_voxelizer"
+
+    def script(text):
+        binary.write_text(f"#!/bin/sh\n{text}\n")
+        binary.chmod(binary.stat().st_mode | stat.S_IXUSR)
+
+    built = []
+
+    def build(src, out):
+        built.append((src, out))
+        script("echo '## CUDA VOXELIZER'")
+
+    monkeypatch.setattr(lease, "build_peer", build)
+    script("echo '## CUDA VOXELIZER'; echo 'Not enough program parameters.'")
+    assert lease.ensure_peer(folder) == 0 and built == []
+    script("echo 'error while loading shared libraries: libcudart.so.13' >&2; exit 127")
+    assert lease.ensure_peer(folder) == 0 and built == [(folder / "src", binary)]
+    assert "exited with status 127: error while loading shared libraries" in capsys.readouterr().out
+
+    def failing(src, out):
+        raise subprocess.CalledProcessError(1, ["g++", "-c"], "", "x.cc:1: error: expected ';'")
+
+    binary.unlink()
+    monkeypatch.setattr(lease, "build_peer", failing)
+    assert lease.ensure_peer(folder) == 1
+    assert capsys.readouterr().out.splitlines()[-1] == (
+        "peer: not built: g++ exited with status 1: x.cc:1: error: expected ';'")
+    monkeypatch.undo()
+    assert lease.ensure_peer(folder) == 1  # the real build: no sources carried
+    assert "no peer sources in" in capsys.readouterr().out
