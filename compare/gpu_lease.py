@@ -22,8 +22,8 @@ glvox's own Python packages, and a run there sends only the working tree.
   code for sm_80 and sm_90, PTX for later GPUs, the CUDA runtime linked in).
   ``python compare/gpu_lease.py peer`` keeps that binary where it runs and
   otherwise builds it from the carried sources (a binary built on one image may
-  not run on another's system libraries); the command runs it, and passes the
-  binary to the report's bench when it works.
+  not run on another's system libraries); the command runs it, and gives the
+  binary to the report's ``peer`` step when it works.
 
 ``command`` prints the command (at most 2,000 characters, the device tool's
 limit) and the folders to carry: it unpacks and installs the above, readies the
@@ -303,10 +303,10 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     if args.what == "prepare":
         meshes = args.meshes or Path(os.environ.get("GLVOX_MESHES", ROOT.parent / "shared" / "meshes"))
+        bad = [r for r in args.peer_repo if r.partition("=")[0] not in PEER_SOURCES or not r.partition("=")[2]]
+        if bad:
+            ap.error(f"--peer-repo takes NAME=URL with NAME one of {', '.join(PEER_SOURCES)}, got {bad[0]!r}")
         repos = dict(r.split("=", 1) for r in args.peer_repo)
-        unknown = set(repos) - set(PEER_SOURCES)
-        if unknown:
-            ap.error(f"--peer-repo: no peer source {sorted(unknown)[0]!r} (one of {', '.join(PEER_SOURCES)})")
         return prepare(ROOT, meshes, args.dry_run, not args.no_peer, repos)
     if args.what == "peer":
         return ensure_peer(ROOT / ".peers")

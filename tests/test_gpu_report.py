@@ -72,6 +72,10 @@ def test_the_lease_command_fits_the_device_tool_and_carries_what_it_uses():
                        text=True, timeout=60, cwd=ROOT)
     assert p.returncode == 0 and p.stdout.splitlines() == [cmd, "carry: " + " ".join(lease.CARRY)]
     assert len(lease.CARRY) <= 8
+    p = subprocess.run([sys.executable, str(ROOT / "compare" / "gpu_lease.py"), "prepare", "--dry-run",
+                        "--peer-repo", "cuda_voxelizer"], capture_output=True, text=True, timeout=60, cwd=ROOT)
+    assert p.returncode == 2 and p.stderr.splitlines()[-1].endswith(
+        "--peer-repo takes NAME=URL with NAME one of cuda_voxelizer, trimesh2, got 'cuda_voxelizer'")
 
 
 def test_the_lease_pins_the_wheels_tested_here_and_keeps_its_folders_out_of_git(tmp_path):
