@@ -24,8 +24,12 @@ in its own process with its share of ``--budget`` seconds,
   voxels checked against glvox's on its own cube (``compare/gpu_lease.py`` builds
   the binary for a lent machine).  A step of its own, so that the bench's figures
   do not wait on it, and skipped without a binary;
-* ``tables``: Schwarz & Seidel's Table 1 (``compare/table1_ss_surface.py``) with
-  the paper's GTX 285 rows beside this GPU's.
+* ``tables``: the papers' timing tables with their own figures beside this GPU's,
+  one script after the other into one log: Schwarz & Seidel's Tables 1-3
+  (``compare/table1_ss_surface.py``, ``table2_ss_solid.py``, ``table3_ss_octree.py``;
+  GTX 285) at the bench's sizes and Zhang et al.'s timings
+  (``compare/zhang_table1.py --timing``; GTX 970) at 256^3 and 512^3 (about 10 s
+  each on a 2-core machine with llvmpipe, most of it start-up).
 
 It writes at most eight files to the output folder (the device tool brings back
 eight): ``report.md`` (each step's status, seconds and last lines), ``info.json``,
@@ -41,6 +45,7 @@ import argparse
 import importlib.util
 import json
 import os
+import shlex
 import subprocess
 import sys
 import tempfile
@@ -110,9 +115,13 @@ def commands(step: str, out: Path, work: Path, args) -> tuple[list[str], Path]:
         return [*glvox, "bench", "-m", "ss-conservative", "--meshes", args.mesh, "-r", *args.peer_sizes,
                 "--repeat", "3", "--check-max", "0", "--peers", "cuda-voxelizer", "--cuda-voxelizer",
                 str(args.cuda_voxelizer), "-q"], out / "peer.log"
-    if step == "tables":
-        return [py, str(ROOT / "compare" / "table1_ss_surface.py"), "--sizes", *args.bench_sizes,
-                "--repeat", "3"], out / "tables.log"
+    if step == "tables":  # every script runs, the step fails if one does
+        scripts = [[py, str(ROOT / "compare" / f"{name}.py"), "--sizes", *args.bench_sizes, "--repeat", "3"]
+                   for name in ("table1_ss_surface", "table2_ss_solid", "table3_ss_octree")]
+        scripts.append([py, str(ROOT / "compare" / "zhang_table1.py"), "--timing", "-r", ",".join(args.zhang_sizes),
+                        "--repeats", "3"])
+        return ["sh", "-c", "s=0; " + " ".join(f"{shlex.join(c)} || s=1;" for c in scripts) + " exit $s"], \
+            out / "tables.log"
     raise ValueError(step)
 
 
@@ -149,6 +158,7 @@ def main(argv=None) -> int:
                              "scanline-rlv", "scanline-ilv"])
     ap.add_argument("--readback-sizes", nargs="+", default=["512", "1024"])
     ap.add_argument("--peer-sizes", nargs="+", default=list(PEER_SIZES))
+    ap.add_argument("--zhang-sizes", nargs="+", default=["256", "512"])
     ap.add_argument("--cuda-voxelizer", default=os.environ.get("GLVOX_CUDA_VOXELIZER"),
                     help="a cuda_voxelizer binary for the peer step (default: $GLVOX_CUDA_VOXELIZER)")
     args = ap.parse_args(argv)

@@ -251,3 +251,19 @@ def test_the_device_keeps_a_peer_that_runs_and_builds_one_that_does_not(tmp_path
     monkeypatch.undo()
     assert lease.ensure_peer(folder) == 1  # the real build: no sources carried
     assert "no peer sources in" in capsys.readouterr().out
+
+
+def test_the_tables_step_prints_every_papers_table_and_fails_if_one_fails(tmp_path):
+    """Schwarz & Seidel's Tables 1-3 and Zhang et al.'s timings, their own figures beside
+    glvox's, one after the other in one log; a table that fails fails the step, and the
+    tables after it still run."""
+    p, out = report(tmp_path, "--steps", "tables", "--budget", "240", "--bench-sizes", "32", "--zhang-sizes", "32")
+    assert p.returncode == 0, p.stdout + p.stderr
+    log = (out / "tables.log").read_text()
+    for paper in ("Schwarz & Seidel 2010 Table 1", "Schwarz & Seidel 2010 Table 2", "Schwarz & Seidel 2010 Table 3",
+                  "Zhang et al. 2018 Table 2"):
+        assert paper in log, paper
+    p, out = report(tmp_path, "--steps", "tables", "--budget", "240", "--bench-sizes", "none",
+                    "--zhang-sizes", "32")
+    assert p.returncode == 1 and "| tables | failed (exit 1) |" in (out / "report.md").read_text()
+    assert "Zhang et al. 2018 Table 2" in (out / "tables.log").read_text()
