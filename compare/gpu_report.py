@@ -31,6 +31,11 @@ in its own process with its share of ``--budget`` seconds,
   (``compare/zhang_table1.py --timing``; GTX 970) at 256^3 and 512^3 (about 10 s
   each on a 2-core machine with llvmpipe, most of it start-up).
 
+Two more steps run only when ``--steps`` names them (they do not fit one 10-minute
+call beside the others; a second call can run them): ``suite``, the whole default
+test suite with pytest-xdist's workers, and ``quick``, ``glvox bench --preset
+quick`` (every method and installed peer on two shared meshes at 64^3 and 128^3).
+
 It writes at most eight files to the output folder (the device tool brings back
 eight): ``report.md`` (each step's status, seconds and last lines), ``info.json``,
 ``selftest.json``, and a ``.log`` per other step but ``sync`` (the bench's logs hold
@@ -73,6 +78,10 @@ GPU_TESTS = [
 STEPS = {"info": 0.02, "selftest": 0.12, "tests": 0.28, "readback": 0.08, "sync": 0.05, "bench": 0.25,
          "peer": 0.10, "tables": 0.10}
 
+#: Steps run only when named, with their shares (relative, as above).
+EXTRA_STEPS = {"suite": 0.6, "quick": 0.4}
+SHARES = {**STEPS, **EXTRA_STEPS}
+
 #: The peer step's sizes: cuda_voxelizer's process writes a binvox file of the whole
 #: grid (about 5 s at 1024^3 on a 2-core machine), so it stops there.
 PEER_SIZES = ("256", "512", "1024")
@@ -98,10 +107,14 @@ def commands(step: str, out: Path, work: Path, args) -> tuple[list[str], Path]:
         return [*glvox, "info", "--json"], out / "info.json"
     if step == "selftest":
         return [*glvox, "selftest", "--json"], out / "selftest.json"
+    workers = ["-n", str(max(1, min(8, (os.cpu_count() or 2) // 2)))] \
+        if importlib.util.find_spec("xdist") is not None else []
     if step == "tests":
-        workers = ["-n", str(max(1, min(8, (os.cpu_count() or 2) // 2)))] \
-            if importlib.util.find_spec("xdist") is not None else []
         return [py, "-m", "pytest", "-q", "-rfE", *workers, *GPU_TESTS], out / "tests.log"
+    if step == "suite":
+        return [py, "-m", "pytest", "-q", "-rfE", *workers], out / "suite.log"
+    if step == "quick":
+        return [*glvox, "bench", "--preset", "quick", "-q"], out / "quick.log"
     if step == "readback":
         return [py, str(ROOT / "compare" / "bench_readback.py"), "-r", *args.readback_sizes, "--repeat", "3",
                 *(["--cuda"] if _cuda_seen() else [])], out / "readback.log"
@@ -150,7 +163,8 @@ def main(argv=None) -> int:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("-o", "--out", required=True, help="folder for report.md and the steps' files")
     ap.add_argument("--budget", type=float, default=540.0, help="seconds for all steps together")
-    ap.add_argument("--steps", nargs="+", choices=list(STEPS), default=list(STEPS))
+    ap.add_argument("--steps", nargs="+", choices=list(SHARES), default=list(STEPS),
+                    help=f"default: {' '.join(STEPS)}; also {' '.join(EXTRA_STEPS)}")
     ap.add_argument("--mesh", default=BUNNY, help="the bench's mesh (a path or a shared mesh's name)")
     ap.add_argument("--bench-sizes", nargs="+", default=["128", "256", "512", "1024"])
     ap.add_argument("--bench-methods", nargs="+",
@@ -171,8 +185,8 @@ def main(argv=None) -> int:
         work = Path(tmp)
         for n, step in enumerate(args.steps):
             left = args.budget - (time.perf_counter() - start)
-            later = sum(STEPS[s] for s in args.steps[n:])
-            share = left * STEPS[step] / later if later else left
+            later = sum(SHARES[s] for s in args.steps[n:])
+            share = left * SHARES[step] / later if later else left
             cmd, log = commands(step, out, work, args)
             if step == "peer" and not args.cuda_voxelizer:
                 rows.append((step, "skipped (no cuda_voxelizer binary: --cuda-voxelizer PATH)", 0.0, log, cmd, ""))

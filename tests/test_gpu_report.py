@@ -48,7 +48,7 @@ def test_a_small_report(tmp_path):
 
 def test_a_failed_step_and_a_spent_budget_are_reported(tmp_path):
     p, out = report(tmp_path, "--steps", "bench", "tables", "--budget", "60", "--mesh", "/no/such/mesh.ply",
-                    "--bench-sizes", "32", "--bench-methods", "ss-conservative")
+                    "--bench-sizes", "32", "--zhang-sizes", "32", "--bench-methods", "ss-conservative")
     assert p.returncode == 1
     text = (out / "report.md").read_text()
     assert "| bench | failed (exit" in text and "/no/such/mesh.ply" in (out / "bench.log").read_text()
@@ -135,11 +135,14 @@ def test_every_step_together_fits_the_eight_files_the_device_brings_back(tmp_pat
     and the lease command writes nothing else under $OUT."""
     gr = load_script("gpu_report")
     args = argparse.Namespace(readback_sizes=["64"], mesh="gen:torus", bench_methods=["ss-conservative"],
-                              bench_sizes=["32"], peer_sizes=["32"], cuda_voxelizer="cv")
+                              bench_sizes=["32"], peer_sizes=["32"], zhang_sizes=["32"], cuda_voxelizer="cv")
     out = tmp_path / "out"
-    files = {"report.md"} | {gr.commands(step, out, tmp_path / "work", args)[1].name for step in gr.STEPS
-                             if gr.commands(step, out, tmp_path / "work", args)[1].parent == out}
-    assert len(files) <= 8, sorted(files)
+    def files(steps):
+        return {"report.md"} | {gr.commands(step, out, tmp_path / "work", args)[1].name for step in steps
+                                if gr.commands(step, out, tmp_path / "work", args)[1].parent == out}
+
+    assert len(files(gr.STEPS)) <= 8, sorted(files(gr.STEPS))
+    assert len(files(gr.EXTRA_STEPS)) <= 8
     assert abs(sum(gr.STEPS.values()) - 1.0) < 1e-9
     assert load_script("gpu_lease").command(480).count("$OUT") == 1
 
@@ -267,3 +270,18 @@ def test_the_tables_step_prints_every_papers_table_and_fails_if_one_fails(tmp_pa
                     "--zhang-sizes", "32")
     assert p.returncode == 1 and "| tables | failed (exit 1) |" in (out / "report.md").read_text()
     assert "Zhang et al. 2018 Table 2" in (out / "tables.log").read_text()
+
+
+def test_the_whole_suite_and_the_quick_bench_are_steps_named_on_demand(tmp_path):
+    """Issue-sized GPU runs also want the whole suite and `glvox bench --preset quick`;
+    they do not fit one call beside the default steps, so they run only when named."""
+    gr = load_script("gpu_report")
+    assert not set(gr.EXTRA_STEPS) & set(gr.STEPS)
+    args = argparse.Namespace()
+    cmd, log = gr.commands("suite", tmp_path, tmp_path, args)
+    assert cmd[1:4] == ["-m", "pytest", "-q"] and not any(a.startswith("tests/") for a in cmd) \
+        and log.name == "suite.log"
+    cmd, log = gr.commands("quick", tmp_path, tmp_path, args)
+    assert cmd[1:] == ["-m", "glvox", "bench", "--preset", "quick", "-q"] and log.name == "quick.log"
+    p, out = report(tmp_path, "--steps", "suite", "--budget", "1")
+    assert "| suite | skipped (no budget left) |" in (out / "report.md").read_text()
