@@ -13,6 +13,7 @@ import pytest
 
 import glvox
 from glvox.cli import main
+from glvox.study.bench_report import _ms
 from glvox.study.peer_cuda import ENV, cube_placement, parse_output
 from glvox.study.peers import get_peer
 
@@ -172,10 +173,32 @@ def test_glvox_bench_runs_it_as_a_peer_in_one_command(fake, tmp_path, capsys, mo
     assert row["peer_stats"]["kernel_ms"] == 1.5 and row["peer_stats"]["iou"] == 1.0
     text = capsys.readouterr().out
     assert "cuda-voxelizer" in text and "## cuda_voxelizer on its own cube" in text
-    assert "| 1.5 | gpu |" in (out / "bench.md").read_text()
+    # its kernel beside glvox's GPU time in the same cell, and the ratio the GPU-speed target is about
+    ours = next(r for r in rows if r["method"] == "ss-conservative")
+    assert f"| 1.5 | {_ms(ours['gpu_ms'])} ({ours['key']}) | {ours['gpu_ms'] / 1.5:.2f} | gpu |" \
+        in (out / "bench.md").read_text()
 
 
 def test_bench_refuses_a_missing_binary_before_work(tmp_path, capsys):
     assert main(["bench", "--meshes", "gen:sphere", "-r", "8", "--cuda-voxelizer", str(tmp_path / "none")]) == 1
     err = capsys.readouterr().err
     assert err.strip() == f"glvox: error: cuda_voxelizer binary {tmp_path / 'none'} not found (--cuda-voxelizer PATH or {ENV})"
+
+
+def test_its_kernel_is_set_beside_glvoxs_fastest_variant_in_the_same_cell():
+    from glvox.study.bench_report import best_surface_gpu, peer_stats_table
+
+    def row(key, gpu, n=256, mesh="bunny.ply", method="ss-conservative"):
+        return {"key": key, "method": method, "gpu_ms": gpu, "mesh": mesh, "n": n}
+
+    rows = [row("ss-conservative", 3.0), row("ss-conservative[variant=simple]", 2.0),
+            row("ss-conservative[variant=sorted]", None), row("ss-conservative", 0.5, n=128),
+            row("ss-conservative", 0.1, mesh="other.ply"), row("ss-solid", 0.2, method="ss-solid")]
+    assert best_surface_gpu(rows, "bunny.ply", 256) == (2.0, "ss-conservative[variant=simple]")
+    assert best_surface_gpu(rows, "bunny.ply", 512) is None
+    peer = {"mesh": "bunny.ply", "n": 256, "wall_ms": 900.0,
+            "peer_stats": {"kernel_ms": 8.0, "device": "gpu", "count": 5, "glvox_count": 5, "iou": 1.0,
+                           "missing": 0, "extra": 0}}
+    assert "| bunny.ply | 256 | 900 | 8.0 | 2.0 (ss-conservative[variant=simple]) | 0.25 | gpu |" \
+        in peer_stats_table([peer], rows)
+    assert "| 8.0 | - | - | gpu |" in peer_stats_table([dict(peer, n=512)], rows)

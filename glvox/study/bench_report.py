@@ -236,19 +236,36 @@ def regression_lines(check: dict[str, Any], baseline_path: Path | None) -> list[
             f"when above 1: {f})", ""]
 
 
-def peer_stats_table(rows: Sequence[dict]) -> str:
-    """Per row with ``peer_stats`` (cuda_voxelizer): its process and its own kernel time, and its
-    voxels against glvox's ss-conservative on its own cube (glvox/study/peer_cuda.py)."""
+def best_surface_gpu(rows: Sequence[dict], mesh: Any, n: int) -> tuple[float, str] | None:
+    """The least median GPU time (all of a call's stages) of ``ss-conservative`` and its variants
+    on ``mesh`` at ``n``^3 in ``rows``, with the variant's key; None where none was timed."""
+    timed = [(r["gpu_ms"], r["key"]) for r in rows
+             if r.get("method") == "ss-conservative" and r.get("gpu_ms") is not None
+             and r["mesh"] == mesh and r["n"] == n]
+    return min(timed) if timed else None
+
+
+def peer_stats_table(rows: Sequence[dict], everything: Sequence[dict] = ()) -> str:
+    """Per row with ``peer_stats`` (cuda_voxelizer): its process and its own kernel time, beside
+    glvox's GPU time for the same cell (the best of ``ss-conservative``'s variants among
+    ``everything``) and their ratio, and its voxels against glvox's ss-conservative on its own
+    cube (glvox/study/peer_cuda.py)."""
     out = ["Wall = the whole process (start, PLY read, CUDA init, voxelization, binvox write); kernel = "
-           "its own printed GPU time.  Counts on its cube (1 + 2/10001 of glvox's, same center) against "
-           "glvox's ss-conservative there.", "",
-           "| mesh | N | wall ms | kernel ms | device | its voxels | glvox voxels | IoU | missing | extra |",
-           "|---|---|---|---|---|---|---|---|---|---|"]
+           "its own printed GPU time; glvox GPU = every GPU stage of the fastest ss-conservative variant "
+           "in the same cell (median), and its ratio to that kernel.  Counts on its cube (1 + 2/10001 of "
+           "glvox's, same center) against glvox's ss-conservative there.", "",
+           "| mesh | N | wall ms | kernel ms | glvox GPU ms | glvox / kernel | device | its voxels | glvox voxels "
+           "| IoU | missing | extra |",
+           "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         s = r["peer_stats"]
-        out.append(f"| {Path(str(r['mesh'])).name} | {r['n']} | {_ms(r.get('wall_ms'))} | {_ms(s.get('kernel_ms'))} | "
-                   f"{s.get('device')} | {s.get('count')} | {s.get('glvox_count')} | {s.get('iou', 0):.6f} | "
-                   f"{s.get('missing')} | {s.get('extra')} |")
+        ours = best_surface_gpu(everything, r["mesh"], r["n"])
+        kernel = s.get("kernel_ms")
+        ratio = f"{ours[0] / kernel:.2f}" if ours and kernel else "-"
+        glvox_gpu = f"{_ms(ours[0])} ({ours[1]})" if ours else "-"
+        out.append(f"| {Path(str(r['mesh'])).name} | {r['n']} | {_ms(r.get('wall_ms'))} | {_ms(kernel)} | "
+                   f"{glvox_gpu} | {ratio} | {s.get('device')} | {s.get('count')} | {s.get('glvox_count')} | "
+                   f"{s.get('iou', 0):.6f} | {s.get('missing')} | {s.get('extra')} |")
     return "\n".join(out) + "\n"
 
 
@@ -268,7 +285,7 @@ def report(rows: Sequence[dict], machine: dict[str, Any], plan: Plan, check: dic
             "## Where the time goes", "", time_table(rows)]
     peer_stats = [r for r in rows if r.get("peer_stats")]
     if peer_stats:
-        out += ["## cuda_voxelizer on its own cube", "", peer_stats_table(peer_stats)]
+        out += ["## cuda_voxelizer on its own cube", "", peer_stats_table(peer_stats, rows)]
     if colds:
         c0 = colds[0]
         out += ["## Cold start", "",
