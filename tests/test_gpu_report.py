@@ -122,8 +122,10 @@ def test_the_peer_step_runs_cuda_voxelizer_beside_ss_conservative(tmp_path):
     assert sorted(f.name for f in out.iterdir()) == ["bench.log", "peer.log", "report.md"]
     peer = (out / "peer.log").read_text()
     assert "| peer cuda-voxelizer |" in peer and "## cuda_voxelizer on its own cube" in peer
-    # its wall time, its printed kernel time, and its voxels equal to glvox's on its cube
-    assert re.search(r"\| gen:torus \| 16 \| [0-9.]+ \| 1\.5 \| gpu \| (\d+) \| \1 \| 1\.000000 \| 0 \| 0 \|", peer)
+    # its wall time, its printed kernel time beside glvox's GPU time and their ratio, and its
+    # voxels equal to glvox's on its cube
+    assert re.search(r"\| gen:torus \| 16 \| [0-9.]+ \| 1\.5 \| [0-9.]+ \(ss-conservative[^)]*\) \| [0-9.]+ \| "
+                     r"gpu \| (\d+) \| \1 \| 1\.000000 \| 0 \| 0 \|", peer)
     assert "cuda-voxelizer" not in (out / "bench.log").read_text()
     p, out = report(tmp_path, "--steps", "info", "peer", "--budget", "60")
     assert p.returncode == 0, p.stdout + p.stderr
