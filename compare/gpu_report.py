@@ -51,6 +51,7 @@ import importlib.util
 import json
 import os
 import shlex
+import signal
 import subprocess
 import sys
 import tempfile
@@ -139,13 +140,19 @@ def commands(step: str, out: Path, work: Path, args) -> tuple[list[str], Path]:
 
 
 def run_step(cmd: list[str], log: Path, timeout: float) -> tuple[str, float]:
+    """Run ``cmd`` into ``log`` within ``timeout`` seconds.  In a process group of its own,
+    killed whole at the timeout: a step's children (pytest's workers, the tables' scripts)
+    must not run on into the next step."""
     t0 = time.perf_counter()
     with open(log, "w") as f:
+        proc = subprocess.Popen(cmd, stdout=f, stderr=subprocess.STDOUT, cwd=ROOT, start_new_session=True,
+                                env={**os.environ, "PYTHONUNBUFFERED": "1"})
         try:
-            proc = subprocess.run(cmd, stdout=f, stderr=subprocess.STDOUT, timeout=timeout, cwd=ROOT,
-                                  env={**os.environ, "PYTHONUNBUFFERED": "1"})
-            status = "ok" if proc.returncode == 0 else f"failed (exit {proc.returncode})"
+            code = proc.wait(timeout=timeout)
+            status = "ok" if code == 0 else f"failed (exit {code})"
         except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
             status = f"timed out after {timeout:.0f} s"
     return status, time.perf_counter() - t0
 
@@ -179,14 +186,15 @@ def main(argv=None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
+    shares = {**SHARES, "peer": SHARES["peer"] if args.cuda_voxelizer else 0.0}  # a skipped step takes none
     rows = []
     failed = False
     with tempfile.TemporaryDirectory(prefix="glvox-gpu-report-") as tmp:
         work = Path(tmp)
         for n, step in enumerate(args.steps):
             left = args.budget - (time.perf_counter() - start)
-            later = sum(SHARES[s] for s in args.steps[n:])
-            share = left * SHARES[step] / later if later else left
+            later = sum(shares[s] for s in args.steps[n:])
+            share = left * shares[step] / later if later else left
             cmd, log = commands(step, out, work, args)
             if step == "peer" and not args.cuda_voxelizer:
                 rows.append((step, "skipped (no cuda_voxelizer binary: --cuda-voxelizer PATH)", 0.0, log, cmd, ""))

@@ -518,6 +518,11 @@ MUTANTS: list[Mutant] = [
            (("            packed[x >> 3] |= planes[x] << np.uint8(x & 7)",
              "            packed[x >> 3] |= planes[x] << np.uint8(x % 8 if x < 32 else 0)"),),
            ("tests/test_grid.py", "-k", "pack")),
+    Mutant("report-timeout-spares-children", "a timed-out report step kills its shell but not the children "
+           "it started, which run on into the next step",
+           "compare/gpu_report.py",
+           (("            os.killpg(proc.pid, signal.SIGKILL)", "            proc.kill()"),),
+           ("tests/test_gpu_report.py", "-k", "killed")),
     Mutant("lease-peer-builds-gl-viewer", "the peer build compiles trimesh2's OpenGL viewer too "
            "(it needs GL headers the device image lacks)",
            "compare/gpu_lease.py",

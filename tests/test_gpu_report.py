@@ -14,6 +14,7 @@ import stat
 import subprocess
 import sys
 import textwrap
+import time
 from pathlib import Path
 
 import moderngl
@@ -287,3 +288,15 @@ def test_the_whole_suite_and_the_quick_bench_are_steps_named_on_demand(tmp_path)
     assert cmd[1:] == ["-m", "glvox", "bench", "--preset", "quick", "-q"] and log.name == "quick.log"
     p, out = report(tmp_path, "--steps", "suite", "--budget", "1")
     assert "| suite | skipped (no budget left) |" in (out / "report.md").read_text()
+
+
+def test_a_step_that_times_out_is_killed_with_its_children(tmp_path):
+    """A timed-out step's children (pytest's workers, the tables' scripts) must not run on
+    into the next step: the step's whole process group goes."""
+    gr = load_script("gpu_report")
+    mark = tmp_path / "child"
+    cmd = ["sh", "-c", f"(sleep 3; touch {mark}) & sleep 30"]
+    status, seconds = gr.run_step(cmd, tmp_path / "step.log", 1.0)
+    assert status == "timed out after 1 s" and seconds < 3
+    time.sleep(3)
+    assert not mark.exists()
