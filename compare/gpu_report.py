@@ -28,8 +28,9 @@ in its own process with its share of ``--budget`` seconds,
   one script after the other into one log: Schwarz & Seidel's Tables 1-3
   (``compare/table1_ss_surface.py``, ``table2_ss_solid.py``, ``table3_ss_octree.py``;
   GTX 285) at the bench's sizes and Zhang et al.'s timings
-  (``compare/zhang_table1.py --timing``; GTX 970) at 256^3 and 512^3 (about 10 s
-  each on a 2-core machine with llvmpipe, most of it start-up).
+  (``compare/zhang_table1.py --timing``; GTX 970) at 256^3 and 512^3 on the same
+  meshes (:data:`ZHANG_MESHES`; about 10 s a script on a 2-core machine with
+  llvmpipe, most of it start-up).
 
 Two more steps run only when ``--steps`` names them (they do not fit one 10-minute
 call beside the others; a second call can run them): ``suite``, the whole default
@@ -83,6 +84,10 @@ STEPS = {"info": 0.02, "selftest": 0.12, "tests": 0.28, "readback": 0.08, "sync"
 EXTRA_STEPS = {"suite": 0.6, "quick": 0.4}
 SHARES = {**STEPS, **EXTRA_STEPS}
 
+#: Zhang et al.'s timings on the meshes of Schwarz & Seidel's tables (the paper's own
+#: meshes are not shared ones): all seventeen would take most of the step's share.
+ZHANG_MESHES = ("stanford_bunny_bun_zipper.ply", "stanford_dragon_vrip_res2.ply", "stanford_armadillo_libigl_86k.obj")
+
 #: The peer step's sizes: cuda_voxelizer's process writes a binvox file of the whole
 #: grid (about 5 s at 1024^3 on a 2-core machine), so it stops there.
 PEER_SIZES = ("256", "512", "1024")
@@ -133,7 +138,7 @@ def commands(step: str, out: Path, work: Path, args) -> tuple[list[str], Path]:
         scripts = [[py, str(ROOT / "compare" / f"{name}.py"), "--sizes", *args.bench_sizes, "--repeat", "3"]
                    for name in ("table1_ss_surface", "table2_ss_solid", "table3_ss_octree")]
         scripts.append([py, str(ROOT / "compare" / "zhang_table1.py"), "--timing", "-r", ",".join(args.zhang_sizes),
-                        "--repeats", "3"])
+                        "--repeats", "3", "--meshes", ",".join(ZHANG_MESHES)])
         return ["sh", "-c", "s=0; " + " ".join(f"{shlex.join(c)} || s=1;" for c in scripts) + " exit $s"], \
             out / "tables.log"
     raise ValueError(step)

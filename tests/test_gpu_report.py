@@ -269,6 +269,8 @@ def test_the_tables_step_prints_every_papers_table_and_fails_if_one_fails(tmp_pa
     for paper in ("Schwarz & Seidel 2010 Table 1", "Schwarz & Seidel 2010 Table 2", "Schwarz & Seidel 2010 Table 3",
                   "Zhang et al. 2018 Table 2"):
         assert paper in log, paper
+    zhang = log[log.index("Zhang et al. 2018 Table 2"):]
+    assert "stanford_dragon_vrip_res2.ply" in zhang and "cad_fandisk.off" not in zhang  # the S&S tables' meshes
     p, out = report(tmp_path, "--steps", "tables", "--budget", "240", "--bench-sizes", "none",
                     "--zhang-sizes", "32")
     assert p.returncode == 1 and "| tables | failed (exit 1) |" in (out / "report.md").read_text()
