@@ -18,6 +18,9 @@ in its own process with its share of ``--budget`` seconds,
 * ``sync``: ``compare/bench_sync.py`` at 64^3-256^3: whole calls with and without
   the per-stage waits for the GPU, side by side (its table is in ``report.md``);
 * ``bench``: ``glvox bench`` of the main methods on the bunny at 128^3-1024^3;
+* ``outside``: ``compare/outside_stages.py``: where ``ss-conservative``'s whole call
+  at the bench's largest size spends the time outside its timed stages, by
+  function (its table is in ``report.md``);
 * ``peer``: with ``--cuda-voxelizer PATH``, ``glvox bench`` of ``ss-conservative``
   (its variants too) beside that cuda_voxelizer binary on the bunny at
   256^3-1024^3: the two tools' whole calls and kernel times side by side, its
@@ -39,8 +42,8 @@ quick`` (every method and installed peer on two shared meshes at 64^3 and 128^3)
 
 It writes at most eight files to the output folder (the device tool brings back
 eight): ``report.md`` (each step's status, seconds and last lines), ``info.json``,
-``selftest.json``, and a ``.log`` per other step but ``sync`` (the bench's logs hold
-its tables).  A step that fails, times out or is left without budget is reported
+``selftest.json``, and a ``.log`` per other step but ``sync`` and ``outside``, whose
+tables are in ``report.md`` (the bench's logs hold its tables).  A step that fails, times out or is left without budget is reported
 as such and the next one runs; the exit status is 1 when any step did not finish
 with status 0 (a ``peer`` step skipped for want of a binary does not count).
 """
@@ -77,8 +80,8 @@ GPU_TESTS = [
 ]
 
 #: Steps in order, with their share of the budget.
-STEPS = {"info": 0.02, "selftest": 0.12, "tests": 0.28, "readback": 0.08, "sync": 0.05, "bench": 0.25,
-         "peer": 0.10, "tables": 0.10}
+STEPS = {"info": 0.02, "selftest": 0.12, "tests": 0.27, "readback": 0.08, "sync": 0.04, "bench": 0.24,
+         "outside": 0.03, "peer": 0.10, "tables": 0.10}
 
 #: Steps run only when named, with their shares (relative, as above).
 EXTRA_STEPS = {"suite": 0.6, "quick": 0.4}
@@ -130,6 +133,9 @@ def commands(step: str, out: Path, work: Path, args) -> tuple[list[str], Path]:
     if step == "bench":
         return [*glvox, "bench", "-m", *args.bench_methods, "--meshes", args.mesh, "-r", *args.bench_sizes,
                 "--repeat", "5", "--check-max", "128", "--peers", "-q"], out / "bench.log"
+    if step == "outside":  # its table is in report.md (the output folder holds eight files at most)
+        return [py, str(ROOT / "compare" / "outside_stages.py"), "--mesh", args.mesh, "-r", args.bench_sizes[-1]], \
+            work / "outside.log"
     if step == "peer":
         return [*glvox, "bench", "-m", "ss-conservative", "--meshes", args.mesh, "-r", *args.peer_sizes,
                 "--repeat", "3", "--check-max", "0", "--peers", "cuda-voxelizer", "--cuda-voxelizer",

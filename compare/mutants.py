@@ -523,6 +523,11 @@ MUTANTS: list[Mutant] = [
            "compare/gpu_report.py",
            (("            os.killpg(proc.pid, signal.SIGKILL)", "            proc.kill()"),),
            ("tests/test_gpu_report.py", "-k", "killed")),
+    Mutant("outside-profile-counts-stages", "the outside-the-stages profile keeps profiling inside the stages",
+           "compare/outside_stages.py",
+           (("        prof.disable()\n        try:\n            with timed_stage",
+             "        try:\n            with timed_stage"),),
+           ("tests/test_gpu_report.py", "-k", "outside")),
     Mutant("lease-peer-builds-gl-viewer", "the peer build compiles trimesh2's OpenGL viewer too "
            "(it needs GL headers the device image lacks)",
            "compare/gpu_lease.py",

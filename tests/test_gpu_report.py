@@ -302,3 +302,21 @@ def test_a_step_that_times_out_is_killed_with_its_children(tmp_path):
     assert status == "timed out after 1 s" and seconds < 3
     time.sleep(3)
     assert not mark.exists()
+
+
+def test_the_outside_step_names_where_a_call_spends_the_time_outside_its_stages(tmp_path):
+    """compare/outside_stages.py profiles whole calls with the profiler paused in every stage:
+    its total per call is the time outside them (up to cProfile's own cost), and its table,
+    in report.md, names the functions that hold it."""
+    p, out = report(tmp_path, "--steps", "outside", "--budget", "120", "--mesh", "gen:torus",
+                    "--bench-sizes", "32", "128")
+    assert p.returncode == 0, p.stdout + p.stderr
+    assert sorted(f.name for f in out.iterdir()) == ["report.md"]
+    text = (out / "report.md").read_text()
+    assert "| outside | ok |" in text and "ss-conservative on gen:torus at 128^3" in text
+    head = re.search(r"stages ([0-9.]+) ms \(.*\), outside them ([0-9.]+) ms", text)
+    total = re.search(r"profiled outside the stages: ([0-9.]+) ms per call", text)
+    assert head and total and "| ms per call (own) | calls per call | function |" in text
+    # the profile holds the time outside the stages, not the stages' (a profiler left running
+    # inside them would hold about the whole call)
+    assert float(total.group(1)) < 0.5 * (float(head.group(1)) + float(head.group(2)))

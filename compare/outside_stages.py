@@ -1,0 +1,107 @@
+"""Where a call's time outside its timed stages goes: whole calls profiled, the functions that hold it.
+
+    python compare/outside_stages.py                          # ss-conservative, the bunny at 1024^3
+    python compare/outside_stages.py -m ss-solid -r 256 --repeat 9
+
+Every glvox run times its stages (``run.timings``), and ``glvox bench`` reports
+what a whole ``run_method`` call takes besides them ("overhead ms"): on the
+H100 about 5 ms of a 10 ms call at 1024^3 (docs/performance.md), with no stage
+to name.  This script runs the method warm, then ``--repeat`` calls under
+``cProfile`` with the profiler paused inside every stage (``StageTimer.stage``
+wrapped), and prints the medians of the whole call, of its stages and of the
+rest, then the functions with the most time of their own outside the stages,
+per call, and the profile's total there.  Short enough for the last lines of a
+report: ``compare/gpu_report.py`` runs it as its ``outside`` step.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import cProfile
+import pstats
+import statistics
+import time
+from pathlib import Path
+
+from glvox import grid_for, load_mesh, run_method
+from glvox.gl.timing import StageTimer
+
+BUNNY = "stanford_bunny_bun_zipper.ply"
+
+
+def profile_calls(method: str, mesh, n: int, repeat: int) -> tuple[dict, pstats.Stats]:
+    """Medians (ms) of whole calls, their stages and the rest, and the calls' profile."""
+    spec = grid_for(mesh, n)
+    call = {"allow_open": True}  # as glvox bench runs the parity solids on an open mesh
+    for _ in range(2):  # compile, upload, allocate
+        run_method(method, mesh, spec, **call)
+    walls, stages, names = [], [], {}
+    prof = cProfile.Profile()
+    timed_stage = StageTimer.stage
+
+    @contextlib.contextmanager
+    def paused(self, *a, **k):  # a stage's own time is in its table, not in the profile
+        prof.disable()
+        try:
+            with timed_stage(self, *a, **k):
+                yield
+        finally:
+            prof.enable()
+
+    StageTimer.stage = paused
+    try:
+        for _ in range(repeat):
+            prof.enable()
+            t0 = time.perf_counter()
+            result = run_method(method, mesh, spec, **call)
+            wall = time.perf_counter() - t0
+            prof.disable()
+            t = result.run.timings
+            walls.append(wall)
+            stages.append(t.wall_s)
+            for s in t.stages:
+                names.setdefault(s.name, []).append(s.wall_s)
+            del result
+    finally:
+        StageTimer.stage = timed_stage
+    med = {"wall_ms": statistics.median(walls) * 1e3, "stages_ms": statistics.median(stages) * 1e3,
+           "outside_ms": statistics.median(w - s for w, s in zip(walls, stages)) * 1e3,
+           "stages": {k: statistics.median(v) * 1e3 for k, v in names.items()}}
+    return med, pstats.Stats(prof)
+
+
+def top_functions(stats: pstats.Stats, calls: int, count: int) -> list[tuple[float, int, str]]:
+    """The ``count`` functions with the most time of their own: (ms per call, calls per call, name)."""
+    rows = []
+    for (path, line, func), (_, ncalls, tottime, _, _) in stats.stats.items():
+        where = func if path == "~" else f"{Path(path).name}:{line}({func})"
+        rows.append((tottime * 1e3 / calls, ncalls // calls, where))
+    rows.sort(reverse=True)
+    return rows[:count]
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("-m", "--method", default="ss-conservative")
+    ap.add_argument("--mesh", default=BUNNY, help="a mesh file, a shared mesh's name or gen:NAME")
+    ap.add_argument("-r", "--size", type=int, default=1024)
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--top", type=int, default=12)
+    args = ap.parse_args(argv)
+    mesh = load_mesh(args.mesh)
+    med, stats = profile_calls(args.method, mesh, args.size, args.repeat)
+    stages = ", ".join(f"{k} {v:.2f}" for k, v in med["stages"].items())
+    print(f"{args.method} on {mesh.name} at {args.size}^3, median of {args.repeat} profiled calls: "
+          f"whole {med['wall_ms']:.2f} ms, stages {med['stages_ms']:.2f} ms ({stages}), "
+          f"outside them {med['outside_ms']:.2f} ms (cProfile's own cost included)")
+    print("| ms per call (own) | calls per call | function |")
+    print("|---|---|---|")
+    for ms, n, name in top_functions(stats, args.repeat, args.top):
+        print(f"| {ms:.3f} | {n} | `{name}` |")
+    print(f"profiled outside the stages: {stats.total_tt * 1e3 / args.repeat:.2f} ms per call")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
