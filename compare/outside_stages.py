@@ -22,6 +22,7 @@ import cProfile
 import pstats
 import statistics
 import time
+import warnings
 from pathlib import Path
 
 from glvox import grid_for, load_mesh, run_method
@@ -89,6 +90,7 @@ def main(argv=None) -> int:
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--top", type=int, default=12)
     args = ap.parse_args(argv)
+    warnings.simplefilter("ignore")  # an open mesh's parity warning, once per call
     mesh = load_mesh(args.mesh)
     med, stats = profile_calls(args.method, mesh, args.size, args.repeat)
     stages = ", ".join(f"{k} {v:.2f}" for k, v in med["stages"].items())
