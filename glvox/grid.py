@@ -375,6 +375,11 @@ def ldi_axes(axis: int) -> tuple[int, int]:
     return p, q
 
 
+def popcount(words: np.ndarray) -> int:
+    """Set bits in packed words (unsigned integers of any shape)."""
+    return int(np.bitwise_count(words).sum(dtype=np.int64))
+
+
 def pack_bits(dense: np.ndarray) -> np.ndarray:
     """Dense bool (nx, ny, nz) -> uint32 words (nz, ny, words_per_row), GPU layout.
 

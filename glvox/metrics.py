@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from scipy import ndimage
 
-from .grid import pack_bits, unpack_bits
+from .grid import pack_bits, popcount, unpack_bits
 from .methods import get_method, method_infos, run_method
 from .reference import TIE_EPS
 from .results.voxels import Comparison, VoxelGrid
@@ -86,11 +86,6 @@ def check_against_reference(result: VoxelGrid, mesh, reference: str | None = Non
     bad = not_tie_words(result.words(), reference_grid.words(), pack_bits(ties))
     unexplained = np.argwhere(unpack_bits(bad, spec.dims)).astype(np.int64)
     return ReferenceCheck(reference, result.compare(reference_grid), int(ties.sum()), unexplained)
-
-
-def popcount(words: np.ndarray) -> int:
-    """Set bits in packed words (unsigned integers of any shape)."""
-    return int(np.bitwise_count(words).sum(dtype=np.int64))
 
 
 def not_tie_words(words: np.ndarray, ref_words: np.ndarray, tie_words: np.ndarray) -> np.ndarray:

@@ -20,9 +20,9 @@ import pytest
 import glvox
 from glvox.cli import main as cli_main
 from glvox.errors import GlvoxError
-from glvox.grid import GridSpec, pack_bits
+from glvox.grid import GridSpec, pack_bits, popcount
 from glvox.methods import run_method
-from glvox.metrics import agreement, popcount, tie_set
+from glvox.metrics import agreement, tie_set
 from glvox.reference import conservative_surface
 from glvox.study import ab, bench, bench_report, coldstart, regression
 from glvox.study.options import BENCH_PRESETS, CHECKOUT_BASELINE, PEER_NAMES

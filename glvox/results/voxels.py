@@ -19,7 +19,7 @@ from typing import Any, Iterator
 import numpy as np
 
 from ..errors import FormatError, GridError
-from ..grid import GridSpec, pack_bits, set_indices, unpack_bits
+from ..grid import GridSpec, pack_bits, popcount, set_indices, unpack_bits
 from .base import NpyStream, Result, npz_type, require_keys
 
 #: Voxels per slab of :meth:`VoxelGrid.x_slabs` and :meth:`VoxelGrid.z_slabs`
@@ -301,7 +301,7 @@ class VoxelGrid(Result):
         """Number of set voxels (counted once; GPU methods may give it, counted on the GPU)."""
         if self._count is None:
             if self._words is not None:
-                self._count = int(np.bitwise_count(self._words).sum())
+                self._count = popcount(self._words)
             else:
                 self._count = int(np.count_nonzero(self._dense))
         return self._count
@@ -422,13 +422,13 @@ class VoxelGrid(Result):
         self._check_same(reference)
         mask = _row_mask(self.spec.dims[0])
         a, b = self.words() & mask, reference.words() & mask
-        inter = _popcount(a & b)
-        union = _popcount(a | b)
+        inter = popcount(a & b)
+        union = popcount(a | b)
         return Comparison(
             missing=set_indices(b & ~a, self.spec.dims),
             extra=set_indices(a & ~b, self.spec.dims),
-            count=_popcount(a),
-            reference_count=_popcount(b),
+            count=popcount(a),
+            reference_count=popcount(b),
             iou=1.0 if union == 0 else inter / union,
         )
 
@@ -446,10 +446,6 @@ def _row_mask(nx: int) -> np.ndarray:
     if nx % 32:
         mask[-1] = (1 << (nx % 32)) - 1
     return mask
-
-
-def _popcount(words: np.ndarray) -> int:
-    return int(np.bitwise_count(words).sum(dtype=np.int64))
 
 
 def _bool_member(grid: VoxelGrid) -> np.ndarray | NpyStream:

@@ -51,11 +51,11 @@ from glvox._version import __version__
 from glvox.errors import GlvoxError, NotWatertightWarning, SuspiciousResultWarning
 from glvox.gl.context import get_context
 from glvox.gpu.buffers import gpu_bytes
-from glvox.grid import GridSpec, grid_for, pack_bits
+from glvox.grid import GridSpec, grid_for, pack_bits, popcount
 from glvox.mesh import clean_twin, load_mesh
 from glvox.methods import get_method, run_method
 from glvox.methods.envelope import INSIDE_KINDS
-from glvox.metrics import agreement, popcount, tie_set
+from glvox.metrics import agreement, tie_set
 from glvox.results.voxels import VoxelGrid
 from glvox.tolerances import BIMODAL_RATIO, MIN_WARM_RUNS
 

@@ -86,12 +86,12 @@ from ..gpu.arithmetic import probe_arithmetic
 from ..gpu.behaviours import broken
 from ..gpu.cuda import CudaSink
 from ..gpu.readback import forced_mode, is_mapped, readback_pool
-from ..grid import GridSpec, grid_for, pack_bits
+from ..grid import GridSpec, grid_for, pack_bits, popcount
 from ..mesh import load_mesh
 from ..methods import get_method, method_infos, run_method
 from ..methods.depth.layers import CLASSIFIABLE_COUNT
 from ..methods.scanline.voxelize import gpu_voxel_coords
-from ..metrics import not_tie_words, popcount
+from ..metrics import not_tie_words
 from ..reference.scanline import float_variant_ties, scanline_surface
 from ..reference.solid import column_crossings
 from ..reference.surface import conservative_surface
