@@ -16,11 +16,15 @@ in its own process with its share of ``--budget`` seconds,
 * ``readback``: ``compare/bench_readback.py`` at 512^3 and 1024^3 (``--cuda`` too
   where cuda-core sees a GPU);
 * ``sync``: ``compare/bench_sync.py`` at 64^3-256^3: whole calls with and without
-  the per-stage waits for the GPU, side by side (its table is in ``report.md``);
+  the per-stage waits for the GPU, side by side (its table is in ``report.md``),
+  of ``ss-conservative``, ``ss-solid`` and ``gwn-solid``;
 * ``bench``: ``glvox bench`` of the main methods on the bunny at 128^3-1024^3;
 * ``outside``: ``compare/outside_stages.py``: where ``ss-conservative``'s whole call
   at the bench's largest size spends the time outside its timed stages, by
-  function (its table is in ``report.md``);
+  function, and then ``gwn-solid``'s at its smallest, each stage's wall time beside
+  its GPU time (its tables are in ``report.md``): on an H100 ``gwn-solid`` took
+  12.5 ms at 128^3 against 1.4 ms for ``ss-solid``, and whether that floor is the
+  GPU's work, the waits or the CPU's is what these tables tell;
 * ``peer``: with ``--cuda-voxelizer PATH``, ``glvox bench`` of ``ss-conservative``
   (its variants too) beside that cuda_voxelizer binary on the bunny at
   256^3-1024^3: the two tools' whole calls and kernel times side by side, its
@@ -97,6 +101,10 @@ PEER_SIZES = ("256", "512", "1024")
 
 BUNNY = "stanford_bunny_bun_zipper.ply"
 
+#: The sync step's methods: the flagship, the solid it is measured against, and
+#: gwn-solid, whose call has the most stages (and the most waits) of them.
+SYNC_METHODS = ("ss-conservative", "ss-solid", "gwn-solid")
+
 
 def _cuda_seen() -> bool:
     """cuda-core is installed and the CUDA driver answers (device='cuda' can be timed)."""
@@ -128,13 +136,15 @@ def commands(step: str, out: Path, work: Path, args) -> tuple[list[str], Path]:
         return [py, str(ROOT / "compare" / "bench_readback.py"), "-r", *args.readback_sizes, "--repeat", "3",
                 *(["--cuda"] if _cuda_seen() else [])], out / "readback.log"
     if step == "sync":  # its table is in report.md (the output folder holds eight files at most)
-        return [py, str(ROOT / "compare" / "bench_sync.py"), "--meshes", args.mesh, "-r", "64", "128", "256"], \
-            work / "sync.log"
+        return [py, str(ROOT / "compare" / "bench_sync.py"), "-m", *SYNC_METHODS, "--meshes", args.mesh,
+                "-r", "64", "128", "256"], work / "sync.log"
     if step == "bench":
         return [*glvox, "bench", "-m", *args.bench_methods, "--meshes", args.mesh, "-r", *args.bench_sizes,
                 "--repeat", "5", "--check-max", "128", "--peers", "-q"], out / "bench.log"
-    if step == "outside":  # its table is in report.md (the output folder holds eight files at most)
-        return [py, str(ROOT / "compare" / "outside_stages.py"), "--mesh", args.mesh, "-r", args.bench_sizes[-1]], \
+    if step == "outside":  # its tables are in report.md (the output folder holds eight files at most)
+        script = [py, str(ROOT / "compare" / "outside_stages.py"), "--mesh", args.mesh, "--top", "8"]
+        runs = [[*script, "-r", args.bench_sizes[-1]], [*script, "-m", "gwn-solid", "-r", args.bench_sizes[0]]]
+        return ["sh", "-c", "s=0; " + " ".join(f"{shlex.join(c)} || s=1;" for c in runs) + " exit $s"], \
             work / "outside.log"
     if step == "peer":
         return [*glvox, "bench", "-m", "ss-conservative", "--meshes", args.mesh, "-r", *args.peer_sizes,
@@ -217,7 +227,8 @@ def main(argv=None) -> int:
             print(f"gpu_report: {step} ({share:.0f} s at most): {' '.join(cmd)}", flush=True)
             status, seconds = run_step(cmd, log, share)
             failed |= status != "ok"
-            rows.append((step, status, seconds, log, cmd, _tail(log, 25)))  # before work/ goes
+            # before work/ goes; a step whose output is only in report.md keeps all of its tables
+            rows.append((step, status, seconds, log, cmd, _tail(log, 25 if log.parent == out else 60)))
     lines = ["# glvox on this GPU", ""]
     info = out / "info.json"
     if info.is_file():

@@ -528,6 +528,16 @@ MUTANTS: list[Mutant] = [
            (("        prof.disable()\n        try:\n            with timed_stage",
              "        try:\n            with timed_stage"),),
            ("tests/test_gpu_report.py", "-k", "outside")),
+    Mutant("outside-stage-last-instance", "the outside-the-stages table keeps a repeated stage's last "
+           "instance, not its sum over the call",
+           "compare/outside_stages.py",
+           (("                total[0] += s.wall_s", "                total[0] = s.wall_s"),),
+           ("tests/test_gpu_report.py", "-k", "outside")),
+    Mutant("report-sync-without-gwn", "the GPU report's sync step leaves gwn-solid out",
+           "compare/gpu_report.py",
+           (('SYNC_METHODS = ("ss-conservative", "ss-solid", "gwn-solid")',
+             'SYNC_METHODS = ("ss-conservative", "ss-solid")'),),
+           ("tests/test_gpu_report.py", "-k", "sync")),
     Mutant("lease-peer-builds-gl-viewer", "the peer build compiles trimesh2's OpenGL viewer too "
            "(it needs GL headers the device image lacks)",
            "compare/gpu_lease.py",

@@ -10,7 +10,10 @@ to name.  This script runs the method warm, then ``--repeat`` calls under
 ``cProfile`` with the profiler paused inside every stage (``StageTimer.stage``
 wrapped), and prints the medians of the whole call, of its stages and of the
 rest, then the functions with the most time of their own outside the stages,
-per call, and the profile's total there.  Short enough for the last lines of a
+per call, and the profile's total there.  Each stage is given per call (summed
+where it runs once per slab or pass) with its GPU time from the timer queries
+where the context has them: where a GPU's wall time of a stage is far above its
+GPU time, the stage waits on something else (a sync, the CPU's issue).  Short enough for the last lines of a
 report: ``compare/gpu_report.py`` runs it as its ``outside`` step.
 """
 
@@ -32,7 +35,8 @@ BUNNY = "stanford_bunny_bun_zipper.ply"
 
 
 def profile_calls(method: str, mesh, n: int, repeat: int) -> tuple[dict, pstats.Stats]:
-    """Medians (ms) of whole calls, their stages and the rest, and the calls' profile."""
+    """Medians (ms) of whole calls, their stages and the rest, each stage per call (wall and,
+    where timed, GPU), and the calls' profile."""
     spec = grid_for(mesh, n)
     call = {"allow_open": True}  # as glvox bench runs the parity solids on an open mesh
     for _ in range(2):  # compile, upload, allocate
@@ -61,14 +65,23 @@ def profile_calls(method: str, mesh, n: int, repeat: int) -> tuple[dict, pstats.
             t = result.run.timings
             walls.append(wall)
             stages.append(t.wall_s)
+            # a stage that runs several times a call (per slab, per pass) counts once, summed
+            per_call: dict[str, list] = {}
             for s in t.stages:
-                names.setdefault(s.name, []).append(s.wall_s)
+                total = per_call.setdefault(s.name, [0.0, None])
+                total[0] += s.wall_s
+                if s.gpu_s is not None:
+                    total[1] = (total[1] or 0.0) + s.gpu_s
+            for name, (wall_s, gpu_s) in per_call.items():
+                names.setdefault(name, []).append((wall_s, gpu_s))
             del result
     finally:
         StageTimer.stage = timed_stage
     med = {"wall_ms": statistics.median(walls) * 1e3, "stages_ms": statistics.median(stages) * 1e3,
            "outside_ms": statistics.median(w - s for w, s in zip(walls, stages)) * 1e3,
-           "stages": {k: statistics.median(v) * 1e3 for k, v in names.items()}}
+           "stages": {k: statistics.median(w for w, _ in v) * 1e3 for k, v in names.items()},
+           "gpu": {k: statistics.median(g for _, g in v) * 1e3 for k, v in names.items()
+                   if all(g is not None for _, g in v)}}
     return med, pstats.Stats(prof)
 
 
@@ -93,7 +106,8 @@ def main(argv=None) -> int:
     warnings.simplefilter("ignore")  # an open mesh's parity warning, once per call
     mesh = load_mesh(args.mesh)
     med, stats = profile_calls(args.method, mesh, args.size, args.repeat)
-    stages = ", ".join(f"{k} {v:.2f}" for k, v in med["stages"].items())
+    stages = ", ".join(f"{k} {v:.2f}" + (f" (GPU {med['gpu'][k]:.2f})" if k in med["gpu"] else "")
+                       for k, v in med["stages"].items())
     print(f"{args.method} on {mesh.name} at {args.size}^3, median of {args.repeat} profiled calls: "
           f"whole {med['wall_ms']:.2f} ms, stages {med['stages_ms']:.2f} ms ({stages}), "
           f"outside them {med['outside_ms']:.2f} ms (cProfile's own cost included)")

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import moderngl
 import pytest
+from glvox import load_mesh
 from conftest import load_script
 from test_peer_cuda import FAKE
 
@@ -105,7 +106,8 @@ def test_the_sync_step_puts_its_table_in_the_report(tmp_path):
     text = (out / "report.md").read_text()
     assert "| sync | ok |" in text and "`below`" in text
     for n in (64, 128, 256):
-        assert f"| ss-conservative | gen:torus | {n} |" in text and f"| ss-solid | gen:torus | {n} |" in text
+        for method in ("ss-conservative", "ss-solid", "gwn-solid"):
+            assert f"| {method} | gen:torus | {n} |" in text
 
 
 def test_the_peer_step_runs_cuda_voxelizer_beside_ss_conservative(tmp_path):
@@ -313,10 +315,27 @@ def test_the_outside_step_names_where_a_call_spends_the_time_outside_its_stages(
     assert p.returncode == 0, p.stdout + p.stderr
     assert sorted(f.name for f in out.iterdir()) == ["report.md"]
     text = (out / "report.md").read_text()
-    assert "| outside | ok |" in text and "ss-conservative on gen:torus at 128^3" in text
-    head = re.search(r"stages ([0-9.]+) ms \(.*\), outside them ([0-9.]+) ms", text)
-    total = re.search(r"profiled outside the stages: ([0-9.]+) ms per call", text)
-    assert head and total and "| ms per call (own) | calls per call | function |" in text
-    # the profile holds the time outside the stages, not the stages' (a profiler left running
-    # inside them would hold about the whole call)
-    assert float(total.group(1)) < 0.5 * (float(head.group(1)) + float(head.group(2)))
+    assert "| outside | ok |" in text
+    # ss-conservative at the bench's largest size, then gwn-solid at its smallest
+    assert text.index("ss-conservative on gen:torus at 128^3") < text.index("gwn-solid on gen:torus at 32^3")
+    heads = re.findall(r"stages ([0-9.]+) ms \(.*\), outside them ([0-9.]+) ms", text)
+    totals = re.findall(r"profiled outside the stages: ([0-9.]+) ms per call", text)
+    assert len(heads) == len(totals) == 2
+    assert text.count("| ms per call (own) | calls per call | function |") == 2
+    for (stages, outside), total in zip(heads, totals):
+        # the profile holds the time outside the stages, not the stages' (a profiler left
+        # running inside them would hold about the whole call)
+        assert float(total) < 0.5 * (float(stages) + float(outside))
+
+
+def test_outside_stages_gives_each_stage_per_call(shared_mesh):
+    """A stage that runs several times in a call (gwn-solid's crossings: the mesh's, then
+    the caps') is given once, summed over the call, so the stages add up to the call's
+    stage total; its GPU time comes from the timer queries beside it."""
+    mod = load_script("outside_stages")
+    mesh = load_mesh(shared_mesh("stanford_bunny_bun_zipper.ply"))
+    med, _ = mod.profile_calls("gwn-solid", mesh, 96, 1)
+    assert sum(med["stages"].values()) == pytest.approx(med["stages_ms"], rel=1e-9)
+    assert {"crossings", "bricks", "far", "refine"} <= set(med["gpu"]) <= set(med["stages"])
+    assert "tree" not in med["gpu"]  # a CPU stage has no GPU time
+    assert med["gpu"]["crossings"] <= med["stages"]["crossings"] * 1.05 + 0.05
