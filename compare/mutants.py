@@ -538,6 +538,16 @@ MUTANTS: list[Mutant] = [
            (('SYNC_METHODS = ("ss-conservative", "ss-solid", "gwn-solid")',
              'SYNC_METHODS = ("ss-conservative", "ss-solid")'),),
            ("tests/test_gpu_report.py", "-k", "sync")),
+    Mutant("far-voxels-rows-swapped", "the far-voxel diagnosis reads a listed segment's row as (k, j)",
+           "compare/gwn_far_voxels.py",
+           (("    j, k, seg = j0 + ids % rows % nj, k0 + ids % rows // nj, segs[0] + ids // rows",
+             "    k, j, seg = k0 + ids % rows % nj, j0 + ids % rows // nj, segs[0] + ids // rows"),),
+           ("tests/test_gwn.py", "-k", "far_voxels")),
+    Mutant("far-voxels-block-offset", "the far-voxel diagnosis places a segment's blocks 4 voxels apart "
+           "from the wrong origin",
+           "compare/gwn_far_voxels.py",
+           (("seg[which] * 4 * SEGV + 4 * block", "seg[which] * 4 * SEGV + 4 * block + 4"),),
+           ("tests/test_gwn.py", "-k", "far_voxels")),
     Mutant("lease-peer-builds-gl-viewer", "the peer build compiles trimesh2's OpenGL viewer too "
            "(it needs GL headers the device image lacks)",
            "compare/gpu_lease.py",

@@ -12,13 +12,14 @@ and on constructed cases with known answers.
 
 from __future__ import annotations
 
+import re
 import warnings
 
 import igl
 import numpy as np
 import pytest
 import trimesh
-from conftest import SHARED_MESHES
+from conftest import SHARED_MESHES, load_script
 
 import glvox
 from glvox.errors import GridError, LimitError, MethodError, NotWatertightWarning
@@ -946,3 +947,24 @@ def test_the_split_needs_the_tree_within_the_loop_budget(gl_context, shared_mesh
     walked = run_method("gwn-solid", mesh, spec)
     assert split.run.stats["split_blocks"] > 0 and walked.run.stats["split_blocks"] == 0
     assert walked.equal(split)
+
+
+def test_far_voxels_script_reads_the_walk(gl_context, shared_mesh):
+    """compare/gwn_far_voxels.py decodes the segments the row pass listed for the
+    tree walk: every walked block lies in a brick the caps did not decide (two
+    bricks in three of the teapot's at 96^3 are, so a misread segment would land in
+    one), and its report adds the blocks up by their bricks' records."""
+    far = load_script("gwn_far_voxels")
+    mesh = load_mesh(shared_mesh("messy_teapot_newell.obj"))
+    spec = glvox.grid_for(mesh, 96)
+    with far.captured_walk() as seen:
+        grid = run_method("gwn-solid", mesh, spec)
+    assert grid.run.stats["cap_bricks"] > 0.5 * grid.run.stats["bricks"]
+    blocks, kind = far.walked_blocks(seen["run"], seen["box"], seen["segs"], spec)
+    assert len(blocks) > 1000 and set(np.unique(kind).tolist()) <= {0, 1, 2}
+    assert (blocks[:, 0] % 4 == 0).all() and (blocks < np.array(spec.dims)).all()
+    text = "\n".join(far.report(mesh, 96, sample=300))
+    counts = [int(c) for c in re.findall(r"^\| [012]: [^|]* \| (\d+) \|", text, re.M)]
+    assert len(counts) == 3 and sum(counts) == len(blocks)
+    assert "exact w against gwn-solid's bits: 1.0000 agree" in text
+    assert len(re.findall(r"^\| [842]\^3 \| [01]\.\d{3} \| [01]\.\d{3} \|$", text, re.M)) == 3
