@@ -312,6 +312,22 @@ MUTANTS: list[Mutant] = [
            (("                if (float(run + run_caps) >= u_threshold) word |= mask_from(from);",
              "                if (float(run) >= u_threshold) word |= mask_from(from);"),),
            ("tests/test_gwn.py", "-k", "pipe")),
+    Mutant("gwn-lean-words-without-caps", "gwn-solid's rows: the leading words whose bricks the caps decide "
+           "count the mesh's crossings alone", "shaders/gwn/rows.comp",
+           (("            if (float(run + run_caps) >= u_threshold) word |= mask_from(from);\n"
+             "            if (uint(sw) + 1u",
+             "            if (float(run) >= u_threshold) word |= mask_from(from);\n"
+             "            if (uint(sw) + 1u"),),
+           ("tests/test_gwn.py", "-k", "capped_mesh")),
+    Mutant("gwn-lean-every-row", "gwn-solid's rows: every row taken word by word from the counts, "
+           "as if the caps decided all its bricks", "shaders/gwn/rows.comp",
+           (("        int lean_end = u_segs.x + int((left - b0) / per_word);",
+             "        int lean_end = u_segs.x + u_segs.y;"),),
+           ("tests/test_gwn.py", "-k", "caps")),
+    Mutant("gwn-lean-row-restarted", "gwn-solid's rows: after the leading words the caps decide, the "
+           "block loop starts the row again", "shaders/gwn/rows.comp",
+           (("        q8_first = 8u * uint(lean_end);", "        q8_first = 0u;"),),
+           ("tests/test_gwn.py", "-k", "open_shared_meshes_128")),
     Mutant("gwn-caps-block-without-caps", "gwn-solid's rows: a block of a brick the caps decide counts "
            "the mesh's crossings alone", "shaders/gwn/rows.comp",
            (("                ivec4 closed = c + ck;", "                ivec4 closed = c;"),),

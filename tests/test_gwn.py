@@ -968,3 +968,21 @@ def test_far_voxels_script_reads_the_walk(gl_context, shared_mesh):
     assert len(counts) == 3 and sum(counts) == len(blocks)
     assert "exact w against gwn-solid's bits: 1.0000 agree" in text
     assert len(re.findall(r"^\| [842]\^3 \| [01]\.\d{3} \| [01]\.\d{3} \|$", text, re.M)) == 3
+
+
+def test_caps_deciding_every_brick_give_the_capped_mesh(gl_context, shared_mesh, monkeypatch):
+    """Where the caps decide a brick, its voxels follow the counts C + C_K, the winding
+    number of the mesh closed by its fans.  With the bound's limit forced past any
+    |w_K| the caps decide every brick, every row goes word by word from the counts
+    (also through the fans, whose crossings the bound keeps out of the bricks it
+    decides otherwise), and the voxels are exactly those of the capped mesh's signed
+    crossings (closed: w = C), counted on the CPU."""
+    mesh = load_mesh(shared_mesh("messy_teapot_newell.obj"))
+    spec = glvox.grid_for(mesh, 96)
+    normal = run_method("gwn-solid", mesh, spec)
+    monkeypatch.setattr(gwn, "cap_margin", lambda threshold, tie: 100.0)
+    got = run_method("gwn-solid", mesh, spec)
+    assert got.run.stats["cap_bricks"] == got.run.stats["bricks"] > normal.run.stats["cap_bricks"]
+    capped = capped_mesh(mesh, boundary_loops(mesh))
+    closed = crossing_counts(capped.mesh.triangles_voxel(spec), spec.dims) >= 1
+    assert np.array_equal(got.dense(), closed)

@@ -24,7 +24,10 @@
 // CAPS 1 (with BRICKS and PLANES): CapEvents holds the crossings of the caps
 // (gwn/caps.glsl) alone, in planes like Events; their row sums C_K added to
 // C give C_{M+K}, which decides every voxel of a brick the caps decide
-// (record w 3).  Elsewhere C alone goes on as above.
+// (record w 3).  Elsewhere C alone goes on as above.  A row's words up to
+// the first with a brick the caps leave (every word, in most rows) go in a
+// loop of their own, as a closed mesh's row does, without the block loop's
+// per-word set-up (llvmpipe: rows 0.7 of the time on the bunny at 512^3).
 //
 // PLANES 1: the crossings come as gwn/events.comp's bit planes (two for the
 // +1 counts, two for the -1 ones; the second of each only read in rows
@@ -183,9 +186,59 @@ void main() {
         }
     }
 #else
+    uint q8_first = 0u;  // the first word the loop below takes
+#if CAPS
+    // The words of u_segs before the first with a brick the caps leave need no
+    // block of their own: C + C_K, word by word as a closed mesh's row, their
+    // segments left with no blocks (Masks); a row whose bricks the caps all
+    // decide ends there.  Before u_segs no crossing lies (the mesh's and the
+    // fans' x range), so the loop below takes up the row where these end.
+    {
+        const uint per_word = uint(32 / GWN_BRICK);
+        uint b0 = brick_row + per_word * uint(u_segs.x), b1 = brick_row + per_word * uint(u_segs.x + u_segs.y);
+        uint left = b1;  // the first brick the caps do not decide
+        for (uint cw = b0 / 32u; cw * 32u < b1; ++cw) {
+            uint need = mask_range(max(b0, cw * 32u) - cw * 32u, min(b1 - 1u, cw * 32u + 31u) - cw * 32u);
+            uint missing = need & ~cap_bits[cw];
+            if (missing != 0u) {
+                left = cw * 32u + uint(findLSB(missing));
+                break;
+            }
+        }
+        int lean_end = u_segs.x + int((left - b0) / per_word);
+        uint nrows = uint(u_rows.y * u_rows.w);
+        for (int sw = u_segs.x; sw < lean_end; ++sw) {
+            uvec4 e = GWN_PLANES(events, ev_row + uint(sw), row_carried);
+            uvec4 f = GWN_PLANES(cap_events, ev_row + uint(sw), cap_carried);
+            uint any = e.x | e.y | e.z | e.w | f.x | f.y | f.z | f.w;
+            uint from = 0u;
+            while (any != 0u) {
+                uint i = uint(findLSB(any));
+                any &= any - 1u;
+                if (i > from && float(run + run_caps) >= u_threshold) word |= mask_range(from, i - 1u);
+                run += voxel_delta(e, i);
+                run_caps += voxel_delta(f, i);
+                from = i;
+            }
+            if (float(run + run_caps) >= u_threshold) word |= mask_from(from);
+            if (uint(sw) + 1u == words_per_row()) word &= mask_upto(uint(u_dims.x) - 1u - 32u * uint(sw));
+            if (word != 0u) {
+                bits[wbase + uint(sw)] = word;
+                count += uint(bitCount(word));
+                word = 0u;
+            }
+            masks[uint(sw - u_segs.x) * nrows + row] = 0u;
+        }
+        if (lean_end >= u_segs.x + u_segs.y) {
+            if (count != 0u) atomicAdd(voxel_count, count);
+            return;
+        }
+        q8_first = 8u * uint(lean_end);
+    }
+#endif
     // word by word (lanes of one SIMD batch stay on the same word), then its
     // 8 blocks of 4 voxels
-    for (uint q8 = 0u; q8 < row_cells() / 4u; q8 += 8u) {
+    for (uint q8 = q8_first; q8 < row_cells() / 4u; q8 += 8u) {
         uint q_end = q8 + 8u;  // the blocks left to the loop below
 #if CAPS
         // a word whose bricks the caps all decide goes whole, crossing by
