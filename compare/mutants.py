@@ -271,6 +271,16 @@ MUTANTS: list[Mutant] = [
            "0.3 of the super brick's radius, not around all its voxel centers", "shaders/gwn/bricks.comp",
            (("caps_decide(0.5 * (lo + hi), 0.5 * length(hi - lo))", "caps_decide(0.5 * (lo + hi), 0.15 * length(hi - lo))"),),
            ("tests/test_gwn.py", "-k", "open_shared_meshes_64")),
+    Mutant("gwn-super-after-recounts", "gwn-solid's finer super bricks test again the ones the coarser "
+           "pass decided", "shaders/gwn/bricks.comp",
+           (("    if (((cap_bits[first / 32u] >> (first & 31u)) & 1u) != 0u) return;",
+             "    if (false) return;"),),
+           ("tests/test_gwn.py", "-k", "super")),
+    Mutant("gwn-super-after-skips-the-rest", "gwn-solid's finer super bricks skip the ones the coarser "
+           "pass left", "shaders/gwn/bricks.comp",
+           (("    if (((cap_bits[first / 32u] >> (first & 31u)) & 1u) != 0u) return;",
+             "    if (((cap_bits[first / 32u] >> (first & 31u)) & 1u) == 0u) return;"),),
+           ("tests/test_gwn.py", "-k", "super")),
     Mutant("gwn-todo-run-short", "gwn-solid's listing of the segments the bricks left: the last of "
            "each run of segments is never listed", "shaders/gwn/todo.comp",
            (("    uint end = min(first + uint(GWN_TODO_RUN), u_items);",

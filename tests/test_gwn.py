@@ -872,6 +872,24 @@ def test_super_bricks_decide_with_the_same_voxels(gl_context, shared_mesh, monke
     assert plain.run.stats["super_bricks"] == 0 and plain.equal(g)
 
 
+def test_finer_super_bricks_decide_what_the_coarser_left(gl_context, shared_mesh, monkeypatch):
+    """After the first super bricks' pass, one over super bricks of half the edge
+    tests, nearer the teapot's openings, the ones it left: more bricks are decided
+    by super bricks than by the first pass alone, none twice (they stay within the
+    bricks the caps decide), with the same voxels.  The sizes halve down to 2."""
+    with monkeypatch.context() as m:
+        m.setattr(plan, "SUPER_MIN_BRICKS", DEFAULT_SUPER_MIN_BRICKS)
+        assert plan.super_sizes(DEFAULT_SUPER_MIN_BRICKS) == (4, 2) == (plan.SUPER, plan.SUPER // 2)
+        assert plan.super_sizes(DEFAULT_SUPER_MIN_BRICKS - 1) == ()
+    mesh = load_mesh(shared_mesh("messy_teapot_newell.obj"))
+    spec = glvox.grid_for(mesh, 96)
+    g = run_method("gwn-solid", mesh, spec)
+    monkeypatch.setattr(gwn, "super_sizes", lambda n: plan.super_sizes(n)[:1])
+    coarse = run_method("gwn-solid", mesh, spec)
+    assert coarse.run.stats["super_bricks"] < g.run.stats["super_bricks"] <= g.run.stats["cap_bricks"]
+    assert coarse.equal(g)
+
+
 def test_caps_bound_holds_where_the_loop_is_far_from_planar(gl_context):
     """The saddle bowl's fan is a saddle through the sphere's center: near it the fan
     subtends more than a half sphere, where the counts alone would misplace thousands

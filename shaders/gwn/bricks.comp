@@ -54,7 +54,11 @@
 // each of its bricks gets its bit in CapBits at once; the brick pass then
 // takes a brick whose bit is set as decided, without a test of its own.  Far
 // from the caps one test stands for GWN_SUPER^3 (each of which loops over
-// every fan triangle whose ball it is in).
+// every fan triangle whose ball it is in).  GWN_SUPER_AFTER 1: a pass over
+// super bricks of half the edge of the pass before, aligned alike, so each
+// lies in one of those: it skips the super bricks that pass decided (their
+// first brick's bit is set) and tests the others, nearer the caps, over
+// balls of half the radius.
 #include "common/voxel_space.glsl"
 #include "gwn/layout.glsl"
 #include "gwn/strip.glsl"
@@ -181,6 +185,11 @@ void main() {
     ivec3 b0 = u_brick0 + GWN_SUPER * ivec3(int(id % uint(ns.x)), int((id % nxy) / uint(ns.x)), int(id / nxy));
     ivec3 b1 = min(b0 + GWN_SUPER, u_brick0 + u_bricks) - 1;
     vec3 lo = brick_low(b0), hi = brick_low(b1) + float(GWN_BRICK - 1);
+#if GWN_SUPER_AFTER
+    // inside a super brick the pass before decided: every bit is set already
+    uint first = brick_index(b0);
+    if (((cap_bits[first / 32u] >> (first & 31u)) & 1u) != 0u) return;
+#endif
     if (!caps_decide(0.5 * (lo + hi), 0.5 * length(hi - lo))) return;
     ivec3 n = b1 - b0 + 1;
     atomicAdd(super_bricks, uint(n.x * n.y * n.z));

@@ -69,7 +69,7 @@ from ...tolerances import WINDING_TIE
 from ..base import Method, MethodInfo, Option, Requirements, register
 from .caps import RunCaps, cap_margin, cap_records, capped_mesh
 from .plan import (BRICK, EDGE_COST, PLANES, SEGV, SUPER, carry_flags, plan_chunks, slab_slices, strip_free_share,
-                   super_size, x_range)
+                   super_sizes, x_range)
 from .tree import NODE_VEC4, boundary_loops, build_tree
 from ..ss.chunks import chunked_passes
 from ..ss.solid import COMPUTE as SOLID_COMPUTE, COLUMN_CHUNK, mesh_rows
@@ -84,7 +84,8 @@ _REQUIRES = Requirements(gl_version=430, extensions=("GL_ARB_gpu_shader_fp64",),
                                   ("gwn/rows.comp", {"EDGES": 1, "BRICKS": 1, "CAPS": 1, "PLANES": 1,
                                                      "CARRY_FLAGS": 1}),
                                   ("gwn/bricks.comp", {"CAPS": 1, "GWN_GRAD": 1, "GWN_SUPER": 0}),
-                                  ("gwn/bricks.comp", {"CAPS": 1, "GWN_GRAD": 0, "GWN_SUPER": SUPER}))
+                                  ("gwn/bricks.comp", {"CAPS": 1, "GWN_GRAD": 0, "GWN_SUPER": SUPER,
+                                                       "GWN_SUPER_AFTER": 1}))
                          + SOLID_COMPUTE + SURFACE_COMPUTE)
 
 #: Segments one invocation of gwn/todo.comp lists (as many as a work group of
@@ -515,10 +516,11 @@ class _Run:
              Roots=t["roots"], **({} if self.caps is None else {"Caps": self.caps.buf, "Count": self.count,
                                                                  "CapBits": cap_bits}))
         with self.timer.stage("bricks"):
-            size = super_size(n) if self.caps is not None else 0
-            if size:
-                # the caps' bound over whole super bricks first (gwn/bricks.comp's header)
-                sup = compute_program(ctx, "gwn/bricks.comp", {**defines, "GWN_GRAD": 0, "GWN_SUPER": size})
+            # the caps' bound over whole super bricks first, coarsest first, each pass
+            # over those the one before left (gwn/bricks.comp's header)
+            for level, size in enumerate(super_sizes(n) if self.caps is not None else ()):
+                sup = compute_program(ctx, "gwn/bricks.comp", {**defines, "GWN_GRAD": 0, "GWN_SUPER": size,
+                                                                "GWN_SUPER_AFTER": int(level > 0)})
                 bind(sup, VoxVerts=self.vox, Caps=self.caps.buf, Count=self.count, CapBits=cap_bits)
                 set_uniforms(sup, {**common, "u_brick0": first, "u_bricks": counts, **self._cap_uniforms()})
                 dispatch_1d(ctx, sup, math.prod(-(-c // size) for c in counts), _LOCAL)

@@ -44,15 +44,20 @@ BRICK = 8
 #: --meshes stanford_bunny_bun_zipper.ply messy_teapot_newell.obj
 #: messy_tower_holes.obj messy_wallhole.obj depth_gyroid_tpms_sheet.stl -r 128
 #: 256 512 --against REV --repeat 3`, two runs (best ratios): 0.88-0.96 at
-#: 512^3 (the bunny 0.97), 0.95-1.01 at 256^3, 1.00-1.05 at 128^3.
+#: 512^3 (the bunny 0.97), 0.95-1.01 at 256^3, 1.00-1.05 at 128^3.  Then
+#: again over super bricks of half the edge, down to 2, inside the super
+#: bricks the pass before left (docs/methods/gwn.md has the measurements).
 SUPER = 4
 SUPER_MIN_BRICKS = 1 << 14
 
 
-def super_size(n_bricks: int) -> int:
-    """Bricks per edge of the super bricks where ``n_bricks`` bricks are in the part
-    evaluated (:data:`SUPER`), or 0: no super bricks' pass."""
-    return SUPER if SUPER > 1 and n_bricks >= SUPER_MIN_BRICKS else 0
+def super_sizes(n_bricks: int) -> tuple[int, ...]:
+    """Bricks per edge of the super bricks of each pass, coarsest first
+    (:data:`SUPER`, then halved down to 2), where ``n_bricks`` bricks are in the
+    part evaluated; () below :data:`SUPER_MIN_BRICKS`: no super bricks' pass."""
+    if SUPER < 2 or n_bricks < SUPER_MIN_BRICKS:
+        return ()
+    return tuple(SUPER >> i for i in range(SUPER.bit_length() - 1))
 
 
 #: Cells (voxels of padded rows) per slab, at most: the slab buffer takes 4
