@@ -49,7 +49,6 @@ from glvox.methods.gwn import field as gwn_field
 from glvox.methods.gwn.caps import capped_mesh
 from glvox.methods.gwn.plan import BRICK, SEGV
 from glvox.methods.gwn.tree import boundary_loops
-from glvox.reference._candidates import segment_distance
 from glvox.reference.attributes import closest_points
 from glvox.reference.winding import winding_direct
 
@@ -94,7 +93,14 @@ def walked_blocks(run, box, segs, spec) -> tuple[np.ndarray, np.ndarray]:
     return first, kind
 
 
-def pairwise_min(dist_fn, centers: np.ndarray, items: np.ndarray) -> np.ndarray:
+def segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(M,) distances from the points ``p`` to the segments ``a b``, all (M, 3)."""
+    ab = b - a
+    t = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300), 0.0, 1.0)
+    return np.linalg.norm(p - (a + t[:, None] * ab), axis=1)
+
+
+def pairwise(dist_fn, centers: np.ndarray, items: np.ndarray) -> np.ndarray:
     """(C, I) distances from each center to each item, by ``dist_fn`` on the pairs."""
     c = np.repeat(centers, len(items), axis=0)
     it = np.tile(items, (len(centers),) + (1,) * (items.ndim - 1))
@@ -109,8 +115,8 @@ def first_order_share(points, closed, fans, edges, threshold, size) -> tuple[flo
     inv = inv.ravel()
     center = cells * size + 0.5 * size
     r = 0.5 * np.sqrt(3.0) * size  # the ball around the cell
-    to_fans = pairwise_min(lambda c, t: closest_points(t, c)[0], center, fans).min(axis=1) - r
-    to_edges = pairwise_min(lambda c, e: segment_distance(c, e[:, 0], e[:, 1]), center, edges) - r
+    to_fans = pairwise(lambda c, t: closest_points(t, c)[0], center, fans).min(axis=1) - r
+    to_edges = pairwise(lambda c, e: segment_distance(c, e[:, 0], e[:, 1]), center, edges) - r
     free = (to_fans > 0.0) & (to_edges > 0.0).all(axis=1)
     g = np.where(to_edges > 0.0, to_edges, np.inf)
     length = np.linalg.norm(edges[:, 1] - edges[:, 0], axis=1)
