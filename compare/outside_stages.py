@@ -13,8 +13,9 @@ rest, then the functions with the most time of their own outside the stages,
 per call, and the profile's total there.  Each stage is given per call (summed
 where it runs once per slab or pass) with its GPU time from the timer queries
 where the context has them: where a GPU's wall time of a stage is far above its
-GPU time, the stage waits on something else (a sync, the CPU's issue).  Short enough for the last lines of a
-report: ``compare/gpu_report.py`` runs it as its ``outside`` step.
+GPU time, the stage waits on something else (a sync, the CPU's issue).  Short
+enough for the last lines of a report: ``compare/gpu_report.py`` runs it as its
+``outside`` step.
 """
 
 from __future__ import annotations
