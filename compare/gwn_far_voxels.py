@@ -164,7 +164,8 @@ def report(mesh, n: int, sample: int, threshold: float = 0.5, seed: int = 0) -> 
     lines += ["", f"{len(vox)} of the walked voxels (sampled), exact w against gwn-solid's bits: "
               f"{agree:.4f} agree (the rest are ties)",
               "", "| distance of w from the threshold under | 0.05 | 0.1 | 0.2 | 0.3 |", "|---|---|---|---|---|",
-              "| share of the walked voxels | " + " | ".join(f"{(near < t).mean():.3f}" for t in (0.05, 0.1, 0.2, 0.3)) + " |"]
+              "| share of the walked voxels | "
+              + " | ".join(f"{(near < t).mean():.3f}" for t in (0.05, 0.1, 0.2, 0.3)) + " |"]
     loops = boundary_loops(mesh)
     if not loops.n_edges:
         return lines
