@@ -984,7 +984,8 @@ def test_far_voxels_script_reads_the_walk(gl_context, shared_mesh):
     text = "\n".join(far.report(mesh, 96, sample=300))
     counts = [int(c) for c in re.findall(r"^\| [012]: [^|]* \| (\d+) \|", text, re.M)]
     assert len(counts) == 3 and sum(counts) == len(blocks)
-    assert "exact w against gwn-solid's bits: 1.0000 agree" in text
+    agree = re.search(r"exact w against gwn-solid's bits: ([01]\.\d{4}) agree", text)
+    assert agree and float(agree.group(1)) >= 0.99  # all but ties (none in this sample on llvmpipe)
     assert len(re.findall(r"^\| [842]\^3 \| [01]\.\d{3} \| [01]\.\d{3} \|$", text, re.M)) == 3
 
 
