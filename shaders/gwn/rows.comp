@@ -129,6 +129,35 @@ bvec4 brick_near(inout vec4 w, vec4 rec, vec4 rec1, vec4 dx, vec2 dyz, float dyz
 // unless 0 >= u_threshold, when the caller passes every row)
 uniform ivec4 u_rows;   // j0, nj, k0, nk
 
+#if CAPS
+// Word sw (of u_segs) of row `row`, all of whose bricks the caps decide: C + C_K
+// crossing by crossing, as a closed mesh's row goes, its bits stored and counted,
+// its segment left with no blocks (Masks); `run` and `run_caps`, the row sums,
+// carried across it.
+void counted_word(int sw, uint row, uint ev_row, uint wbase, bool row_carried, bool cap_carried,
+                  inout int run, inout int run_caps, inout uint count) {
+    uvec4 e = GWN_PLANES(events, ev_row + uint(sw), row_carried);
+    uvec4 f = GWN_PLANES(cap_events, ev_row + uint(sw), cap_carried);
+    uint any = e.x | e.y | e.z | e.w | f.x | f.y | f.z | f.w;
+    uint word = 0u, from = 0u;
+    while (any != 0u) {
+        uint i = uint(findLSB(any));
+        any &= any - 1u;
+        if (i > from && float(run + run_caps) >= u_threshold) word |= mask_range(from, i - 1u);
+        run += voxel_delta(e, i);
+        run_caps += voxel_delta(f, i);
+        from = i;
+    }
+    if (float(run + run_caps) >= u_threshold) word |= mask_from(from);
+    if (uint(sw) + 1u == words_per_row()) word &= mask_upto(uint(u_dims.x) - 1u - 32u * uint(sw));
+    if (word != 0u) {
+        bits[wbase + uint(sw)] = word;
+        count += uint(bitCount(word));
+    }
+    masks[uint(sw - u_segs.x) * uint(u_rows.y * u_rows.w) + row] = 0u;
+}
+#endif
+
 void main() {
     uint row = global_index_1d();
     if (row >= uint(u_rows.y * u_rows.w)) return;
@@ -206,29 +235,8 @@ void main() {
             }
         }
         int lean_end = u_segs.x + int((left - b0) / per_word);
-        uint nrows = uint(u_rows.y * u_rows.w);
-        for (int sw = u_segs.x; sw < lean_end; ++sw) {
-            uvec4 e = GWN_PLANES(events, ev_row + uint(sw), row_carried);
-            uvec4 f = GWN_PLANES(cap_events, ev_row + uint(sw), cap_carried);
-            uint any = e.x | e.y | e.z | e.w | f.x | f.y | f.z | f.w;
-            uint from = 0u;
-            while (any != 0u) {
-                uint i = uint(findLSB(any));
-                any &= any - 1u;
-                if (i > from && float(run + run_caps) >= u_threshold) word |= mask_range(from, i - 1u);
-                run += voxel_delta(e, i);
-                run_caps += voxel_delta(f, i);
-                from = i;
-            }
-            if (float(run + run_caps) >= u_threshold) word |= mask_from(from);
-            if (uint(sw) + 1u == words_per_row()) word &= mask_upto(uint(u_dims.x) - 1u - 32u * uint(sw));
-            if (word != 0u) {
-                bits[wbase + uint(sw)] = word;
-                count += uint(bitCount(word));
-                word = 0u;
-            }
-            masks[uint(sw - u_segs.x) * nrows + row] = 0u;
-        }
+        for (int sw = u_segs.x; sw < lean_end; ++sw)
+            counted_word(sw, row, ev_row, wbase, row_carried, cap_carried, run, run_caps, count);
         if (lean_end >= u_segs.x + u_segs.y) {
             if (count != 0u) atomicAdd(voxel_count, count);
             return;
@@ -254,25 +262,7 @@ void main() {
             bool whole = sw >= u_segs.x && sw < u_segs.x + u_segs.y
                          && ((cap_bits[bi / 32u] >> (bi & 31u)) & ((1u << per_word) - 1u)) == (1u << per_word) - 1u;
             if (whole) {
-                uvec4 e = GWN_PLANES(events, ev_row + q / 8u, row_carried), f = GWN_PLANES(cap_events, ev_row + q / 8u, cap_carried);
-                uint any = e.x | e.y | e.z | e.w | f.x | f.y | f.z | f.w;
-                uint from = 0u;
-                while (any != 0u) {
-                    uint i = uint(findLSB(any));
-                    any &= any - 1u;
-                    if (i > from && float(run + run_caps) >= u_threshold) word |= mask_range(from, i - 1u);
-                    run += voxel_delta(e, i);
-                    run_caps += voxel_delta(f, i);
-                    from = i;
-                }
-                if (float(run + run_caps) >= u_threshold) word |= mask_from(from);
-                if (uint(sw) + 1u == words_per_row()) word &= mask_upto(uint(u_dims.x) - 1u - 32u * uint(sw));
-                if (word != 0u) {
-                    bits[wbase + uint(sw)] = word;
-                    count += uint(bitCount(word));
-                    word = 0u;
-                }
-                masks[uint(sw - u_segs.x) * uint(u_rows.y * u_rows.w) + row] = 0u;
+                counted_word(sw, row, ev_row, wbase, row_carried, cap_carried, run, run_caps, count);
                 q_end = q8;
             }
         }

@@ -57,9 +57,8 @@ import numpy as np
 
 from ...errors import LimitError, MethodError
 from ...gl.shaders import compute_program
-from ...gl.timing import StageTimer
 from ...grid import MAX_VOXELS
-from ...gpu.buffers import (MAX_SLAB_VOXELS, buffer_pool, clear_buffer, mesh_buffers, read_grid_words, slab_reader,
+from ...gpu.buffers import (MAX_SLAB_VOXELS, buffer_pool, clear_buffer, read_grid_words, slab_reader,
                              z_slabs)
 from ...gpu.dispatch import LOOP_BUDGET, barrier, bind, dispatch_1d, grid_uniforms, set_uniforms
 from ...gpu.fixed_point import fixed_bits
@@ -70,11 +69,11 @@ from ..base import Method, MethodInfo, Option, Requirements, register
 from .caps import RunCaps, cap_margin, cap_records, capped_mesh
 from .plan import (BRICK, EDGE_COST, PLANES, SEGV, SUPER, carry_flags, plan_chunks, slab_slices, strip_free_share,
                    super_sizes, x_range)
+from .shell import add_shell
 from .tree import NODE_VEC4, boundary_loops, build_tree
 from ..ss.chunks import chunked_passes
 from ..ss.solid import COMPUTE as SOLID_COMPUTE, COLUMN_CHUNK, mesh_rows
-from ..carve.sweep import surface_slices
-from ..ss.surface import COMPUTE as SURFACE_COMPUTE, surface_on_gpu
+from ..ss.surface import COMPUTE as SURFACE_COMPUTE
 
 _LOCAL = 64  # local_size_x of the gwn shaders
 _REQUIRES = Requirements(gl_version=430, extensions=("GL_ARB_gpu_shader_fp64",),
@@ -226,7 +225,7 @@ class GwnSolid(Method):
             field = run.all_slabs(mesh.n_triangles)
         if shell:
             with timer.stage("shell", gpu=False):
-                self._add_shell(ctx, mesh, spec, bits, run.count)
+                add_shell(ctx, mesh, spec, buffer_pool(ctx, self.info.name + ":shell"), bits, run.count)
         with timer.stage("readback", gpu=False):
             if stream is None:
                 words = read_grid_words(ctx, bits, spec)
@@ -245,20 +244,6 @@ class GwnSolid(Method):
         # the passes count in a uint32: not where a grid has 2^32 voxels or more
         return VoxelGrid(words=words, spec=spec, count=voxels if spec.n_voxels < 2**32 else None,
                          fields={"winding": field} if winding else None)
-
-    def _add_shell(self, ctx, mesh, spec, bits, count) -> None:
-        """OR the conservative surface into ``bits`` on the GPU, adding the voxels it
-        adds to ``count``: ss-conservative's passes (timed apart, one ``shell`` stage
-        here) into a pool of their own, then ``gwn/shell.comp`` over the surface's slices."""
-        pool = buffer_pool(ctx, self.info.name + ":shell")
-        surface, _ = surface_on_gpu(ctx, mesh, spec, StageTimer(ctx), pool, variant="specialized")
-        k0, nk = surface_slices(spec, mesh_buffers(ctx, mesh))
-        per_slice = spec.dims[1] * spec.words_per_row
-        prog = compute_program(ctx, "gwn/shell.comp")
-        set_uniforms(prog, {"u_first_word": k0 * per_slice, "u_words": nk * per_slice})
-        bind(prog, Surface=surface, Bits=bits, Count=count)
-        dispatch_1d(ctx, prog, nk * per_slice, 64)
-        barrier(ctx)
 
 
 class _Run:
