@@ -35,8 +35,11 @@ def grid_uniforms(spec, anchor: np.ndarray) -> dict[str, Any]:
 def set_uniforms(prog, values: dict[str, Any]) -> None:
     """Set the uniforms the program uses; ones optimized out of it are skipped."""
     for name, value in values.items():
-        if name in prog:
-            prog[name].value = value
+        # get(), not ``name in prog``: moderngl programs have no __contains__, and
+        # ``in`` walks every member (a call's CPU time grew with the programs' sizes)
+        member = prog.get(name, None)
+        if member is not None:
+            member.value = value
 
 
 def bind(prog, /, **buffers) -> None:
@@ -75,9 +78,9 @@ def bind(prog, /, **buffers) -> None:
         if name not in src.storage_blocks:
             declared = ", ".join(sorted(src.storage_blocks)) or "none"
             raise ShaderError(f"{src.name} declares no storage block {name!r} (it declares: {declared})")
-        if name not in prog:
+        block = prog.get(name, None)
+        if block is None:
             continue  # declared, optimized out
-        block = prog[name]
         if not isinstance(block, moderngl.StorageBlock):
             raise ShaderError(f"{src.name}: {name!r} is a {type(block).__name__}, not a storage block")
         buf.bind_to_storage_buffer(block.binding)

@@ -35,7 +35,7 @@ from typing import Any
 
 from ..gl.shaders import compute_program
 from .buffers import buffer_pool, check_buffer_size
-from .dispatch import bind, dispatch_1d
+from .dispatch import bind, dispatch_1d, set_uniforms
 
 #: Pool owner name of the scratch buffers (``buffer_pool(ctx, POOL)``).
 POOL = "gpu_sort"
@@ -104,12 +104,6 @@ def _run(ctx, prog, groups: int) -> None:
     _barrier(ctx)
 
 
-def _set(prog, **uniforms: int) -> None:
-    for name, value in uniforms.items():
-        if name in prog:  # unused uniforms are optimized out
-            prog[name].value = value
-
-
 def exclusive_scan(ctx, src, dst, n: int, *, total=None) -> None:
     """Exclusive prefix sum of ``n`` uint32 on the GPU.
 
@@ -160,19 +154,19 @@ def _scan_level(ctx, pool, src, dst, n: int, total, write_total: bool, level: in
     defines = {"WG_SIZE": SCAN_WG, "ITEMS": SCAN_ITEMS}
     if groups <= 1:
         prog = compute_program(ctx, "sort/scan_block.comp", {**defines, "HAS_OFFSETS": 0})
-        _set(prog, u_n=n, u_write_total=int(write_total))
+        set_uniforms(prog, {"u_n": n, "u_write_total": int(write_total)})
         bind(prog, Src=src, Dst=dst, Total=total)
         _run(ctx, prog, 1)  # one group even for n = 0, so that the total is written
         return
     # every block writes its sum, so the level buffer needs no clearing
     sums = pool.get(f"scan.sums{level}", 4 * groups, what=f"scan level {level + 1} sums", clear=False)
     reduce = compute_program(ctx, "sort/scan_reduce.comp", defines)
-    _set(reduce, u_n=n)
+    set_uniforms(reduce, {"u_n": n})
     bind(reduce, Src=src, Sums=sums)
     _run(ctx, reduce, groups)
     _scan_level(ctx, pool, sums, sums, groups, total, write_total, level + 1)
     prog = compute_program(ctx, "sort/scan_block.comp", {**defines, "HAS_OFFSETS": 1})
-    _set(prog, u_n=n, u_write_total=0)
+    set_uniforms(prog, {"u_n": n, "u_write_total": 0})
     bind(prog, Src=src, Dst=dst, Offsets=sums, Total=total)
     _run(ctx, prog, groups)
 
@@ -261,11 +255,11 @@ def _radix_passes(ctx, keys, values, n: int, bits: int, passes: int) -> None:
     src, dst = (keys, values), (tmp_keys, tmp_values)
     for p in range(passes):
         shift = p * bits
-        _set(count, u_n=n, u_shift=shift)
+        set_uniforms(count, {"u_n": n, "u_shift": shift})
         bind(count, KeysIn=src[0], Counts=counts)
         _run(ctx, count, groups)
         exclusive_scan(ctx, counts, counts, n_counts)
-        _set(scatter, u_n=n, u_shift=shift)
+        set_uniforms(scatter, {"u_n": n, "u_shift": shift})
         bind(scatter, KeysIn=src[0], ValuesIn=src[1], KeysOut=dst[0], ValuesOut=dst[1], Offsets=counts)
         _run(ctx, scatter, groups)
         src, dst = dst, src

@@ -31,9 +31,10 @@ def _from_caller(search: Iterable[os.PathLike | str], frame) -> list[Path]:
 def set_uniforms(prog, uniforms: Mapping[str, Any]) -> None:
     """Set uniforms by name; a name the program lacks raises KeyError naming it."""
     for name, value in uniforms.items():
-        if name not in prog:
+        member = prog.get(name, None)  # not ``in``: it walks every member
+        if member is None:
             raise KeyError(f"program has no active uniform {name!r} (unused uniforms are optimized out)")
-        prog[name].value = tuple(value) if isinstance(value, (list, tuple, np.ndarray)) else value
+        member.value = tuple(value) if isinstance(value, (list, tuple, np.ndarray)) else value
 
 
 def run_compute(ctx, shader: str, groups: int | Sequence[int], *,
