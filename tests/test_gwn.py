@@ -30,7 +30,8 @@ from glvox.methods import get_method, run_method
 from glvox.methods.gwn import field as gwn
 from glvox.methods.gwn import plan
 from glvox.methods.gwn.caps import CAP_VEC4, cap_records, capped_mesh, caps_ball
-from glvox.methods.gwn.tree import boundary_loops, build_tree, fan_moments, far_bound, far_field, pack_moments
+from glvox.methods.gwn.tree import (boundary_loops, boundary_voxels, build_tree, fan_moments, far_bound, far_field,
+                                   mesh_topology, pack_moments, tree_topology)
 from glvox.metrics import check_against_reference, tie_set
 from glvox.reference import point_triangle_distance, solid_ties
 from glvox.reference.winding import boundary_edges, crossing_counts, winding, winding_direct
@@ -290,6 +291,41 @@ def test_tree_covers_every_edge_once(shared_mesh):
     assert sum(n for _, n in ranges) == len(tree.edges) == 1280
     chunks = plan.plan_chunks(tree)
     assert chunks == [[0]]  # the whole tree fits one dispatch
+
+
+
+@pytest.mark.parametrize("name", ["stanford_bunny_bun_zipper.ply", "messy_tower_holes.obj"])
+def test_a_meshs_tree_has_one_topology_on_every_grid(shared_mesh, name):
+    """The tree's nodes depend only on the order of the loops' centroids along the
+    axis of their widest spread, which a grid's map to voxel space (a translation
+    and a uniform scaling) keeps.  So gwn-solid builds them once per mesh, from its
+    own vertices (mesh_topology), and per call only the node records, from the
+    voxel positions of the boundary's vertices alone (boundary_voxels): on two
+    grids with other sizes and origins, the same nodes as a tree built from each
+    grid's voxel space, and the same records, bit for bit.  (Loops whose centroids
+    tie along that axis may be ordered otherwise by a rounding; the bunny's and the
+    tower's do not.)"""
+    mesh = load_mesh(shared_mesh(name))
+    loops = boundary_loops(mesh)
+    top = mesh_topology(mesh, loops)
+    assert mesh_topology(mesh, loops) is top  # once per mesh
+    for spec in (glvox.grid_for(mesh, 64), glvox.grid_for(mesh, 203, padding=5)):
+        full = spec.world_to_voxel(mesh.vertices)
+        own = build_tree(loops, full)
+        part = boundary_voxels(spec, mesh.vertices, loops, len(mesh.vertices))
+        used = np.zeros(len(mesh.vertices), bool)
+        used[np.concatenate(loops.loops)] = True
+        assert np.array_equal(part[used], full[used]) and np.isnan(part[~used]).all()
+        shared = build_tree(loops, part, topology=top)
+        for field in ("edges", "links", "nodes"):
+            assert np.array_equal(getattr(shared, field), getattr(own, field)), field
+        assert shared.depth == own.depth and shared.topology is top
+        assert plan.plan_chunks(shared) == plan.plan_chunks(own)
+    assert np.array_equal(tree_topology(loops, mesh.vertices).links, top.links)
+    # the chunks are cached per topology: what a caller does to its copy stays there
+    chunks = plan.plan_chunks(shared)
+    chunks[0].append(-1)
+    assert -1 not in plan.plan_chunks(shared)[0]
 
 
 # -- gwn-solid -----------------------------------------------------------------
@@ -819,8 +855,12 @@ def test_caps_close_every_loop_and_add_up(shared_mesh):
     spec = glvox.grid_for(mesh, 64)
     vox = spec.world_to_voxel(capped.mesh.vertices)
     rec = cap_records(capped, vox)
+    # from the boundary's and the apexes' voxel positions alone, as gwn-solid builds them
+    part = boundary_voxels(spec, capped.mesh.vertices, loops, len(mesh.vertices))
+    assert np.array_equal(cap_records(capped, part), rec)
     ints = rec.view(np.int32)
     n_loops = len(capped.loops)
+    assert n_loops == len(loops.loops) > 1  # several fans, each its own range
     for i in range(n_loops):
         first, count = ints[CAP_VEC4 * i + 1, 1:3]
         fan = ints[first:first + count, :3]

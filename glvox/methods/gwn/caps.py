@@ -108,16 +108,21 @@ def cap_records(capped: CappedMesh, vox64: np.ndarray) -> np.ndarray:
     bits = rec.view(np.int32)
     fans = capped.mesh.faces[capped.first:]
     bits[CAP_VEC4 * n_loops:, :3] = fans
-    start = CAP_VEC4 * n_loops
-    for i, (loop, apex) in enumerate(zip(capped.loops, capped.apexes)):
-        a = vox64[apex]
-        u, v = vox64[np.roll(loop, -1)], vox64[loop]
-        r = float(np.sqrt(((v - a) ** 2).sum(axis=1)).max()) + RADIUS_MARGIN
-        area = 0.5 * np.sqrt((np.cross(v - u, a - u) ** 2).sum(axis=1))
-        rec[CAP_VEC4 * i] = (*a, r)
-        rec[CAP_VEC4 * i + 1, 0] = float(area.sum()) * 1.001 + 1e-3
-        bits[CAP_VEC4 * i + 1, 1:3] = (start, len(loop))
-        start += len(loop)
+    if not n_loops:
+        return rec
+    # every fan triangle (w_{i+1}, w_i, apex) at once, reduced per loop
+    sizes = np.array([len(loop) for loop in capped.loops], np.int64)
+    first = np.cumsum(sizes) - sizes
+    a = vox64[fans[:, 2].astype(np.int64)]
+    u, v = vox64[fans[:, 0].astype(np.int64)], vox64[fans[:, 1].astype(np.int64)]
+    r = np.sqrt(np.maximum.reduceat(((v - a) ** 2).sum(axis=1), first)) + RADIUS_MARGIN
+    area = np.add.reduceat(0.5 * np.sqrt((np.cross(v - u, a - u) ** 2).sum(axis=1)), first)
+    head, head_bits = (x[:CAP_VEC4 * n_loops].reshape(n_loops, CAP_VEC4, 4) for x in (rec, bits))
+    head[:, 0, :3] = vox64[capped.apexes]
+    head[:, 0, 3] = r
+    head[:, 1, 0] = area * 1.001 + 1e-3
+    head_bits[:, 1, 1] = CAP_VEC4 * n_loops + first
+    head_bits[:, 1, 2] = sizes
     return rec
 
 

@@ -70,7 +70,7 @@ from .caps import RunCaps, cap_margin, cap_records, capped_mesh
 from .plan import (BRICK, EDGE_COST, PLANES, SEGV, SUPER, carry_flags, plan_chunks, slab_slices, strip_free_share,
                    super_sizes, x_range)
 from .shell import add_shell
-from .tree import NODE_VEC4, boundary_loops, build_tree
+from .tree import NODE_VEC4, boundary_loops, boundary_voxels, build_tree, mesh_topology
 from ..ss.chunks import chunked_passes
 from ..ss.solid import COMPUTE as SOLID_COMPUTE, COLUMN_CHUNK, mesh_rows
 from ..ss.surface import COMPUTE as SURFACE_COMPUTE
@@ -192,8 +192,9 @@ class GwnSolid(Method):
             # the fans over the loops (.caps), appended to the mesh the GPU reads;
             # not with winding=true, where every voxel's field is computed anyway
             capped = capped_mesh(mesh, loops) if loops.n_edges and not winding else None
-            vox64 = spec.world_to_voxel((capped.mesh if capped else mesh).vertices) if loops.n_edges else None
-            tree = build_tree(loops, vox64) if loops.n_edges else None
+            vox64 = (boundary_voxels(spec, (capped.mesh if capped else mesh).vertices, loops, len(mesh.vertices))
+                     if loops.n_edges else None)
+            tree = build_tree(loops, vox64, topology=mesh_topology(mesh, loops)) if loops.n_edges else None
         bufs, vox = transform_vertices(ctx, capped.mesh if capped else mesh, spec, timer, pool)
         if tree is not None and tree.depth >= TREE_STACK:
             raise LimitError(f"gwn-solid walks its boundary tree with a stack of {TREE_STACK}; this mesh's tree "

@@ -9,6 +9,7 @@ the share of brick columns where bricks can decide at all
 from __future__ import annotations
 
 import math
+import weakref
 
 import numpy as np
 
@@ -110,12 +111,24 @@ def carry_flags(spec) -> bool:
     return spec.n_voxels >= CARRY_FLAGS_MIN_VOXELS
 
 
+_CHUNKS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
 def plan_chunks(tree: ClusterTree) -> list[list[int]]:
     """Subtree roots per field dispatch, so that one invocation's loops stay
     within half of LOOP_BUDGET even if every node and edge of its chunk is
     visited: the root is split into its children until each subtree fits,
-    and the subtrees are packed in order."""
-    links = tree.links
+    and the subtrees are packed in order.  They depend on the tree's links
+    alone (and the budget): cached per topology (a mesh's trees on every grid
+    share one)."""
+    limit = LOOP_BUDGET // 2 - 4 * SEGV
+    per_limit = _CHUNKS.setdefault(tree.topology, {})
+    if limit not in per_limit:
+        per_limit[limit] = _plan_chunks(tree.links, limit)
+    return [list(c) for c in per_limit[limit]]
+
+
+def _plan_chunks(links: np.ndarray, limit: int) -> list[list[int]]:
     size: dict[int, tuple[int, int]] = {}
 
     def measure(n: int) -> tuple[int, int]:
@@ -129,7 +142,6 @@ def plan_chunks(tree: ClusterTree) -> list[list[int]]:
 
     measure(0)
     cost = {n: m * NODE_COST + e * EDGE_COST + 1 for n, (m, e) in size.items()}
-    limit = LOOP_BUDGET // 2 - 4 * SEGV
     cut, todo = [], [0]
     while todo:
         n = todo.pop(0)

@@ -140,6 +140,17 @@ def _walk(src: np.ndarray, dst: np.ndarray) -> list[np.ndarray]:
     return loops
 
 
+def boundary_voxels(spec, vertices: np.ndarray, loops: BoundaryLoops, extra_from: int) -> np.ndarray:
+    """``vertices`` in ``spec``'s voxel space (float64), but only the rows the
+    boundary ``loops`` use and those from ``extra_from`` on (a capped mesh's
+    apexes, :func:`.caps.capped_mesh`); the rest NaN.  The tree and the caps'
+    records read no other, and a whole mesh's would cost more than both."""
+    out = np.full((len(vertices), 3), np.nan)
+    idx = np.concatenate(loops.loops + [np.arange(extra_from, len(vertices))]).astype(np.int64)
+    out[idx] = spec.world_to_voxel(np.asarray(vertices)[idx])
+    return out
+
+
 @dataclass
 class ClusterTree:
     """The boundary chain as GPU buffers.
@@ -159,33 +170,72 @@ class ClusterTree:
         -1 without a chord.  Node 0 is the root.
     depth : int
         Nodes on the longest root-to-leaf path.
+    topology : TreeTopology
+        What of the tree does not depend on the grid (shared by the trees of
+        one mesh on every grid: :func:`mesh_topology`).
     """
 
     edges: np.ndarray
     nodes: np.ndarray
     links: np.ndarray
     depth: int
+    topology: "TreeTopology"
 
     @property
     def n_nodes(self) -> int:
         return int(len(self.links))
 
 
-def build_tree(loops: BoundaryLoops, vox: np.ndarray, leaf: int = LEAF_EDGES) -> ClusterTree:
-    """The cluster tree of ``loops`` for vertices at ``vox`` ((V, 3) float64, voxel space).
+@dataclass(eq=False)
+class TreeTopology:
+    """A cluster tree without its node records: which edges each node holds.
+
+    Attributes
+    ----------
+    edges : (E, 2) uint32
+        :attr:`ClusterTree.edges`.
+    edge_loop : (E,) int64
+        The loop of each edge.
+    links : (M, 2, 4) int32
+        :attr:`ClusterTree.links`.
+    polys : (M, 5) int64
+        Per node: first edge, edge count, chord start and end (-1 without),
+        1 for a node of whole loops.
+    depth : int
+    """
+
+    edges: np.ndarray
+    edge_loop: np.ndarray
+    links: np.ndarray
+    polys: np.ndarray
+    depth: int
+
+
+def loop_centroids(loops: BoundaryLoops, points: np.ndarray) -> np.ndarray:
+    """(L, 3) float64: the mean of each loop's vertices at ``points``."""
+    if not loops.n_edges:
+        return np.zeros((0, 3))
+    sizes = np.array([len(lp) for lp in loops.loops], dtype=np.int64)
+    return np.add.reduceat(points[np.concatenate(loops.loops)], np.cumsum(sizes) - sizes) / sizes[:, None]
+
+
+def tree_topology(loops: BoundaryLoops, points: np.ndarray, leaf: int = LEAF_EDGES) -> TreeTopology:
+    """The nodes of the cluster tree of ``loops``, their vertices at ``points``.
 
     Whole loops are grouped by a median split of their centroids along the
     widest axis (balanced by edge count) until a group is a single loop;
     a loop with more than ``leaf`` edges is halved into pieces closed by
-    chords.  Nodes with at most ``leaf`` edges are leaves.
+    chords.  Nodes with at most ``leaf`` edges are leaves.  Only the order
+    of the centroids along an axis and the axis of widest spread matter, so
+    any translation and uniform scaling of ``points`` gives the same tree
+    (ties apart).
     """
     edges: list[tuple[int, int]] = []
     edge_loop: list[int] = []
     links: list[list[int]] = []
     polys: list[tuple[int, int, int, int, int]] = []  # per node: edge range, chord, whole loops?
     sizes = np.array([len(lp) for lp in loops.loops], dtype=np.int64)
-    cent = (np.add.reduceat(vox[np.concatenate(loops.loops)], np.cumsum(sizes) - sizes) / sizes[:, None]
-            if loops.n_edges else np.zeros((0, 3)))
+    cent = loop_centroids(loops, points)
     depth = 0
 
     def node(first: int, count: int, chord: tuple[int, int], whole: bool) -> int:
@@ -236,9 +286,36 @@ def build_tree(loops: BoundaryLoops, vox: np.ndarray, leaf: int = LEAF_EDGES) ->
 
     if loops.n_edges:
         group(np.arange(len(loops.loops)), 1)
-    e = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
-    nodes = _node_records(polys, e, np.asarray(edge_loop, np.int64), cent, vox)
-    return ClusterTree(e.astype(np.uint32), nodes, np.asarray(links, np.int32).reshape(-1, 2, 4), depth)
+    return TreeTopology(np.asarray(edges, dtype=np.uint32).reshape(-1, 2), np.asarray(edge_loop, np.int64),
+                        np.asarray(links, np.int32).reshape(-1, 2, 4), np.asarray(polys, np.int64).reshape(-1, 5),
+                        depth)
+
+
+_TOPOLOGY: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def mesh_topology(mesh, loops: BoundaryLoops, leaf: int = LEAF_EDGES) -> TreeTopology:
+    """:func:`tree_topology` of ``mesh``'s boundary ``loops`` at its own vertices,
+    cached per mesh: a mesh's tree on any grid has these nodes (the grid's
+    map to voxels is a translation and a uniform scaling), only their records
+    (:func:`build_tree`) change."""
+    per_mesh = _TOPOLOGY.setdefault(mesh, {})
+    if leaf not in per_mesh:
+        per_mesh[leaf] = tree_topology(loops, np.asarray(mesh.vertices, np.float64), leaf)
+    return per_mesh[leaf]
+
+
+def build_tree(loops: BoundaryLoops, vox: np.ndarray, leaf: int = LEAF_EDGES,
+               topology: TreeTopology | None = None) -> ClusterTree:
+    """The cluster tree of ``loops`` for vertices at ``vox`` ((V, 3) float64, voxel space).
+
+    Its nodes are ``topology``'s (default :func:`tree_topology` at ``vox``);
+    their records (center, radius, moments, edge length) are computed here,
+    all nodes at once.  Only the rows of ``vox`` that the loops use are read.
+    """
+    top = tree_topology(loops, vox, leaf) if topology is None else topology
+    nodes = _node_records(top.polys, top.edges, top.edge_loop, loop_centroids(loops, vox), vox)
+    return ClusterTree(top.edges, nodes, top.links, top.depth, top)
 
 
 def _node_records(polys, edges: np.ndarray, edge_loop: np.ndarray, loop_cent: np.ndarray,
@@ -254,7 +331,7 @@ def _node_records(polys, edges: np.ndarray, edge_loop: np.ndarray, loop_cent: np
     fans of far-apart loops around one center are long slivers.
     """
     out = np.zeros((len(polys), NODE_VEC4, 4), dtype=np.float32)
-    if not polys:
+    if not len(polys):
         return out
     p = np.asarray(polys, np.int64).reshape(-1, 5)
     first, count, cu, cv, whole = p.T
