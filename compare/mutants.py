@@ -263,6 +263,32 @@ MUTANTS: list[Mutant] = [
            "vector halved (it counts for fans around an apex off the node's center)",
            "glvox/methods/gwn/tree.py", (("    g = (2.0 * (T[:, 0, :, 0]", "    g = (1.0 * (T[:, 0, :, 0]"),),
            ("tests/test_gwn.py", "-k", "far_field_error")),
+    Mutant("gwn-tree-scale-power", "gwn-solid's tree mapped onto a grid: one T entry scaled by the cube "
+           "of the voxel size, not its fourth power", "glvox/methods/gwn/tree.py",
+           (("                         4, 4, 4, 4, 4, 4, 4, 4, 4, 4, 4, 2, 1, 0, 0, 0]",
+             "                         4, 4, 4, 4, 4, 4, 4, 4, 4, 4, 3, 2, 1, 0, 0, 0]"),),
+           ("tests/test_gwn.py", "-k", "serves_every_grid")),
+    Mutant("gwn-tree-no-margin", "gwn-solid's tree mapped onto a grid: the radii without the margin "
+           "for the GPU's float32 vertices", "glvox/methods/gwn/tree.py",
+           (("    rec[:, 0, 3] += RADIUS_MARGIN\n", ""),),
+           ("tests/test_gwn.py", "-k", "serves_every_grid")),
+    Mutant("gwn-chunks-shared-list", "gwn-solid's chunk plan: the cached lists themselves handed out, "
+           "so a caller's change reaches the next call", "glvox/methods/gwn/plan.py",
+           (("    return [list(c) for c in per_limit[limit]]", "    return per_limit[limit]"),),
+           ("tests/test_gwn.py", "-k", "serves_every_grid")),
+    Mutant("gwn-chunks-budget-ignored", "gwn-solid's chunk plan cached per topology whatever the loop "
+           "budget", "glvox/methods/gwn/plan.py",
+           (("    per_limit = _CHUNKS.setdefault(tree.topology, {})", "    per_limit = _CHUNKS.setdefault(tree.topology, {})\n    limit = next(iter(per_limit), limit)"),),
+           ("tests/test_gwn.py", "-k", "accuracy_only_moves")),
+    Mutant("gwn-caps-first-unshifted", "gwn-solid's caps' records: each fan's first triangle counted "
+           "from the triangle records, not from the buffer's start", "glvox/methods/gwn/caps.py",
+           (("    head_bits[:, 1, 1] = CAP_VEC4 * n_loops + first", "    head_bits[:, 1, 1] = first"),),
+           ("tests/test_gwn.py", "-k", "caps_close")),
+    Mutant("gwn-caps-no-apex-voxels", "gwn-solid: the voxel positions computed for the boundary's "
+           "vertices but not the caps' apexes", "glvox/methods/gwn/tree.py",
+           (("    idx = np.concatenate(loops.loops + [np.arange(extra_from, len(vertices))]).astype(np.int64)",
+             "    idx = np.concatenate(loops.loops).astype(np.int64)"),),
+           ("tests/test_gwn.py", "-k", "caps_close")),
     Mutant("gwn-overflow-seen-late", "gwn-solid: planes that overflowed go on through the tree's "
            "passes before the slabs run again with ints", "glvox/methods/gwn/field.py",
            (("        if self.tree is not None and self.overflowed():", "        if False:"),),

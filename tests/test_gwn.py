@@ -30,8 +30,8 @@ from glvox.methods import get_method, run_method
 from glvox.methods.gwn import field as gwn
 from glvox.methods.gwn import plan
 from glvox.methods.gwn.caps import CAP_VEC4, cap_records, capped_mesh, caps_ball
-from glvox.methods.gwn.tree import (boundary_loops, boundary_voxels, build_tree, fan_moments, far_bound, far_field,
-                                   mesh_topology, pack_moments, tree_topology)
+from glvox.methods.gwn.tree import (RADIUS_MARGIN, boundary_loops, boundary_voxels, build_tree, fan_moments, far_bound,
+                                   far_field, mesh_tree, pack_moments, tree_on_grid, tree_topology)
 from glvox.metrics import check_against_reference, tie_set
 from glvox.reference import point_triangle_distance, solid_ties
 from glvox.reference.winding import boundary_edges, crossing_counts, winding, winding_direct
@@ -295,38 +295,49 @@ def test_tree_covers_every_edge_once(shared_mesh):
 
 
 @pytest.mark.parametrize("name", ["stanford_bunny_bun_zipper.ply", "messy_tower_holes.obj"])
-def test_a_meshs_tree_has_one_topology_on_every_grid(shared_mesh, name):
-    """The tree's nodes depend only on the order of the loops' centroids along the
-    axis of their widest spread, which a grid's map to voxel space (a translation
-    and a uniform scaling) keeps.  So gwn-solid builds them once per mesh, from its
-    own vertices (mesh_topology), and per call only the node records, from the
-    voxel positions of the boundary's vertices alone (boundary_voxels): on two
-    grids with other sizes and origins, the same nodes as a tree built from each
-    grid's voxel space, and the same records, bit for bit.  (Loops whose centroids
-    tie along that axis may be ordered otherwise by a rounding; the bunny's and the
-    tower's do not.)"""
+def test_a_meshs_tree_serves_every_grid(shared_mesh, name):
+    """A grid maps world to voxel space by a translation and a uniform scaling. The
+    tree's nodes depend only on the order of the loops' centroids along their widest
+    axis, which that map keeps, and each record entry scales with a power of the
+    voxel size (D and the area with its square, Q with its cube, T with its fourth
+    power).  So gwn-solid builds its mesh's tree once, in world units (mesh_tree),
+    and maps it onto each grid (tree_on_grid).  On two grids with other sizes and
+    origins: the same nodes as a tree built in each grid's voxel space (build_tree),
+    the same records up to float32 rounding, every node's radius still holding its
+    vertices (float64 voxel space, before the margin for the GPU's float32
+    vertices).  (Loops whose centroids tie along that axis may be ordered otherwise
+    by a rounding; the bunny's and the tower's do not.)"""
     mesh = load_mesh(shared_mesh(name))
     loops = boundary_loops(mesh)
-    top = mesh_topology(mesh, loops)
-    assert mesh_topology(mesh, loops) is top  # once per mesh
+    world = mesh_tree(mesh, loops)
+    assert mesh_tree(mesh, loops) is world  # once per mesh
+    assert np.array_equal(tree_topology(loops, mesh.vertices).links, world.topology.links)
     for spec in (glvox.grid_for(mesh, 64), glvox.grid_for(mesh, 203, padding=5)):
-        full = spec.world_to_voxel(mesh.vertices)
-        own = build_tree(loops, full)
+        vox = spec.world_to_voxel(mesh.vertices)
+        own = build_tree(loops, vox)
+        mapped = tree_on_grid(world, spec)
+        assert np.array_equal(mapped.edges, own.edges) and np.array_equal(mapped.links, own.links)
+        assert mapped.depth == own.depth and mapped.topology is world.topology
+        scale = np.abs(own.nodes).max(axis=0)  # per entry: float32 rounding relative to its largest
+        assert (np.abs(mapped.nodes - own.nodes) <= 4e-7 * scale + 1e-30).all()
+        for n, link in enumerate(mapped.links):
+            first, count = int(link[0, 0]), int(link[0, 1])
+            ids = mapped.edges[first:first + count].ravel().astype(np.int64)
+            ids = np.concatenate([ids, link[1, :2][link[1, :2] >= 0]])
+            c = mapped.nodes[n, 0, :3].astype(np.float64)
+            far = np.sqrt(((vox[ids] - c) ** 2).sum(axis=1)).max()
+            # the float32 center's rounding aside (what the margin is for)
+            assert far <= mapped.nodes[n, 0, 3] - RADIUS_MARGIN + 2e-7 * np.abs(c).max()
+        assert plan.plan_chunks(mapped) == plan.plan_chunks(own)
+        # the boundary's voxel positions alone, as gwn-solid computes them for the caps
         part = boundary_voxels(spec, mesh.vertices, loops, len(mesh.vertices))
         used = np.zeros(len(mesh.vertices), bool)
         used[np.concatenate(loops.loops)] = True
-        assert np.array_equal(part[used], full[used]) and np.isnan(part[~used]).all()
-        shared = build_tree(loops, part, topology=top)
-        for field in ("edges", "links", "nodes"):
-            assert np.array_equal(getattr(shared, field), getattr(own, field)), field
-        assert shared.depth == own.depth and shared.topology is top
-        assert plan.plan_chunks(shared) == plan.plan_chunks(own)
-    assert np.array_equal(tree_topology(loops, mesh.vertices).links, top.links)
+        assert np.array_equal(part[used], vox[used]) and np.isnan(part[~used]).all()
     # the chunks are cached per topology: what a caller does to its copy stays there
-    chunks = plan.plan_chunks(shared)
+    chunks = plan.plan_chunks(mapped)
     chunks[0].append(-1)
-    assert -1 not in plan.plan_chunks(shared)[0]
-
+    assert -1 not in plan.plan_chunks(mapped)[0]
 
 # -- gwn-solid -----------------------------------------------------------------
 

@@ -70,7 +70,7 @@ from .caps import RunCaps, cap_margin, cap_records, capped_mesh
 from .plan import (BRICK, EDGE_COST, PLANES, SEGV, SUPER, carry_flags, plan_chunks, slab_slices, strip_free_share,
                    super_sizes, x_range)
 from .shell import add_shell
-from .tree import NODE_VEC4, boundary_loops, boundary_voxels, build_tree, mesh_topology
+from .tree import NODE_VEC4, boundary_loops, boundary_voxels, mesh_tree, tree_on_grid
 from ..ss.chunks import chunked_passes
 from ..ss.solid import COMPUTE as SOLID_COMPUTE, COLUMN_CHUNK, mesh_rows
 from ..ss.surface import COMPUTE as SURFACE_COMPUTE
@@ -194,7 +194,7 @@ class GwnSolid(Method):
             capped = capped_mesh(mesh, loops) if loops.n_edges and not winding else None
             vox64 = (boundary_voxels(spec, (capped.mesh if capped else mesh).vertices, loops, len(mesh.vertices))
                      if loops.n_edges else None)
-            tree = build_tree(loops, vox64, topology=mesh_topology(mesh, loops)) if loops.n_edges else None
+            tree = tree_on_grid(mesh_tree(mesh, loops), spec) if loops.n_edges else None
         bufs, vox = transform_vertices(ctx, capped.mesh if capped else mesh, spec, timer, pool)
         if tree is not None and tree.depth >= TREE_STACK:
             raise LimitError(f"gwn-solid walks its boundary tree with a stack of {TREE_STACK}; this mesh's tree "

@@ -291,18 +291,52 @@ def tree_topology(loops: BoundaryLoops, points: np.ndarray, leaf: int = LEAF_EDG
                         depth)
 
 
-_TOPOLOGY: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+#: The power of the length unit each of a node record's 32 entries scales
+#: with (:func:`pack_moments`' order; the center also moves with the origin):
+#: center, radius, D (area), tr Q and Q, g and T, the fan's area, the edges'
+#: length.
+_SCALE_POWER = np.array([0, 0, 0, 1, 2, 2, 2, 3, 3, 3, 3, 3, 3, 3, 4, 4,
+                         4, 4, 4, 4, 4, 4, 4, 4, 4, 4, 4, 2, 1, 0, 0, 0], np.float64).reshape(NODE_VEC4, 4)
 
 
-def mesh_topology(mesh, loops: BoundaryLoops, leaf: int = LEAF_EDGES) -> TreeTopology:
-    """:func:`tree_topology` of ``mesh``'s boundary ``loops`` at its own vertices,
-    cached per mesh: a mesh's tree on any grid has these nodes (the grid's
-    map to voxels is a translation and a uniform scaling), only their records
-    (:func:`build_tree`) change."""
-    per_mesh = _TOPOLOGY.setdefault(mesh, {})
+@dataclass(eq=False)
+class MeshTree:
+    """A mesh's cluster tree in its own (world) units: what :func:`tree_on_grid`
+    maps onto any grid.
+
+    Attributes
+    ----------
+    topology : TreeTopology
+    records : (M, NODE_VEC4, 4) float64
+        The node records at the mesh's vertices, radii without
+        :data:`RADIUS_MARGIN` (a voxel-space margin).
+    """
+
+    topology: TreeTopology
+    records: np.ndarray
+
+
+_MESH_TREES: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def mesh_tree(mesh, loops: BoundaryLoops, leaf: int = LEAF_EDGES) -> MeshTree:
+    """The tree of ``mesh``'s boundary ``loops`` at its own vertices, cached per
+    mesh.  A grid maps world to voxel space by a translation and a uniform
+    scaling, which keeps the tree's nodes (:func:`tree_topology`) and scales
+    each record entry by a power of the voxel size, so one tree serves every
+    grid (:func:`tree_on_grid`)."""
+    per_mesh = _MESH_TREES.setdefault(mesh, {})
     if leaf not in per_mesh:
-        per_mesh[leaf] = tree_topology(loops, np.asarray(mesh.vertices, np.float64), leaf)
+        points = np.asarray(mesh.vertices, np.float64)
+        top = tree_topology(loops, points, leaf)
+        per_mesh[leaf] = MeshTree(top, _node_records(top, loop_centroids(loops, points), points))
     return per_mesh[leaf]
+
+
+def tree_on_grid(tree: MeshTree, spec) -> ClusterTree:
+    """``tree`` in ``spec``'s voxel space: its records moved and scaled, rounded
+    to float32, :data:`RADIUS_MARGIN` added to the radii."""
+    return _on_grid(tree.topology, tree.records, np.asarray(spec.origin, np.float64), 1.0 / spec.voxel_size)
 
 
 def build_tree(loops: BoundaryLoops, vox: np.ndarray, leaf: int = LEAF_EDGES,
@@ -310,18 +344,26 @@ def build_tree(loops: BoundaryLoops, vox: np.ndarray, leaf: int = LEAF_EDGES,
     """The cluster tree of ``loops`` for vertices at ``vox`` ((V, 3) float64, voxel space).
 
     Its nodes are ``topology``'s (default :func:`tree_topology` at ``vox``);
-    their records (center, radius, moments, edge length) are computed here,
-    all nodes at once.  Only the rows of ``vox`` that the loops use are read.
+    their records (center, radius, moments, edge length) are computed at
+    ``vox``, all nodes at once.  Only the rows of ``vox`` that the loops use
+    are read.  (``gwn-solid`` maps its mesh's :func:`mesh_tree` instead: the
+    same records up to float64 rounding.)
     """
     top = tree_topology(loops, vox, leaf) if topology is None else topology
-    nodes = _node_records(top.polys, top.edges, top.edge_loop, loop_centroids(loops, vox), vox)
-    return ClusterTree(top.edges, nodes, top.links, top.depth, top)
+    return _on_grid(top, _node_records(top, loop_centroids(loops, vox), vox), np.zeros(3), 1.0)
 
 
-def _node_records(polys, edges: np.ndarray, edge_loop: np.ndarray, loop_cent: np.ndarray,
-                  vox: np.ndarray) -> np.ndarray:
-    """Center, radius and moments of every node (:data:`NODE_VEC4` vec4 each), for all
-    nodes at once: one row per (node, polygon edge), reduced per node.
+def _on_grid(top: TreeTopology, records: np.ndarray, origin: np.ndarray, scale: float) -> ClusterTree:
+    rec = records * scale ** _SCALE_POWER
+    rec[:, 0, :3] = (records[:, 0, :3] - origin) * scale
+    rec[:, 0, 3] += RADIUS_MARGIN
+    return ClusterTree(top.edges, rec.astype(np.float32), top.links, top.depth, top)
+
+
+def _node_records(top: TreeTopology, loop_cent: np.ndarray, vox: np.ndarray) -> np.ndarray:
+    """Center, radius and moments of every node (:data:`NODE_VEC4` vec4 each, float64,
+    radii without :data:`RADIUS_MARGIN`), for all nodes at once: one row per (node,
+    polygon edge), reduced per node.
 
     The patch spanning a node's polygons is a fan around the node's center for
     a piece of a loop (its path and chord), and around each loop's own
@@ -330,7 +372,8 @@ def _node_records(polys, edges: np.ndarray, edge_loop: np.ndarray, loop_cent: np
     outside the ball), but the error bound grows with the patch's area, and
     fans of far-apart loops around one center are long slivers.
     """
-    out = np.zeros((len(polys), NODE_VEC4, 4), dtype=np.float32)
+    polys, edges, edge_loop = top.polys, top.edges, top.edge_loop
+    out = np.zeros((len(polys), NODE_VEC4, 4), dtype=np.float64)
     if not len(polys):
         return out
     p = np.asarray(polys, np.int64).reshape(-1, 5)
@@ -352,7 +395,7 @@ def _node_records(polys, edges: np.ndarray, edge_loop: np.ndarray, loop_cent: np
     apex = np.where((whole[owner] == 1)[:, None], loop_cent[edge_loop[eidx]] if len(edges) else co, co) - co
     a, b = u - co, v - co
     r2 = np.maximum((a * a).sum(axis=1), (b * b).sum(axis=1))
-    r = np.sqrt(np.maximum.reduceat(r2, start)) * (1 + 1e-6) + RADIUS_MARGIN
+    r = np.sqrt(np.maximum.reduceat(r2, start)) * (1 + 1e-6)
     D, Q, T, area = fan_moments(a, b, apex, start)
     length = np.add.reduceat(np.where(chord, 0.0, np.linalg.norm(v - u, axis=1)), start)
     out[:, :7] = pack_moments(c, r, D, Q, T, area)
