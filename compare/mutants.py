@@ -263,6 +263,12 @@ MUTANTS: list[Mutant] = [
            "vector halved (it counts for fans around an apex off the node's center)",
            "glvox/methods/gwn/tree.py", (("    g = (2.0 * (T[:, 0, :, 0]", "    g = (1.0 * (T[:, 0, :, 0]"),),
            ("tests/test_gwn.py", "-k", "far_field_error")),
+    Mutant("host-cpu-whole-process", "compare/outside_stages.py's host share counts the process's CPU "
+           "time (a software renderer's shader threads included), not the calling thread's",
+           "compare/outside_stages.py",
+           (("        c0, t0 = time.thread_time(), time.perf_counter()", "        c0, t0 = time.process_time(), time.perf_counter()"),
+            ("        cpus.append(time.thread_time() - c0)", "        cpus.append(time.process_time() - c0)")),
+           ("tests/test_gpu_report.py", "-k", "per_call")),
     Mutant("gwn-tree-scale-power", "gwn-solid's tree mapped onto a grid: one T entry scaled by the cube "
            "of the voxel size, not its fourth power", "glvox/methods/gwn/tree.py",
            (("                         4, 4, 4, 4, 4, 4, 4, 4, 4, 4, 4, 2, 1, 0, 0, 0]",

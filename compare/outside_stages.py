@@ -13,9 +13,14 @@ rest, then the functions with the most time of their own outside the stages,
 per call, and the profile's total there.  Each stage is given per call (summed
 where it runs once per slab or pass) with its GPU time from the timer queries
 where the context has them: where a GPU's wall time of a stage is far above its
-GPU time, the stage waits on something else (a sync, the CPU's issue).  Short
-enough for the last lines of a report: ``compare/gpu_report.py`` runs it as its
-``outside`` step.
+GPU time, the stage waits on something else (a sync, the CPU's issue).  Last,
+``--repeat`` calls without the profiler give the calling thread's CPU time per
+call (``time.thread_time``): the host's own work (Python, the driver's issue
+of the commands), which no GPU shortens.  It is the floor of a call on a fast
+GPU, measurable on any machine: llvmpipe runs the shaders on threads of its
+own, and a driver that sleeps while it waits for the GPU adds nothing (one
+that spins adds its wait).  Short enough for the last lines of a report:
+``compare/gpu_report.py`` runs it as its ``outside`` step.
 """
 
 from __future__ import annotations
@@ -86,6 +91,20 @@ def profile_calls(method: str, mesh, n: int, repeat: int) -> tuple[dict, pstats.
     return med, pstats.Stats(prof)
 
 
+def host_cpu(method: str, mesh, n: int, repeat: int) -> dict[str, float]:
+    """Medians (ms) of ``repeat`` warm calls without the profiler: the whole call's
+    wall time and the calling thread's CPU time."""
+    spec = grid_for(mesh, n)
+    run_method(method, mesh, spec, allow_open=True)
+    walls, cpus = [], []
+    for _ in range(repeat):
+        c0, t0 = time.thread_time(), time.perf_counter()
+        run_method(method, mesh, spec, allow_open=True)
+        walls.append(time.perf_counter() - t0)
+        cpus.append(time.thread_time() - c0)
+    return {"wall_ms": statistics.median(walls) * 1e3, "cpu_ms": statistics.median(cpus) * 1e3}
+
+
 def top_functions(stats: pstats.Stats, calls: int, count: int) -> list[tuple[float, int, str]]:
     """The ``count`` functions with the most time of their own: (ms per call, calls per call, name)."""
     rows = []
@@ -117,6 +136,9 @@ def main(argv=None) -> int:
     for ms, n, name in top_functions(stats, args.repeat, args.top):
         print(f"| {ms:.3f} | {n} | `{name}` |")
     print(f"profiled outside the stages: {stats.total_tt * 1e3 / args.repeat:.2f} ms per call")
+    host = host_cpu(args.method, mesh, args.size, args.repeat)
+    print(f"unprofiled, median of {args.repeat} calls: whole {host['wall_ms']:.2f} ms, the calling thread's "
+          f"CPU {host['cpu_ms']:.2f} ms per call")
     return 0
 
 

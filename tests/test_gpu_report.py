@@ -19,7 +19,7 @@ from pathlib import Path
 
 import moderngl
 import pytest
-from glvox import load_mesh
+from glvox import get_context, load_mesh
 from conftest import load_script
 from test_peer_cuda import FAKE
 
@@ -339,3 +339,10 @@ def test_outside_stages_gives_each_stage_per_call(shared_mesh):
     assert {"crossings", "bricks", "far", "refine"} <= set(med["gpu"]) <= set(med["stages"])
     assert "tree" not in med["gpu"]  # a CPU stage has no GPU time
     assert med["gpu"]["crossings"] <= med["stages"]["crossings"] * 1.05 + 0.05
+    # the host's share: the calling thread's CPU time, within the call's wall time, and
+    # on a software renderer (whose shaders run on threads of their own, which the
+    # calling thread's time leaves out) well below it at this size
+    host = mod.host_cpu("gwn-solid", mesh, 96, 3)
+    assert 0 < host["cpu_ms"] <= host["wall_ms"] * 1.01 + 0.01
+    if get_context().is_software:
+        assert host["cpu_ms"] < 0.6 * host["wall_ms"]
