@@ -25,7 +25,12 @@ listed for the walk and the records of their bricks, and prints:
   exact ``w_K`` at the cell's center, its gradient by central differences, and
   the second-derivative bound of ``gwn/bricks.comp`` (``min(2 l / g^3, 4 / g^2)
   / (4 pi)`` per loop edge of length ``l`` at distance ``g``).  An estimate
-  (the gradient is numerical), not a proof: what such a record could be worth.
+  (the gradient is numerical), not a proof: what such a record could be worth;
+* the share of the walked blocks that the caps' own bound (``caps_decide`` of
+  ``shaders/gwn/caps.glsl``, modelled in float64 by :func:`caps_bound`) would
+  decide over the ball of a block's 4 voxel centers, and over that of its cell
+  of 4^3 voxels: what testing the caps at those scales could decide, before
+  its cost.
 
 The passes keep their buffers for the last slab only, so the grid must run in
 one slab (up to 256^3 on llvmpipe); the bricks must be on (an open mesh, a
@@ -46,11 +51,12 @@ import glvox
 from glvox.grid import grid_for
 from glvox.methods import run_method
 from glvox.methods.gwn import field as gwn_field
-from glvox.methods.gwn.caps import capped_mesh
+from glvox.methods.gwn.caps import cap_margin, capped_mesh
 from glvox.methods.gwn.plan import BRICK, SEGV
 from glvox.methods.gwn.tree import boundary_loops
 from glvox.reference.attributes import closest_points
 from glvox.reference.winding import winding_direct
+from glvox.tolerances import WINDING_TIE
 
 CELLS = (8, 4, 2)
 
@@ -132,6 +138,35 @@ def first_order_share(points, closed, fans, edges, threshold, size) -> tuple[flo
     return float(free.mean()), float(decided.mean())
 
 
+def caps_bound(p0: np.ndarray, hd: float, vox: np.ndarray, capped) -> np.ndarray:
+    """The bound of ``shaders/gwn/caps.glsl``'s ``caps_decide`` on ``|Omega_K|``
+    (steradians) over the balls of radius ``hd`` about the points ``p0`` ((P, 3),
+    voxel space), in float64 and without its float32 margins: per fan the least
+    of the sum over its triangles of ``min(A / d^2, 2 pi)`` and, where no
+    triangle and no loop edge comes within ``hd``, ``|Omega(p0)| + hd`` times
+    the Biot-Savart bound over its loop; or the fans clear of the ball with
+    their solid angles summed with their signs.  ``vox``: the capped mesh's
+    vertices in voxel space."""
+    each, signed_rest, omega_all = (np.zeros(len(p0)) for _ in range(3))
+    start = capped.first
+    for loop in capped.loops:
+        t = vox[capped.mesh.faces[start:start + len(loop)]]  # (w_{i+1}, w_i, apex): (a, b) the loop's edge
+        start += len(loop)
+        a, b, c = t[:, 0], t[:, 1], t[:, 2]
+        area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+        dt = pairwise(lambda q, tri: closest_points(tri, q)[0], p0, t) - hd
+        crude = np.where(dt > 0.0, np.minimum(area / np.where(dt > 0.0, dt, 1.0) ** 2, 2.0 * np.pi), 2.0 * np.pi)
+        g = pairwise(lambda q, e: segment_distance(q, e[:, 0], e[:, 1]), p0, np.stack([a, b], axis=1)) - hd
+        apart = (dt > 0.0).all(axis=1) & (g > 0.0).all(axis=1)
+        gs = np.where(g > 0.0, g, 1.0)
+        grad = np.minimum(np.linalg.norm(b - a, axis=1) / gs ** 2, 4.0 / gs).sum(axis=1)
+        omega = 4.0 * np.pi * winding_direct(t, p0)
+        each += np.where(apart, np.minimum(crude.sum(axis=1), np.abs(omega) + grad * hd), crude.sum(axis=1))
+        signed_rest += np.where(apart, grad * hd, crude.sum(axis=1))
+        omega_all += np.where(apart, omega, 0.0)
+    return np.minimum(each, signed_rest + np.abs(omega_all))
+
+
 def report(mesh, n: int, sample: int, threshold: float = 0.5, seed: int = 0) -> list[str]:
     spec = grid_for(mesh, n)
     with captured_walk() as seen, warnings.catch_warnings():
@@ -183,6 +218,13 @@ def report(mesh, n: int, sample: int, threshold: float = 0.5, seed: int = 0) -> 
     for size in CELLS:
         free, decided = first_order_share(points, closed, fans, edges, threshold, size)
         lines.append(f"| {size}^3 | {free:.3f} | {decided:.3f} |")
+    # the caps' own bound over a walked block's ball and over its 4^3 cell's
+    limit = 4.0 * np.pi * cap_margin(threshold, WINDING_TIE)
+    pick = blocks if len(blocks) <= sample else blocks[np.sort(rng.choice(len(blocks), sample, replace=False))]
+    lines += ["", "| the caps' bound over the ball of | walked blocks it decides |", "|---|---|"]
+    for label, centers, hd in (("a block's 4 voxel centers", pick + (2.0, 0.5, 0.5), 1.5),
+                               ("its cell of 4^3 voxels", pick // 4 * 4 + 2.0, 1.5 * np.sqrt(3.0))):
+        lines.append(f"| {label} | {(caps_bound(centers, hd, cv, capped) < limit).mean():.3f} |")
     return lines
 
 

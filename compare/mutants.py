@@ -269,6 +269,11 @@ MUTANTS: list[Mutant] = [
            (("        c0, t0 = time.thread_time(), time.perf_counter()", "        c0, t0 = time.process_time(), time.perf_counter()"),
             ("        cpus.append(time.thread_time() - c0)", "        cpus.append(time.process_time() - c0)")),
            ("tests/test_gpu_report.py", "-k", "per_call")),
+    Mutant("far-voxels-caps-bound-no-gradient", "compare/gwn_far_voxels.py's model of the caps' bound: "
+           "a fan's solid angle at the ball's center taken for the whole ball (no gradient term)",
+           "compare/gwn_far_voxels.py",
+           (("np.minimum(crude.sum(axis=1), np.abs(omega) + grad * hd)", "np.minimum(crude.sum(axis=1), np.abs(omega))"),),
+           ("tests/test_gwn.py", "-k", "caps_bound_holds_over")),
     Mutant("gwn-tree-scale-power", "gwn-solid's tree mapped onto a grid: one T entry scaled by the cube "
            "of the voxel size, not its fourth power", "glvox/methods/gwn/tree.py",
            (("                         4, 4, 4, 4, 4, 4, 4, 4, 4, 4, 4, 2, 1, 0, 0, 0]",

@@ -1038,6 +1038,33 @@ def test_far_voxels_script_reads_the_walk(gl_context, shared_mesh):
     agree = re.search(r"exact w against gwn-solid's bits: ([01]\.\d{4}) agree", text)
     assert agree and float(agree.group(1)) >= 0.99  # all but ties (none in this sample on llvmpipe)
     assert len(re.findall(r"^\| [842]\^3 \| [01]\.\d{3} \| [01]\.\d{3} \|$", text, re.M)) == 3
+    assert len(re.findall(r"^\| (a block's 4 voxel centers|its cell of 4\^3 voxels) \| [01]\.\d{3} \|$",
+                          text, re.M)) == 2
+
+
+def test_far_voxels_caps_bound_holds_over_its_balls(shared_mesh):
+    """compare/gwn_far_voxels.py's float64 model of the caps' bound (caps.glsl's
+    caps_decide) bounds |Omega_K|, the solid angle of the fans that close the
+    teapot's loops, at every point of each ball it is taken over (the direct
+    sums at points sampled in the balls), and is not vacuous: it decides some
+    balls and not others (near the rims)."""
+    far = load_script("gwn_far_voxels")
+    mesh = load_mesh(shared_mesh("messy_teapot_newell.obj"))
+    spec = glvox.grid_for(mesh, 64)
+    capped = capped_mesh(mesh, boundary_loops(mesh))
+    vox = spec.world_to_voxel(capped.mesh.vertices)
+    fans = vox[capped.mesh.faces[capped.first:]]
+    rng = np.random.default_rng(5)
+    centers = rng.uniform(0, 64, size=(300, 3))
+    for hd in (1.5, 4.0):
+        bound = far.caps_bound(centers, hd, vox, capped)
+        d = rng.normal(size=(300, 8, 3))
+        d *= (hd * rng.uniform(0, 1, size=(300, 8, 1)) ** (1 / 3)) / np.linalg.norm(d, axis=2, keepdims=True)
+        pts = (centers[:, None] + d).reshape(-1, 3)
+        omega = 4 * np.pi * np.abs(winding_direct(fans, pts)).reshape(300, 8).max(axis=1)
+        assert (omega <= bound + 1e-9).all()
+        limit = 4 * np.pi * 0.4999
+        assert 0.05 < (bound < limit).mean() < 0.99
 
 
 def test_caps_deciding_every_brick_give_the_capped_mesh(gl_context, shared_mesh, monkeypatch):
