@@ -172,7 +172,7 @@ class ClusterTree:
         Nodes on the longest root-to-leaf path.
     topology : TreeTopology
         What of the tree does not depend on the grid (shared by the trees of
-        one mesh on every grid: :func:`mesh_topology`).
+        one mesh on every grid: :func:`mesh_tree`).
     """
 
     edges: np.ndarray
@@ -363,7 +363,9 @@ def _on_grid(top: TreeTopology, records: np.ndarray, origin: np.ndarray, scale: 
 def _node_records(top: TreeTopology, loop_cent: np.ndarray, vox: np.ndarray) -> np.ndarray:
     """Center, radius and moments of every node (:data:`NODE_VEC4` vec4 each, float64,
     radii without :data:`RADIUS_MARGIN`), for all nodes at once: one row per (node,
-    polygon edge), reduced per node.
+    polygon edge), reduced per node.  ``vox``: the vertices in any units (voxel
+    space, or the mesh's own for :func:`mesh_tree`), ``loop_cent`` the loops'
+    centroids in the same.
 
     The patch spanning a node's polygons is a fan around the node's center for
     a piece of a loop (its path and chord), and around each loop's own
