@@ -29,7 +29,7 @@ from glvox.metrics import check_against_reference, tie_set
 from glvox.reference import TIE_EPS
 from glvox.study.selftest import TIE_HULL, TIE_HULL_DIMS
 from glvox.testing import harness, tie_probe
-from glvox.testing.slices import eisemann_slices, off_slices
+from glvox.testing.slices import off_slices
 
 WATERTIGHT = ("cad_fandisk.off", "cad_featuretype.stl", "cad_rocker_arm.obj", "cad_wingnut.obj",
               "depth_reduced_diamond_lattice.stl", "stanford_armadillo_libigl_86k.obj")

@@ -165,7 +165,6 @@ def _evaluate(text: str, names: Mapping[str, Any], undefined_zero: bool = False)
 def _active_lines(text: str) -> tuple[list[str], dict[str, Any]]:
     """The lines the preprocessor keeps and the object-like macros' values
     (those that are integer expressions) at the end."""
-    macros: dict[str, Any] = {}
     raw: dict[str, str] = {}
     kept: list[str] = []
     stack: list[tuple[bool, bool]] = []  # (this branch active, some branch of this #if taken)
