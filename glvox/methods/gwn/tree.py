@@ -378,11 +378,10 @@ def _node_records(top: TreeTopology, loop_cent: np.ndarray, vox: np.ndarray) -> 
     out = np.zeros((len(polys), NODE_VEC4, 4), dtype=np.float64)
     if not len(polys):
         return out
-    p = np.asarray(polys, np.int64).reshape(-1, 5)
-    first, count, cu, cv, whole = p.T
+    first, count, cu, cv, whole = polys.T
     has = cu >= 0
     sizes = count + has
-    owner = np.repeat(np.arange(len(p)), sizes)
+    owner = np.repeat(np.arange(len(polys)), sizes)
     start = np.concatenate([[0], np.cumsum(sizes)[:-1]])
     local = np.arange(int(sizes.sum())) - start[owner]
     chord = local == count[owner]  # the last row of a node with a chord
