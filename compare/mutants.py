@@ -517,6 +517,11 @@ MUTANTS: list[Mutant] = [
            "shaders/depth/raster.geom",
            (("fixed_center(pix, u_fix_bits), w_unused", "fixed_center(pix, u_fix_bits) + (1 << (u_fix_bits - 2)), w_unused"),),
            ("tests/test_depth.py", "-k", "culls or watertight or generated")),
+    Mutant("depth-key-rounded-depth", "the z-buffers' key is the depth rounded to float again, which can give "
+           "two crossings across a slot's boundary one key", "shaders/depth/key.glsl",
+           (("    return uintBitsToFloat(u_far ? KEY_LAST - m : KEY_FIRST + m);",
+             "    float key = float((q + 4.0lf) / double(u_depth_n + 8));\n    return u_far ? 1.0 - key : key;"),),
+           ("tests/test_depth.py", "-k", "depth_keys")),
     Mutant("binvox-wire-owners-ignored", "binvox-solid -aw: the wireframe draws every copy of a shared edge",
            "shaders/binvox/wire.geom",
            (("        if ((own & (1u << uint(k))) == 0u) continue;\n", ""),),

@@ -35,6 +35,7 @@ from glvox.reference import mismatch_is_tie, solid
 from glvox.reference._candidates import normals
 from glvox.reference.solid import axis_signs
 from glvox.reference.solid import column_crossings as reference_crossings
+from glvox.testing import harness
 
 WATERTIGHT = ("cad_fandisk.off", "cad_featuretype.stl", "cad_rocker_arm.obj", "cad_wingnut.obj",
               "depth_reduced_diamond_lattice.stl", "stanford_armadillo_libigl_86k.obj")
@@ -321,7 +322,7 @@ def test_the_geometry_stage_culls_a_small_box_whose_centers_the_triangle_misses(
         bufs = mesh_buffers(gl_context, mesh)
         query = gl_context.mgl.query(primitives=True)
         with depth_raster.RasterPass(gl_context, bufs, grid_uniforms(spec, bufs.anchor)) as run:
-            run.set_view(spec, spec.world_to_voxel(mesh.bounds), 2, (16, 16), fixed_bits(mesh, spec, 2))
+            run.set_view(spec, 2, (16, 16), fixed_bits(mesh, spec, 2))
             run.set_tile((0, 0))
             run.draw(depth_raster.depth_target(gl_context, (16, 16)), 0, query=query)
         return query.primitives
@@ -573,3 +574,46 @@ def test_stages_stats_state_and_reuse(gl_context):
         info = get_method(name).info
         assert (info.kind, info.pipeline, info.reference) == ("solid", "raster", "reference-solid")
         assert info.exact == (name == "passalis-peel")
+
+
+def _gpu_keys(ctx, q, uniforms):
+    """(key, slot) of depth/key.glsl at the depths ``q`` on the GPU."""
+    got = harness.run_compute(ctx, "testing/depth_key.comp", -(-len(q) // 64), read=["Keys"],
+                              buffers={"Depths": q, "Keys": (2 * len(q), np.uint32)},
+                              uniforms={**uniforms, "u_n": len(q)})["Keys"].reshape(-1, 2)
+    return got[:, 0].view(np.float32), got[:, 1]
+
+
+@pytest.mark.parametrize("far", [False, True])
+def test_depth_keys_order_slots_exactly(gl_context, far):
+    """The z-buffers that carve and pair keep a column's nearest or farthest *slot* (the
+    first voxel beyond a crossing) through the depth test on float keys.  The keys of
+    depth/key.glsl are floats built from integer bits: they are the numpy model's bit for
+    bit on any GL, normal floats in (0, 1), monotone in the depth (reversed from the far
+    face), and equal only within one slot, also for depths 1e-12 voxel apart across a
+    slot's boundary.  The depth rounded to float, the key before, shares keys across
+    slots on these same depths (a fuzzed binvox-solid case lost a voxel to it)."""
+    n = 58  # a binvox-solid view: 58 voxels along the rays
+    rng = np.random.default_rng(7)
+    k = np.arange(-1, n + 2, dtype=np.float64)
+    offsets = np.array([-1e-6, -2.3e-7, -5e-8, -1e-12, 0.0, 1e-12, 5e-8, 1.8e-7, 1e-6, 0.25])
+    q = np.sort(np.concatenate([(k[:, None] + 0.5 + offsets).ravel(), rng.uniform(-3, n + 3, 500)]))
+    uniforms = depth_raster.key_uniforms(n)
+    assert uniforms["u_key_frac_bits"] == 29 - 6  # slots 0..58 take 6 bits
+    got = harness.run_compute(gl_context, "testing/depth_key.comp", -(-len(q) // 64), read=["Keys"],
+                              buffers={"Depths": q, "Keys": (2 * len(q), np.uint32)},
+                              uniforms={**uniforms, "u_n": len(q), "u_far": far})["Keys"].reshape(-1, 2)
+    bits, slot = got[:, 0], got[:, 1]
+    steps = 2 ** uniforms["u_key_frac_bits"]
+    want_slot = np.clip(np.floor(q + 0.5), 0, n).astype(np.int64)
+    m = want_slot * steps + np.clip(np.floor((q - (want_slot - 0.5)) * steps), 0, steps - 1).astype(np.int64)
+    assert np.array_equal(slot, want_slot)
+    assert np.array_equal(bits, (0x3F7FFFFF - m) if far else (0x00800000 + m))
+    key = bits.view(np.float32)
+    assert ((key >= np.finfo(np.float32).tiny) & (key < 1)).all()
+    assert ((-np.diff(key) if far else np.diff(key)) >= 0).all()  # q ascending
+    assert not ((np.diff(key) == 0) & (np.diff(slot) != 0)).any()
+    # the depth rounded to float over the view's extent, as the key was before
+    rounded = ((q - (3.3333 - 2)) / (54.6667 - 3.3333 + 4)).astype(np.float32)
+    rounded = (1 - rounded).astype(np.float32) if far else rounded
+    assert ((np.diff(rounded) == 0) & (np.diff(slot) != 0)).any()

@@ -5,16 +5,14 @@
 // across it the pixel holds the line at c, p = s + t (e - s) with t = (c - s) / (e - s)
 // (interpolated from the end point with the smaller major coordinate, so both directions
 // of a shared edge give the same pixels).  The output is depth/raster.frag's layer, keyed
-// the same way, so that the z-buffer keeps the nearest (farthest) of lines and crossings.
+// the same way (depth/key.glsl), so that the z-buffer keeps the nearest (farthest) of
+// lines and crossings.
+#include "depth/key.glsl"
 flat in vec3 g_s;
 flat in vec3 g_e;
 flat in int g_major;
 flat in uint g_id;
 uniform ivec2 u_tile_origin;
-uniform int u_depth_n;
-uniform double u_key_lo;
-uniform double u_key_scale;
-uniform bool u_far;
 layout(location = 0) out uvec4 o_layer;
 
 void main() {
@@ -28,11 +26,8 @@ void main() {
     precise double pm = s[minor] + t * (e[minor] - s[minor]);
     if (floor(pm) != double(col[minor])) discard;
     precise double q = s.z + t * (e.z - s.z);
-    precise double kd = (q - u_key_lo) * u_key_scale;
-    float key = float(kd);
-    if (u_far) key = 1.0 - key;
-    precise double first = floor(q + 0.5);
-    uint slot = first >= double(u_depth_n) ? uint(u_depth_n) : uint(max(first, 0.0lf));
+    uint slot = depth_slot(q);
+    float key = depth_key(q, slot);
     gl_FragDepth = key;
     uint holder = uint(clamp(floor(q), -1.0lf, double(u_depth_n)) + 2.0lf);
     o_layer = uvec4(floatBitsToUint(key), g_id, slot, holder);

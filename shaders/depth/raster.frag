@@ -5,12 +5,10 @@
 // depth q is the barycentric combination of the vertices' depths with the exact edge
 // functions as weights, in double, in voxel units.
 //
-// The depth test orders crossings by a key: (q - u_key_lo) * u_key_scale rounded to float,
-// monotone in q and inside (0, 1) for the whole mesh (reversed with u_far, so that the test
-// keeps the farthest crossing: the view from the opposite face of the bounding box; there
-// it is LEQUAL, so of equal keys the last in primitive order wins, and a class's nearest and
-// farthest crossings differ whenever it has two).  The key is written as gl_FragDepth into
-// a 32-bit float depth buffer, which stores it unchanged.
+// The depth test orders crossings by a key (depth/key.glsl), reversed with u_far, so that
+// the test keeps the farthest crossing: the view from the opposite face of the bounding
+// box; there it is LEQUAL, so of equal keys the last in primitive order wins, and a
+// class's nearest and farthest crossings differ whenever it has two.
 //
 // Depth peeling (Sec. 3.3): the previous layer of the same facing class is held in a
 // texture, and a fragment passes only when its (key, triangle id) is larger than the
@@ -18,6 +16,7 @@
 // keeps the first of equal keys in primitive order, i.e. the smallest id, so the layers
 // enumerate every crossing of a column exactly once, however close two of them are.
 #include "depth/cover.glsl"
+#include "depth/key.glsl"
 flat in vec3 g_p0;
 flat in vec3 g_p1;
 flat in vec3 g_p2;
@@ -29,10 +28,6 @@ flat in double g_inv_area2;
 flat in uint g_id;
 uniform int u_fix_bits;
 uniform ivec2 u_tile_origin;
-uniform int u_depth_n;       // voxels along the rays
-uniform double u_key_lo;
-uniform double u_key_scale;
-uniform bool u_far;
 uniform bool u_peel;
 uniform usampler2D u_prev;   // previous layer: (key bits, id, slot, valid)
 // The layer: key bits, triangle id, the first voxel whose center lies beyond the crossing
@@ -57,17 +52,14 @@ void main() {
     dvec3 w;
     if (!covers(ivec2[3](g_f0, g_f1, g_f2), g_sgn, cf, w)) discard;
     double q = crossing(a, b, d, w);
-    precise double kd = (q - u_key_lo) * u_key_scale;
-    float key = float(kd);
-    if (u_far) key = 1.0 - key;
+    uint slot = depth_slot(q);
+    float key = depth_key(q, slot);
     if (u_peel) {
         uvec4 prev = texelFetch(u_prev, pix, 0);
         if (prev.w == 0u) discard;  // the previous layer was empty: so is this one
         float kp = uintBitsToFloat(prev.x);
         if (!(key > kp || (key == kp && g_id > prev.y))) discard;
     }
-    precise double first = floor(q + 0.5);
-    uint slot = first >= double(u_depth_n) ? uint(u_depth_n) : uint(max(first, 0.0lf));
     gl_FragDepth = key;
     uint holder = uint(clamp(floor(q), -1.0lf, double(u_depth_n)) + 2.0lf);
     o_layer = uvec4(floatBitsToUint(key), g_id, slot, holder);

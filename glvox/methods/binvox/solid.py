@@ -57,7 +57,7 @@ from ...reference.binvox import empty_cause, fine_snap_eps
 from ...results.voxels import VoxelGrid
 from ..base import Method, MethodInfo, Option, Requirements, register
 from ..depth.layers import prefix_xor
-from ..depth.raster import RasterPass, depth_target, peel_behind, tile_origins, tile_side
+from ..depth.raster import RasterPass, depth_target, key_uniforms, peel_behind, tile_origins, tile_side
 
 MODES = ("default", "carve", "vote")
 
@@ -195,12 +195,10 @@ class _BinvoxRun(RasterPass):
             self.owners = None
         super().__exit__(*exc)
 
-    def set_view(self, spec, bounds, axis: int, size: tuple[int, int], fix_bits: int) -> None:
-        super().set_view(spec, bounds, axis, size, fix_bits)
+    def set_view(self, spec, axis: int, size: tuple[int, int], fix_bits: int) -> None:
+        super().set_view(spec, axis, size, fix_bits)
         if self.wire is not None:  # the same depth key as the triangles'
-            lo, hi = float(bounds[0, axis]) - 2.0, float(bounds[1, axis]) + 2.0
-            set_uniforms(self.wire, {"u_axis": axis, "u_target_size": size, "u_depth_n": spec.dims[axis],
-                                     "u_key_lo": lo, "u_key_scale": 1.0 / (hi - lo)})
+            set_uniforms(self.wire, {"u_axis": axis, "u_target_size": size, **key_uniforms(spec.dims[axis])})
 
     def set_tile(self, origin: tuple[int, int]) -> None:
         super().set_tile(origin)
@@ -278,7 +276,6 @@ class BinvoxSolid(Method):
             set_uniforms(prog, uniforms)
         for prog in records:
             set_uniforms(prog, {"u_layer": 0, "u_stencil": 1, "u_dilate": int(bool(dilated))})
-        bounds = spec.world_to_voxel(mesh.bounds)
         layers: dict[str, int] = {}
         tiles: dict[str, int] = {}
         with _BinvoxRun(ctx, bufs, uniforms, record, out, wire and carve, snap_defines(fine_snap_eps(down)),
@@ -289,7 +286,7 @@ class BinvoxSolid(Method):
                 size, origins = tile_origins(n_u, n_v, side)
                 target = depth_target(ctx, size)
                 tiles[name] = len(origins)
-                run.set_view(spec, bounds, axis, size, fix[axis])
+                run.set_view(spec, axis, size, fix[axis])
                 for prog in records:
                     set_uniforms(prog, {"u_axis": axis, "u_view_size": (n_u, n_v)})
                 if carve:

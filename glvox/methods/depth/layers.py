@@ -172,12 +172,11 @@ class _DepthLayers(Method):
             set_uniforms(prog, uniforms)
         for prog in record.values():
             set_uniforms(prog, {"u_layer": 0, "u_dedupe": 1, "u_stencil": 2})
-        bounds = spec.world_to_voxel(mesh.bounds)
         passes, counts, tiles = {}, {}, {}
         with _Run(ctx, bufs, uniforms, record, grids) as run:
             for n_axis, axis in enumerate(axis_ids):
                 name = _AXIS_NAMES[axis]
-                tiles[name] = self._layers(run, spec, bounds, axis, side, timer, fix[axis])
+                tiles[name] = self._layers(run, spec, axis, side, timer, fix[axis])
                 passes[name], counts[name] = run.passes, run.counts
                 with timer.stage(f"classify_{name}"):
                     self._classify(ctx, spec, axis, n_axis, len(axis_ids), scan, combine, grids)
@@ -215,13 +214,13 @@ class _DepthLayers(Method):
                            what="per-column crossing flags", clear=False)
         return _Grids(flips, acc, crowded, pool.get("stats", 16), pool.get("count", 8))
 
-    def _layers(self, run: "_Run", spec, bounds, axis: int, side: int, timer, fix_bits: int) -> int:
+    def _layers(self, run: "_Run", spec, axis: int, side: int, timer, fix_bits: int) -> int:
         """Stage ``layers_<axis>`` (step 1), tile by tile: the z-buffers of :meth:`_views`,
         each recorded into the flip grid; returns the number of tiles."""
         n_u, n_v = spec.dims[(axis + 1) % 3], spec.dims[(axis + 2) % 3]
         size, origins = tile_origins(n_u, n_v, side)
         target = depth_target(run.ctx, size)
-        run.set_view(spec, bounds, axis, size, fix_bits)
+        run.set_view(spec, axis, size, fix_bits)
         for prog in run.record.values():
             set_uniforms(prog, {"u_axis": axis, "u_view_size": (n_u, n_v)})
         with timer.stage(f"layers_{_AXIS_NAMES[axis]}"):

@@ -44,6 +44,18 @@ STENCIL_MAX = 255
 #: Owner of this module's objects in :func:`glvox.gpu.buffers.object_cache`.
 _CACHE = "depth-raster"
 
+#: Bits of ``shaders/depth/key.glsl``'s keys below their first: positive float32
+#: bit patterns from the smallest normal float up to 1 hold 2 ** 29 and more values.
+KEY_BITS = 29
+
+
+def key_uniforms(n_axis: int) -> dict[str, Any]:
+    """``shaders/depth/key.glsl``'s uniforms for a view with ``n_axis`` voxels along its
+    rays: keys that order the slots (the first voxel beyond a crossing) exactly, with
+    ``KEY_BITS - bits(n_axis + 1)`` bits for the order within a slot (at least 10 on any
+    grid: :data:`glvox.grid.MAX_DIM` voxels, times 4 for binvox's ``down``)."""
+    return {"u_depth_n": n_axis, "u_key_frac_bits": KEY_BITS - (n_axis + 1).bit_length()}
+
 
 # ---------------------------------------------------------------------------
 # render targets: layer textures and a depth-stencil texture, made through the raw binding
@@ -260,17 +272,12 @@ class RasterPass:
         self.vao.release()
         self.vao = None
 
-    def set_view(self, spec, bounds, axis: int, size: tuple[int, int], fix_bits: int) -> None:
-        """Rays along ``axis``, targets of ``size``; ``bounds`` (2, 3) the mesh's, in voxels;
-        coverage decided on (u, v) in multiples of 2^-``fix_bits`` voxel
-        (:func:`glvox.gpu.fixed_point.fixed_bits` of the mesh, the grid and ``axis``).
-
-        The depth key maps the mesh's extent along the rays into (0, 1), with
-        room for float32 vertices slightly outside the float64 bounds.
-        """
-        lo, hi = float(bounds[0, axis]) - 2.0, float(bounds[1, axis]) + 2.0
-        set_uniforms(self.program, {"u_axis": axis, "u_target_size": size, "u_depth_n": spec.dims[axis],
-                                    "u_key_lo": lo, "u_key_scale": 1.0 / (hi - lo), "u_fix_bits": fix_bits})
+    def set_view(self, spec, axis: int, size: tuple[int, int], fix_bits: int) -> None:
+        """Rays along ``axis``, targets of ``size``; coverage decided on (u, v) in
+        multiples of 2^-``fix_bits`` voxel (:func:`glvox.gpu.fixed_point.fixed_bits` of the
+        mesh, the grid and ``axis``); the depth keys of :func:`key_uniforms`."""
+        set_uniforms(self.program, {"u_axis": axis, "u_target_size": size, "u_fix_bits": fix_bits,
+                                    **key_uniforms(spec.dims[axis])})
 
     def set_tile(self, origin: tuple[int, int]) -> None:
         set_uniforms(self.program, {"u_tile_origin": origin})

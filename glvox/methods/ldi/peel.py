@@ -195,7 +195,7 @@ def peeled_ldi(ctx, mesh, spec, *, timer, axis: int = 2, tile: int = 0, owner: s
     peeling = _Peeling(ctx, mesh, rays, size, owner, fix_bits)
     target = depth_target(ctx, size)
     with RasterPass(ctx, peeling.bufs, peeling.uniforms) as run:
-        run.set_view(spec, spec.world_to_voxel(mesh.bounds), rays.axis, size, fix_bits)
+        run.set_view(spec, rays.axis, size, fix_bits)
         with timer.stage("peel"):
             layers = peeling.peel(run, target, origins)
     with timer.stage("finish"):
