@@ -522,6 +522,10 @@ MUTANTS: list[Mutant] = [
            (("    return uintBitsToFloat(u_far ? KEY_LAST - m : KEY_FIRST + m);",
              "    float key = float((q + 4.0lf) / double(u_depth_n + 8));\n    return u_far ? 1.0 - key : key;"),),
            ("tests/test_depth.py", "-k", "depth_keys")),
+    Mutant("raster-view-size-unchecked", "depth/raster.frag leaves the view's size to the geometry stage alone "
+           "(softpipe then draws nothing in a view after a view of another size)", "shaders/depth/raster.frag",
+           (("    if (any(greaterThanEqual(pix, u_target_size))) discard;\n", ""),),
+           ("tests/test_drivers.py", "-k", "different_sizes")),
     Mutant("binvox-wire-owners-ignored", "binvox-solid -aw: the wireframe draws every copy of a shared edge",
            "shaders/binvox/wire.geom",
            (("        if ((own & (1u << uint(k))) == 0u) continue;\n", ""),),

@@ -216,6 +216,38 @@ def test_binvox_parity_vote_on_softpipe(softpipe, tmp_path):
     assert want.sum() > 0 and np.array_equal(got, want), int((got ^ want).sum())
 
 
+#: A box that one axis's view sees at another size than the next axis's view, all else alike
+#: (grid 3 x 3 x 8 of unit voxels; the x and y views are 3 x 8 and 8 x 3 pixels).
+VIEW_SIZES_CHECK = """
+import json, trimesh
+from glvox.grid import GridSpec
+from glvox.mesh import load_mesh
+from glvox.methods import run_method
+box = trimesh.creation.box(bounds=[[0.2, 0.2, 0.3], [2.7, 2.7, 7.6]])
+mesh = load_mesh((box.vertices, box.faces), name="box")
+spec = GridSpec((3, 3, 8), (0, 0, 0), 1.0)
+out = {}
+for name, ref in (("karabassi", "reference-solid"), ("passalis-stencil", "reference-solid"),
+                  ("passalis-peel", "reference-solid"), ("binvox-solid", "reference-binvox")):
+    got, want = run_method(name, mesh, spec).dense(), run_method(ref, mesh, spec).dense()
+    out[name] = [int(want.sum()), int((got ^ want).sum())]
+print(json.dumps(out))
+"""
+
+
+def test_softpipe_draws_views_of_different_sizes(softpipe):
+    """On softpipe, a raster view drawn after a view of another size drew nothing where
+    only the geometry stage's uniforms changed between them (its size among them): this
+    box came out empty from the depth-buffer methods.  The old depth keys' per-view
+    doubles had hidden it where the mesh's extents differ along the axes.  The fragment
+    stages now check their pixel against the view's size, so that it is theirs too."""
+    proc = subprocess.run([sys.executable, "-c", VIEW_SIZES_CHECK], capture_output=True, text=True,
+                          env={**os.environ, **SOFTPIPE}, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    for name, (voxels, off) in json.loads(proc.stdout).items():
+        assert voxels == 72 and off == 0, (name, voxels, off)
+
+
 @pytest.fixture(scope="module")
 def zink() -> dict[str, str]:
     """The zink environment (:func:`zink_env`); skips where it does not give zink."""

@@ -27,6 +27,7 @@ flat in int g_sgn;
 flat in double g_inv_area2;
 flat in uint g_id;
 uniform int u_fix_bits;
+uniform ivec2 u_target_size;  // also the geometry stage's: see main
 uniform ivec2 u_tile_origin;
 uniform bool u_peel;
 uniform usampler2D u_prev;   // previous layer: (key bits, id, slot, valid)
@@ -47,6 +48,10 @@ double crossing(dvec3 a, dvec3 b, dvec3 d, dvec3 w) {
 
 void main() {
     ivec2 pix = ivec2(gl_FragCoord.xy);
+    // Never true on a conforming GL (the target is the viewport).  It makes the view's size
+    // a uniform of this stage too: softpipe drew nothing in a view when only the geometry
+    // stage's uniforms changed from a view of another size (tests/test_drivers.py).
+    if (any(greaterThanEqual(pix, u_target_size))) discard;
     ivec2 cf = fixed_center(pix + u_tile_origin, u_fix_bits);
     dvec3 a = dvec3(g_p0), b = dvec3(g_p1), d = dvec3(g_p2);
     dvec3 w;
