@@ -517,14 +517,15 @@ MUTANTS: list[Mutant] = [
            "shaders/depth/raster.geom",
            (("fixed_center(pix, u_fix_bits), w_unused", "fixed_center(pix, u_fix_bits) + (1 << (u_fix_bits - 2)), w_unused"),),
            ("tests/test_depth.py", "-k", "culls or watertight or generated")),
-    Mutant("depth-key-rounded-depth", "the z-buffers' key is the depth rounded to float again, which can give "
+    Mutant("depth-key-rounded-depth", "the z-buffers' key is the depth (its code) rounded to float again, which can give "
            "two crossings across a slot's boundary one key", "shaders/depth/key.glsl",
            (("    return uintBitsToFloat(u_far ? KEY_LAST - m : KEY_FIRST + m);",
-             "    float key = float((q + 4.0lf) / double(u_depth_n + 8));\n    return u_far ? 1.0 - key : key;"),),
+             "    float key = float(double(m) / 536870912.0lf);\n    return u_far ? 1.0 - key : key;"),),
            ("tests/test_depth.py", "-k", "depth_keys")),
     Mutant("raster-view-size-unchecked", "depth/raster.frag leaves the view's size to the geometry stage alone "
            "(softpipe then draws nothing in a view after a view of another size)", "shaders/depth/raster.frag",
-           (("    if (any(greaterThanEqual(pix, u_target_size))) discard;\n", ""),),
+           (("    ivec2 pix = min(ivec2(gl_FragCoord.xy), u_target_size - 1);",
+             "    ivec2 pix = ivec2(gl_FragCoord.xy);"),),
            ("tests/test_drivers.py", "-k", "different_sizes")),
     Mutant("binvox-wire-owners-ignored", "binvox-solid -aw: the wireframe draws every copy of a shared edge",
            "shaders/binvox/wire.geom",

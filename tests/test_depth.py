@@ -605,9 +605,9 @@ def test_depth_keys_order_slots_exactly(gl_context, far):
                               uniforms={**uniforms, "u_n": len(q), "u_far": far})["Keys"].reshape(-1, 2)
     bits, slot = got[:, 0], got[:, 1]
     steps = 2 ** uniforms["u_key_frac_bits"]
-    want_slot = np.clip(np.floor(q + 0.5), 0, n).astype(np.int64)
-    m = want_slot * steps + np.clip(np.floor((q - (want_slot - 0.5)) * steps), 0, steps - 1).astype(np.int64)
-    assert np.array_equal(slot, want_slot)
+    m = np.clip(np.floor((q + 0.5) * steps), 0, (n + 1) * steps - 1).astype(np.int64)
+    assert np.array_equal(slot, np.clip(np.floor(q + 0.5), 0, n))  # the references' slot
+    assert np.array_equal(slot, m // steps)
     assert np.array_equal(bits, (0x3F7FFFFF - m) if far else (0x00800000 + m))
     key = bits.view(np.float32)
     assert ((key >= np.finfo(np.float32).tiny) & (key < 1)).all()

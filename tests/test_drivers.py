@@ -240,7 +240,7 @@ def test_softpipe_draws_views_of_different_sizes(softpipe):
     only the geometry stage's uniforms changed between them (its size among them): this
     box came out empty from the depth-buffer methods.  The old depth keys' per-view
     doubles had hidden it where the mesh's extents differ along the axes.  The fragment
-    stages now check their pixel against the view's size, so that it is theirs too."""
+    stage now clamps its pixel to the view's size, so that the size is its uniform too."""
     proc = subprocess.run([sys.executable, "-c", VIEW_SIZES_CHECK], capture_output=True, text=True,
                           env={**os.environ, **SOFTPIPE}, timeout=600)
     assert proc.returncode == 0, proc.stderr[-2000:]

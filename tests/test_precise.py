@@ -45,7 +45,7 @@ REQUIRED = {
                              "eis_first_flipped"},
     "depth/cover.glsl": {"covers"},
     "depth/raster.frag": {"crossing"},
-    "depth/key.glsl": {"depth_slot", "depth_key"},
+    "depth/key.glsl": {"depth_code"},
     "gwn/strip.glsl": {"gwn_edge"},
     "scanline/lines.glsl": {"clip_axis", "clip_segment", "fline_t"},
     "scanline/voxelize.comp": {"float_triangle", "icross"},

@@ -26,8 +26,9 @@ void main() {
     precise double pm = s[minor] + t * (e[minor] - s[minor]);
     if (floor(pm) != double(col[minor])) discard;
     precise double q = s.z + t * (e.z - s.z);
-    uint slot = depth_slot(q);
-    float key = depth_key(q, slot);
+    uint code = depth_code(q);
+    uint slot = code_slot(code);
+    float key = depth_key(code);
     gl_FragDepth = key;
     uint holder = uint(clamp(floor(q), -1.0lf, double(u_depth_n)) + 2.0lf);
     o_layer = uvec4(floatBitsToUint(key), g_id, slot, holder);

@@ -5,13 +5,14 @@
 // them is that crossing's slot: the first voxel whose center lies beyond it.  Depth
 // peeling enumerates (key, triangle id) in increasing order.
 //
-// The key is a float built from its bits: m = slot * 2^F + b, with b the crossing's
-// place within its slot in steps of 2^-F voxel (F = u_key_frac_bits; the caller takes
-// (u_depth_n + 1) * 2^F <= 2^29: glvox.methods.depth.raster.key_uniforms), and the key
-// the float whose bits are KEY_FIRST + m (KEY_LAST - m with u_far).  Positive floats
-// order as their bits do, so keys are monotone in the depth, equal keys have the same
-// slot, and nothing is rounded but b, on any GL; the keys lie in [2^-126, 1), normal
-// floats (a depth buffer may flush denormals).
+// The key is a float built from integer bits: the code m = slot * 2^F + b (depth_code),
+// b the crossing's place within its slot in steps of 2^-F voxel (F = u_key_frac_bits;
+// the caller takes (u_depth_n + 1) * 2^F <= 2^29: glvox.methods.depth.raster.key_uniforms),
+// and the key the float whose bits are KEY_FIRST + m (KEY_LAST - m with u_far).  Positive
+// floats order as their bits do, so keys are monotone in the depth, equal keys have the
+// same slot, and nothing is rounded but b, on any GL whose floating-point depth buffer
+// holds the float written (as GL requires); the keys lie in [2^-126, 1), normal floats
+// (a depth buffer may flush denormals).
 //
 // The depth rounded to float, the key before, has a step of the extent along the rays
 // times up to 2^-24, and two depths closer than that across a slot's boundary k + 1/2
@@ -25,22 +26,21 @@ uniform bool u_far;
 const uint KEY_FIRST = 0x00800000u;  // the smallest normal float, 2^-126
 const uint KEY_LAST = 0x3F7FFFFFu;   // the largest float below 1
 
-// The first voxel whose center lies beyond a crossing at depth q (voxel i flips iff
-// i + 1/2 > q, i.e. i >= floor(q + 1/2)), clamped to [0, u_depth_n], with u_depth_n
-// meaning "beyond the grid".
-// exact: the reference's slot (glvox.reference.solid's first voxel beyond a crossing)
-uint depth_slot(double q) {
-    precise double first = floor(q + 0.5lf);
-    return first >= double(u_depth_n) ? uint(u_depth_n) : uint(max(first, 0.0lf));
+// The crossing's code m = slot * 2^F + b at depth q (the key's integer, above): with
+// x = q + 1/2 rounded once, as the reference rounds it, floor(x * 2^F) (exact: a power of
+// two) clamped to [0, (u_depth_n + 1) * 2^F - 1], whose slot m >> F is floor(x) clamped to
+// [0, u_depth_n]: the first voxel whose center lies beyond the crossing (voxel i flips iff
+// i + 1/2 > q), u_depth_n meaning "beyond the grid".
+// exact: the reference's slot in the high bits
+uint depth_code(double q) {
+    precise double x = (q + 0.5lf) * double(1u << uint(u_key_frac_bits));
+    double top = double(uint(u_depth_n + 1) << uint(u_key_frac_bits)) - 1.0lf;
+    return uint(clamp(floor(x), 0.0lf, top));
 }
 
-// The key of a crossing at depth q whose slot is depth_slot(q).
-// exact: the key's bits, tests/test_depth.py's model
-float depth_key(double q, uint slot) {
-    uint steps = 1u << uint(u_key_frac_bits);
-    // (q - (slot - 1/2)) in steps of 2^-F: its rounding orders crossings within a slot
-    // only, and leaves the slot alone
-    precise double within = (q - (double(slot) - 0.5lf)) * double(steps);
-    precise uint m = slot * steps + uint(clamp(floor(within), 0.0lf, double(steps - 1u)));
+uint code_slot(uint m) { return m >> uint(u_key_frac_bits); }
+
+// The key of code m (the float whose bits are KEY_FIRST + m, or KEY_LAST - m with u_far).
+float depth_key(uint m) {
     return uintBitsToFloat(u_far ? KEY_LAST - m : KEY_FIRST + m);
 }

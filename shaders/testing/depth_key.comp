@@ -1,5 +1,5 @@
 #version 450
-// depth_slot and depth_key of depth/key.glsl on a list of depths (voxel units):
+// depth_code, code_slot and depth_key of depth/key.glsl on a list of depths (voxel units):
 // tests/test_depth.py compares them with their numpy model and checks what the
 // z-buffers rely on (keys monotone in q, equal keys only within one slot).
 #include "depth/key.glsl"
@@ -12,6 +12,6 @@ void main() {
     uint i = gl_GlobalInvocationID.x;
     if (i >= u_n) return;
     double q = depths[i];
-    uint slot = depth_slot(q);
-    keys[i] = uvec2(floatBitsToUint(depth_key(q, slot)), slot);
+    uint code = depth_code(q);
+    keys[i] = uvec2(floatBitsToUint(depth_key(code)), code_slot(code));
 }
