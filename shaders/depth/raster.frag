@@ -50,7 +50,7 @@ void main() {
     // The clamp changes no pixel on a conforming GL (the target is the viewport).  It makes
     // the view's size a uniform of this stage too: softpipe drew nothing in a view when only
     // the geometry stage's uniforms changed from a view of another size
-    // (tests/test_drivers.py).  A discard there instead cost llvmpipe 10-15%.
+    // (tests/test_drivers.py).  A discard there instead cost llvmpipe up to 20%.
     ivec2 pix = min(ivec2(gl_FragCoord.xy), u_target_size - 1);
     ivec2 cf = fixed_center(pix + u_tile_origin, u_fix_bits);
     dvec3 a = dvec3(g_p0), b = dvec3(g_p1), d = dvec3(g_p2);
