@@ -44,8 +44,8 @@ STENCIL_MAX = 255
 #: Owner of this module's objects in :func:`glvox.gpu.buffers.object_cache`.
 _CACHE = "depth-raster"
 
-#: Bits of ``shaders/depth/key.glsl``'s keys below their first: positive float32
-#: bit patterns from the smallest normal float up to 1 hold 2 ** 29 and more values.
+#: ``shaders/depth/key.glsl``'s codes stay below 2 ** KEY_BITS: the float32 bit
+#: patterns from the smallest normal float up to 1 hold more values than that.
 KEY_BITS = 29
 
 
